@@ -1,0 +1,149 @@
+"""Textures: pigment (pattern + colour map), finish, interior — plain data; behaviour lives in
+``raytracer.shading`` (as Lajolla separates materials from their evaluation).
+
+Colours are 5-vectors ``(r, g, b, filter, transmit)``. Optional effects (reflection, phong,
+specular, metallic, refraction) are ``None`` when the scene does not ask for them, so the render
+plan can leave them out of the compiled program; a value of zero is still a parameter.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import numpy as np
+from jaxtyping import Array, Float
+
+from .._dtype import as_float, as_float_or_none
+from ._transform import Transform
+
+PATTERNS = ("solid", "checker", "gradient", "bozo", "spotted", "bumps", "granite", "marble", "wood",
+            "agate", "radial", "onion", "leopard", "ripples", "waves", "wrinkles", "dents", "spiral1",
+            "spiral2", "boxed", "spherical", "cylindrical", "planar", "hexagon", "brick")
+WAVES = ("ramp", "triangle", "sine", "scallop", "cubic", "poly")
+
+
+def _rgbft(c) -> np.ndarray:
+    c = np.asarray(c, dtype=np.float64)
+    if c.shape[-1] == 3:
+        c = np.concatenate([c, np.zeros(c.shape[:-1] + (2,))], axis=-1)
+    return c
+
+
+class Pigment(eqx.Module):
+    """A pattern evaluated at the hit point and mapped through a colour map (reference §5.2).
+
+    Attributes:
+        pattern:     static name, one of ``PATTERNS``.
+        values:      (M,) colour-map positions in [0, 1], ascending.
+        colors:      (M, 5) colour-map entries, RGBFT. A solid pigment has M = 1; ``checker`` has
+                     its two colours at positions 0 and 1.
+        transform:   ``world_from_pattern``; the pattern sees the inverse-transformed hit point.
+        vector:      (3,) pattern direction (``gradient``'s vector), unused by others.
+        frequency, phase: the value is ``fmod(v·frequency + phase, 1.00001)`` unless frequency is 0.
+        turbulence:  (3,) amount, or None; ``octaves`` (static), ``omega``, ``lambda_``.
+        wave:        static wave function name.
+        transparent: static: whether any colour carries filter or transmit (enables transmission).
+    """
+
+    pattern: str = eqx.field(static=True)
+    values: Float[Array, " M"] = eqx.field(converter=as_float)
+    colors: Float[Array, "M 5"] = eqx.field(converter=as_float)
+    transform: Transform | None = None
+    vector: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 1.0, 0.0))
+    frequency: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    phase: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+    turbulence: Float[Array, "3"] | None = eqx.field(converter=as_float_or_none, default=None)
+    omega: Float[Array, ""] = eqx.field(converter=as_float, default=0.5)
+    lambda_: Float[Array, ""] = eqx.field(converter=as_float, default=2.0)
+    octaves: int = eqx.field(static=True, default=6)
+    wave: str = eqx.field(static=True, default="ramp")
+    transparent: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        if self.pattern not in PATTERNS:
+            raise ValueError(f"unknown pattern {self.pattern!r}")
+        if self.wave not in WAVES:
+            raise ValueError(f"unknown wave {self.wave!r}")
+        if self.colors.ndim != 2 or self.colors.shape[-1] != 5 or self.values.shape != self.colors.shape[:1]:
+            raise ValueError("colors must be (M, 5) and values (M,)")
+
+    @classmethod
+    def solid(cls, rgb, filter=None, transmit=None) -> Pigment:  # noqa: A002 - POV's name
+        """A single colour; passing ``filter`` or ``transmit`` (even 0) makes it transparent-capable."""
+        c = np.zeros(5)
+        c[:3] = np.broadcast_to(np.asarray(rgb, dtype=np.float64), (3,))
+        c[3] = 0.0 if filter is None else filter
+        c[4] = 0.0 if transmit is None else transmit
+        return cls("solid", values=[0.0], colors=c[None, :],
+                   transparent=filter is not None or transmit is not None)
+
+    @classmethod
+    def checker(cls, color1, color2, transform: Transform | None = None) -> Pigment:
+        c = np.stack([_rgbft(color1), _rgbft(color2)])
+        return cls("checker", values=[0.0, 1.0], colors=c, transform=transform, frequency=0.0,
+                   transparent=bool(np.any(c[:, 3:] != 0)))
+
+    @classmethod
+    def mapped(cls, pattern: str, color_map, **kwargs) -> Pigment:
+        """A pattern with a colour map given as ``[(value, rgb or rgbft), ...]``."""
+        values = np.array([v for v, _ in color_map], dtype=np.float64)
+        colors = np.stack([_rgbft(c) for _, c in color_map])
+        kwargs.setdefault("transparent", bool(np.any(colors[:, 3:] != 0)))
+        return cls(pattern, values=values, colors=colors, **kwargs)
+
+
+class Reflection(eqx.Module):
+    """``reflection { min, max [fresnel] falloff exponent metallic }`` (reference §2.6)."""
+
+    min: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
+    max: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
+    falloff: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    exponent: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    metallic: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+    fresnel: bool = eqx.field(static=True, default=False)
+
+
+class Finish(eqx.Module):
+    """POV-Ray ``finish`` (defaults from reference §2.1). Highlight terms are absent when None."""
+
+    ambient: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.1, 0.1, 0.1))
+    emission: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
+    diffuse: Float[Array, ""] = eqx.field(converter=as_float, default=0.6)
+    brilliance: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    phong: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
+    phong_size: Float[Array, ""] = eqx.field(converter=as_float, default=40.0)
+    specular: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
+    roughness: Float[Array, ""] = eqx.field(converter=as_float, default=0.05)
+    metallic: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
+    reflection: Reflection | None = None
+    conserve_energy: bool = eqx.field(static=True, default=False)
+
+
+class Interior(eqx.Module):
+    """``interior``: index of refraction (None = 1, straight transmission) and fading (§2.7)."""
+
+    ior: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
+    fade_distance: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
+    fade_power: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
+    fade_color: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
+
+
+class Layer(eqx.Module):
+    """One texture layer: a pigment and a finish."""
+
+    pigment: Pigment = eqx.field(default_factory=lambda: Pigment.solid((0.0, 0.0, 0.0)))
+    finish: Finish = eqx.field(default_factory=Finish)
+
+
+class Texture(eqx.Module):
+    """A stack of layers, top layer first (``layers[0]``). Most textures have one layer."""
+
+    layers: tuple[Layer, ...] = eqx.field(default_factory=lambda: (Layer(),))
+
+    def __check_init__(self):
+        if not self.layers:
+            raise ValueError("a texture needs at least one layer")
+
+    @classmethod
+    def of(cls, pigment: Pigment | None = None, finish: Finish | None = None) -> Texture:
+        return cls((Layer(pigment if pigment is not None else Pigment.solid((0.0, 0.0, 0.0)),
+                          finish if finish is not None else Finish()),))
