@@ -1,0 +1,57 @@
+"""Axis-aligned box between two corners: the slab method (Kay & Kajiya 1986, as pbrt-v4 `IntersectP`)."""
+
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Bool, Float
+
+from ._common import masked_hits
+from ._numerics import as_float_arrays, solve_linear
+
+BOX_K = 2
+
+
+def _face_normal(axis: Array, sign: Array, dtype) -> Float[Array, "3"]:
+    return jnp.where(jnp.arange(3) == axis, sign, 0.0).astype(dtype)
+
+
+def box_hits(
+    corner1: Float[ArrayLike, "3"],
+    corner2: Float[ArrayLike, "3"],
+    o: Float[ArrayLike, "3"],
+    d: Float[ArrayLike, "3"],
+) -> tuple[Float[Array, "2"], Float[Array, "2 3"]]:
+    """Entry and exit of the line ``o + t d`` through the box.
+
+    Args:
+        corner1, corner2: (3,) opposite corners in any order (sorted per axis here, as POV-Ray does).
+        o: (3,) ray origin.
+        d: (3,) ray direction, any length.
+
+    Returns:
+        ``(t, n)``: t (2,) = (entry, exit), both ``+inf`` on a miss; n (2, 3) outward face normals
+        (``-e_i`` on a low face, ``+e_i`` on a high face).
+    """
+    corner1, corner2, o, d = as_float_arrays(corner1, corner2, o, d)
+    lo, hi = jnp.minimum(corner1, corner2), jnp.maximum(corner1, corner2)
+    t_lo, ok = solve_linear(d, o - lo)
+    t_hi, _ = solve_linear(d, o - hi)
+    # A slab the line runs parallel to: the whole line if o is between its faces, else nothing.
+    inside_slab = (o >= lo) & (o <= hi)
+    lo_first = t_lo <= t_hi
+    near = jnp.where(ok, jnp.minimum(t_lo, t_hi), jnp.where(inside_slab, -jnp.inf, jnp.inf))
+    far = jnp.where(ok, jnp.maximum(t_lo, t_hi), jnp.where(inside_slab, jnp.inf, -jnp.inf))
+    near_axis, far_axis = jnp.argmax(near), jnp.argmin(far)
+    t_near, t_far = near[near_axis], far[far_axis]
+    hit = jnp.isfinite(t_near) & jnp.isfinite(t_far) & (t_near <= t_far)
+    n_near = _face_normal(near_axis, jnp.where(lo_first[near_axis], -1.0, 1.0), o.dtype)
+    n_far = _face_normal(far_axis, jnp.where(lo_first[far_axis], 1.0, -1.0), o.dtype)
+    t = jnp.stack([t_near, t_far])
+    return masked_hits(t, jnp.stack([n_near, n_far]), jnp.stack([hit, hit]))
+
+
+def box_inside(
+    corner1: Float[ArrayLike, "3"], corner2: Float[ArrayLike, "3"], p: Float[ArrayLike, "3"]
+) -> Bool[Array, ""]:
+    """True where ``p`` is strictly inside the box."""
+    corner1, corner2, p = as_float_arrays(corner1, corner2, p)
+    lo, hi = jnp.minimum(corner1, corner2), jnp.maximum(corner1, corner2)
+    return jnp.all((p > lo) & (p < hi))

@@ -1,0 +1,145 @@
+"""Cylinder and cone (a frustum): one side surface plus two flat caps.
+
+Both are the frustum ``|p⊥|² = r(h)²`` with ``h`` the height along the axis from ``base`` (0) to
+``cap`` (``L``) and ``r(h) = r_base + k h``, ``k = (r_cap - r_base) / L``; the cylinder is ``k = 0``.
+Slots: ``[side crossing 0, side crossing 1, base cap, cap cap]``.
+"""
+
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Bool, Float
+
+from ._common import masked_hits, points_at
+from ._numerics import as_float_arrays, safe_div, safe_normalize, solve_linear, solve_quadratic
+
+CYLINDER_K = 4
+CONE_K = 4
+
+
+def _frame(base, cap):
+    """Unit axis, axis length and slope denominator of the frustum."""
+    axis = cap - base
+    length_sq = jnp.dot(axis, axis)
+    a_hat = safe_normalize(axis)
+    return a_hat, jnp.sqrt(jnp.where(length_sq > 0, length_sq, 1.0)), length_sq > 0
+
+
+def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
+    a_hat, length, proper = _frame(base, cap)
+    slope = safe_div(cap_radius - base_radius, length)
+    l = o - base
+    h0, hd = jnp.dot(l, a_hat), jnp.dot(d, a_hat)
+    l_perp, d_perp = l - h0 * a_hat, d - hd * a_hat
+    r0 = base_radius + slope * h0  # radius of the cone at the height of o
+    a = jnp.dot(d_perp, d_perp) - (slope * hd) ** 2
+    b = 2.0 * (jnp.dot(l_perp, d_perp) - slope * hd * r0)
+    c = jnp.dot(l_perp, l_perp) - r0 * r0
+    # b² - 4ac expanded to 4 (|r0 d⊥ - k hd l⊥|² - |d⊥ × l⊥|²): for the cylinder this is the
+    # distance-of-closest-approach form, which does not cancel for distant rays.
+    w = r0 * d_perp - slope * hd * l_perp
+    cross = jnp.cross(d_perp, l_perp)
+    t0, t1, _ = solve_quadratic(a, b, c, 4.0 * (jnp.dot(w, w) - jnp.dot(cross, cross)))
+    t_side = jnp.stack([t0, t1])
+    h_side = h0 + jnp.where(jnp.isfinite(t_side), t_side, 0.0) * hd
+    side_ok = jnp.isfinite(t_side) & (h_side >= 0) & (h_side <= length) & proper
+    p_perp = points_at(l_perp, d_perp, t_side)
+    # Gradient of |p⊥|² - r(h)², halved: outward, since the solid is |p⊥| < r(h).
+    n_side = safe_normalize(p_perp - ((base_radius + slope * h_side) * slope)[:, None] * a_hat)
+
+    t_base, ok_base = solve_linear(hd, h0)
+    t_cap, ok_cap = solve_linear(hd, h0 - length)
+    t_caps = jnp.stack([t_base, t_cap])
+    radii = jnp.stack([base_radius, cap_radius])
+    q_perp = points_at(l_perp, d_perp, t_caps)
+    caps_ok = (
+        jnp.stack([ok_base, ok_cap])
+        & (jnp.sum(q_perp * q_perp, axis=-1) <= radii * radii)
+        & (radii > 0)
+        & proper
+        & (not open_)
+    )
+    n_caps = jnp.stack([-a_hat, a_hat])
+    t = jnp.concatenate([t_side, t_caps])
+    return masked_hits(t, jnp.concatenate([n_side, n_caps]), jnp.concatenate([side_ok, caps_ok]))
+
+
+def _frustum_inside(base, base_radius, cap, cap_radius, p):
+    a_hat, length, proper = _frame(base, cap)
+    l = p - base
+    h = jnp.dot(l, a_hat)
+    l_perp = l - h * a_hat
+    r = base_radius + safe_div(cap_radius - base_radius, length) * h
+    return proper & (h > 0) & (h < length) & (jnp.dot(l_perp, l_perp) < r * r)
+
+
+def cylinder_hits(
+    base: Float[ArrayLike, "3"],
+    cap: Float[ArrayLike, "3"],
+    radius: Float[ArrayLike, ""],
+    o: Float[ArrayLike, "3"],
+    d: Float[ArrayLike, "3"],
+    open: bool = False,
+) -> tuple[Float[Array, "4"], Float[Array, "4 3"]]:
+    """Crossings of the line ``o + t d`` with a finite cylinder.
+
+    Args:
+        base, cap: (3,) centres of the two end discs; equal points give a miss.
+        radius: () radius (> 0).
+        o: (3,) ray origin.
+        d: (3,) ray direction, any length.
+        open: static; True removes the end caps (their slots are always ``+inf``).
+
+    Returns:
+        ``(t, n)``: t (4,) = (side, side, base cap, cap cap), ``+inf`` where absent; n (4, 3) unit
+        outward normals (radial on the side, ``∓ axis`` on the caps).
+    """
+    base, cap, radius, o, d = as_float_arrays(base, cap, radius, o, d)
+    return _frustum_hits(base, radius, cap, radius, o, d, open)
+
+
+def cylinder_inside(
+    base: Float[ArrayLike, "3"],
+    cap: Float[ArrayLike, "3"],
+    radius: Float[ArrayLike, ""],
+    p: Float[ArrayLike, "3"],
+) -> Bool[Array, ""]:
+    """True where ``p`` is strictly inside the solid cylinder (also for an ``open`` one, as in POV-Ray)."""
+    base, cap, radius, p = as_float_arrays(base, cap, radius, p)
+    return _frustum_inside(base, radius, cap, radius, p)
+
+
+def cone_hits(
+    base: Float[ArrayLike, "3"],
+    base_radius: Float[ArrayLike, ""],
+    cap: Float[ArrayLike, "3"],
+    cap_radius: Float[ArrayLike, ""],
+    o: Float[ArrayLike, "3"],
+    d: Float[ArrayLike, "3"],
+    open: bool = False,
+) -> tuple[Float[Array, "4"], Float[Array, "4 3"]]:
+    """Crossings of the line ``o + t d`` with a cone frustum.
+
+    Args:
+        base, cap: (3,) centres of the two end discs.
+        base_radius, cap_radius: () radii (>= 0); a zero radius is an apex and has no cap disc.
+        o: (3,) ray origin.
+        d: (3,) ray direction, any length.
+        open: static; True removes the end caps.
+
+    Returns:
+        ``(t, n)``: t (4,) = (side, side, base cap, cap cap), ``+inf`` where absent; n (4, 3) unit
+        outward normals. At the apex itself the side normal is undefined and is some finite unit vector.
+    """
+    base, base_radius, cap, cap_radius, o, d = as_float_arrays(base, base_radius, cap, cap_radius, o, d)
+    return _frustum_hits(base, base_radius, cap, cap_radius, o, d, open)
+
+
+def cone_inside(
+    base: Float[ArrayLike, "3"],
+    base_radius: Float[ArrayLike, ""],
+    cap: Float[ArrayLike, "3"],
+    cap_radius: Float[ArrayLike, ""],
+    p: Float[ArrayLike, "3"],
+) -> Bool[Array, ""]:
+    """True where ``p`` is strictly inside the solid frustum."""
+    base, base_radius, cap, cap_radius, p = as_float_arrays(base, base_radius, cap, cap_radius, p)
+    return _frustum_inside(base, base_radius, cap, cap_radius, p)

@@ -1,0 +1,51 @@
+"""Sphere ``|p - center| = radius``: two crossings, outward normal ``(p - center) / |p - center|``."""
+
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Bool, Float
+
+from ._common import masked_hits, points_at
+from ._numerics import as_float_arrays, safe_normalize, solve_quadratic
+
+SPHERE_K = 2
+
+
+def sphere_hits(
+    center: Float[ArrayLike, "3"],
+    radius: Float[ArrayLike, ""],
+    o: Float[ArrayLike, "3"],
+    d: Float[ArrayLike, "3"],
+) -> tuple[Float[Array, "2"], Float[Array, "2 3"]]:
+    """Both crossings of the line ``o + t d`` with the sphere, in object space.
+
+    Args:
+        center: (3,) sphere centre.
+        radius: () radius (> 0 for a solid; differentiable).
+        o: (3,) ray origin.
+        d: (3,) ray direction, any length (``t`` is in units of ``|d|``).
+
+    Returns:
+        ``(t, n)``: t (2,) ascending, ``+inf`` for missing crossings (any sign of t is reported);
+        n (2, 3) unit outward normals.
+    """
+    center, radius, o, d = as_float_arrays(center, radius, o, d)
+    l = o - center
+    a = jnp.dot(d, d)
+    b = 2.0 * jnp.dot(d, l)
+    c = jnp.dot(l, l) - radius * radius
+    # b² - 4ac = 4 (r² |d|² - |d × l|²): the squared distance of the line from the centre appears
+    # directly, so it does not cancel for distant rays (Hearn & Baker's form, as in pbrt-v4).
+    cross = jnp.cross(d, l)
+    disc = 4.0 * (radius * radius * a - jnp.dot(cross, cross))
+    t0, t1, _ = solve_quadratic(a, b, c, disc)
+    t = jnp.stack([t0, t1])
+    n = safe_normalize(points_at(o, d, t) - center)
+    return masked_hits(t, n, jnp.isfinite(t))
+
+
+def sphere_inside(
+    center: Float[ArrayLike, "3"], radius: Float[ArrayLike, ""], p: Float[ArrayLike, "3"]
+) -> Bool[Array, ""]:
+    """True where ``p`` is strictly inside the sphere: ``|p - center| < radius``."""
+    center, radius, p = as_float_arrays(center, radius, p)
+    l = p - center
+    return jnp.dot(l, l) < radius * radius
