@@ -1,0 +1,300 @@
+"""The render plan: what the scene's *structure* asks the tracer to simulate.
+
+Everything here is decided from static structure (object kinds, which optional fields are
+present, static flags), never from array values, so it can be computed at trace time from a
+scene whose leaves are tracers. The tracer is traced from this plan: absent primitives, absent
+effects and unreachable recursion levels do not exist in the compiled program.
+
+Flattening turns the object tree into *leaves* (one per primitive, with its transform composed
+from all ancestors, its resolved texture and interior, and its CSG visibility conditions) and
+inside-test trees for the CSG conditions and ``clipped_by``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Union
+
+from .errors import SceneError, SceneWarning
+from .scene import (
+    CSG,
+    AbstractObject,
+    Interior,
+    Light,
+    Object,
+    Scene,
+    Texture,
+    Transform,
+)
+from .scene._transform import compose
+
+SUPPORTED_PATTERNS = frozenset({"solid", "checker", "gradient", "bozo", "spotted", "bumps", "granite",
+                                "marble", "wood", "agate", "radial", "onion", "leopard", "spherical",
+                                "cylindrical", "planar", "boxed", "ripples", "waves", "wrinkles",
+                                "dents", "spiral1", "spiral2", "hexagon", "brick"})
+
+
+# ---------------------------------------------------------------- inside-test trees (static)
+@dataclasses.dataclass(frozen=True)
+class InPrim:
+    """Inside test of primitive ``prim`` (index into ``Plan.prims``), negated when ``inverse``."""
+
+    prim: int
+    inverse: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class InAll:
+    terms: tuple[InsideTree, ...]
+    inverse: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class InAny:
+    terms: tuple[InsideTree, ...]
+    inverse: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class InDiff:
+    """Inside the first term and outside all others (``difference``)."""
+
+    terms: tuple[InsideTree, ...]
+    inverse: bool = False
+
+
+InsideTree = Union[InPrim, InAll, InAny, InDiff]
+
+
+@dataclasses.dataclass(frozen=True)
+class Condition:
+    """A hit on a leaf counts only if the point is inside (``want=True``) or outside ``tree``."""
+
+    tree: InsideTree
+    want: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class Prim:
+    """One primitive instance after flattening.
+
+    Attributes:
+        obj:        the ``Object`` (its shape holds the parameters; its own transform is NOT the
+                    full transform: use ``transforms``).
+        transforms: the chain of transforms, innermost first (object's own, then ancestors').
+        texture:    resolved texture (own, else the nearest ancestor's, else the default).
+        interior:   resolved interior, or None.
+        rendered:   whether its surface can be hit (False for ``clipped_by`` objects).
+        inverse:    whether its inside is flipped (object's own ``inverse`` and CSG inverses).
+        conditions: CSG / clipping conditions a hit must satisfy.
+        flags:      frozenset of POV object flags ("no_shadow", "no_image", "no_reflection",
+                    "double_illuminate").
+    """
+
+    obj: Object
+    transforms: tuple[Transform, ...]
+    texture: Texture
+    interior: Interior | None
+    rendered: bool
+    inverse: bool
+    conditions: tuple[Condition, ...]
+    flags: frozenset[str]
+
+    @property
+    def kind(self) -> str:
+        return self.obj.shape.kind
+
+    def world_from_object(self) -> Transform | None:
+        return compose(*self.transforms)
+
+
+@dataclasses.dataclass(frozen=True)
+class Effects:
+    """What the compiled tracer simulates (derived from the scene structure only).
+
+    Attributes:
+        kinds:          primitive kinds present (rendered or used in inside tests).
+        shadows:        some light casts shadows.
+        filtered_shadows: some shadow-casting object can be transparent (shadow rays filter).
+        reflection:     some finish has ``reflection``.
+        transmission:   some pigment can carry filter/transmit (rays continue through surfaces).
+        refraction:     some interior has an ``ior`` (transmitted rays bend).
+        highlights:     some finish has phong or specular.
+        metallic:       some finish has ``metallic``.
+        fresnel:        some reflection uses ``fresnel``.
+        fade:           some light fades with distance.
+        spotlights:     some light is a spotlight.
+        area_lights:    some light has area-sampled shadows.
+        parallel_lights: some light is parallel.
+        patterns:       pigment patterns present.
+        csg:            some hit must pass CSG/clipping conditions.
+        interior_fade:  some interior fades light travelling inside.
+        depth:          trace depth actually reachable: 1 without secondary rays, else
+                        ``max_trace_level``.
+    """
+
+    kinds: tuple[str, ...]
+    shadows: bool
+    filtered_shadows: bool
+    reflection: bool
+    transmission: bool
+    refraction: bool
+    highlights: bool
+    metallic: bool
+    fresnel: bool
+    fade: bool
+    spotlights: bool
+    area_lights: bool
+    parallel_lights: bool
+    patterns: tuple[str, ...]
+    csg: bool
+    interior_fade: bool
+    depth: int
+
+    @property
+    def secondary_rays(self) -> bool:
+        return self.depth > 1
+
+    def describe(self) -> str:
+        on = [name for name in ("shadows", "filtered_shadows", "reflection", "transmission",
+                                "refraction", "highlights", "metallic", "fresnel", "fade",
+                                "spotlights", "area_lights", "parallel_lights", "csg",
+                                "interior_fade") if getattr(self, name)]
+        return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
+                f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Plan:
+    prims: tuple[Prim, ...]
+    lights: tuple[Light, ...]
+    effects: Effects
+    warnings: tuple[SceneWarning, ...]
+
+    def prims_of(self, kind: str) -> tuple[int, ...]:
+        return tuple(i for i, p in enumerate(self.prims) if p.kind == kind)
+
+
+# ---------------------------------------------------------------- flattening
+class _Flattener:
+    def __init__(self):
+        self.prims: list[Prim] = []
+
+    def flatten(self, obj: AbstractObject, *, transforms, texture, interior, rendered, inverse,
+                conditions, flags) -> InsideTree:
+        """Adds ``obj``'s primitives; returns the inside tree of ``obj`` (in its final placement)."""
+        own_flags = {f for f in ("no_shadow", "no_image", "no_reflection", "double_illuminate")
+                     if getattr(obj, f)}
+        flags = flags | own_flags
+        obj_inverse = inverse != obj.inverse
+        if isinstance(obj, Object):
+            chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
+            clip_conds = self._clip_conditions(obj.clipped_by, chain, interior)
+            index = len(self.prims)
+            self.prims.append(Prim(
+                obj=obj, transforms=chain,
+                texture=obj.texture if obj.texture is not None else texture,
+                interior=obj.interior if obj.interior is not None else interior,
+                rendered=rendered, inverse=obj_inverse, conditions=conditions + clip_conds,
+                flags=frozenset(flags)))
+            return InPrim(index, obj_inverse)
+        if isinstance(obj, CSG):
+            chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
+            tex = obj.texture if obj.texture is not None else texture
+            inter = obj.interior if obj.interior is not None else interior
+            clip_conds = self._clip_conditions(obj.clipped_by, chain, inter)
+            # First pass: inside trees of every child (primitives are appended in order).
+            trees = []
+            spans = []
+            for child in obj.children:
+                s = len(self.prims)
+                trees.append(self.flatten(child, transforms=chain, texture=tex, interior=inter,
+                                          rendered=rendered, inverse=False, conditions=(),
+                                          flags=flags))
+                spans.append((s, len(self.prims)))
+            # Second pass: each child's primitives get the visibility conditions of this node.
+            for i, (s, e) in enumerate(spans):
+                conds = self._csg_conditions(obj.operation, i, trees) + clip_conds + conditions
+                for k in range(s, e):
+                    p = self.prims[k]
+                    # the node's inverse flips its primitives' normals (inside trees carry it
+                    # on the node itself)
+                    self.prims[k] = dataclasses.replace(
+                        p, conditions=p.conditions + conds, inverse=p.inverse != obj_inverse)
+            node = {"union": InAny, "merge": InAny, "intersection": InAll,
+                    "difference": InDiff}[obj.operation]
+            return node(tuple(trees), inverse=obj_inverse)
+        raise SceneError(f"not a scene object: {type(obj).__name__}")
+
+    @staticmethod
+    def _csg_conditions(operation: str, i: int, trees: list[InsideTree]) -> tuple[Condition, ...]:
+        others = [t for j, t in enumerate(trees) if j != i]
+        if operation == "union":
+            return ()
+        if operation == "merge":
+            return tuple(Condition(t, False) for t in others)
+        if operation == "intersection":
+            return tuple(Condition(t, True) for t in others)
+        # difference: the first child's surface outside all others; a cut surface inside the first
+        if i == 0:
+            return tuple(Condition(t, False) for t in others)
+        return (Condition(trees[0], True),) + tuple(Condition(t, False) for j, t in enumerate(trees)
+                                                    if j not in (0, i))
+
+    def _clip_conditions(self, clips, chain, interior) -> tuple[Condition, ...]:
+        conds = []
+        for clip in clips:
+            tree = self.flatten(clip, transforms=chain, texture=Texture(), interior=interior,
+                                rendered=False, inverse=False, conditions=(), flags=frozenset())
+            conds.append(Condition(tree, True))
+        return tuple(conds)
+
+
+def make_plan(scene: Scene) -> Plan:
+    """Flattens ``scene`` and derives its :class:`Effects` (structure only; safe under jit)."""
+    fl = _Flattener()
+    default_texture = Texture()
+    for obj in scene.objects:
+        fl.flatten(obj, transforms=(), texture=default_texture, interior=None, rendered=True,
+                   inverse=False, conditions=(), flags=frozenset())
+    prims = tuple(fl.prims)
+    warnings = list(scene.warnings)
+    rendered = [p for p in prims if p.rendered]
+    layers = [layer for p in rendered for layer in p.texture.layers]
+    finishes = [layer.finish for layer in layers]
+    pigments = [layer.pigment for layer in layers]
+    if any(len(p.texture.layers) > 1 for p in rendered):
+        warnings.append(SceneWarning("layered texture",
+                                     "layered textures: only the top layer is rendered"))
+    for pig in pigments:
+        if pig.pattern not in SUPPORTED_PATTERNS:
+            warnings.append(SceneWarning(pig.pattern, f"pattern {pig.pattern!r} is not rendered"))
+    lights = scene.lights
+    shadow_lights = [lt for lt in lights if not lt.shadowless]
+    reflection = any(f.reflection is not None for f in finishes)
+    transmission = any(pig.transparent for pig in pigments)
+    refraction = transmission and any(p.interior is not None and p.interior.ior is not None
+                                      for p in rendered)
+    depth = scene.settings.max_trace_level if (reflection or transmission) else 1
+    casters = [p for p in prims if p.rendered and "no_shadow" not in p.flags]
+    effects = Effects(
+        kinds=tuple(sorted({p.kind for p in prims})),
+        shadows=bool(shadow_lights) and bool(casters),
+        filtered_shadows=any(layer.pigment.transparent for p in casters for layer in p.texture.layers),
+        reflection=reflection,
+        transmission=transmission,
+        refraction=refraction,
+        highlights=any(f.phong is not None or f.specular is not None for f in finishes),
+        metallic=any(f.metallic is not None for f in finishes),
+        fresnel=any(f.reflection is not None and f.reflection.fresnel for f in finishes),
+        fade=any(lt.fade_distance is not None and lt.fade_power is not None for lt in lights),
+        spotlights=any(lt.spot is not None for lt in lights),
+        area_lights=any(lt.area is not None and not lt.shadowless for lt in lights),
+        parallel_lights=any(lt.parallel for lt in lights),
+        patterns=tuple(sorted({pig.pattern for pig in pigments})),
+        csg=any(p.conditions for p in prims),
+        interior_fade=transmission and any(p.interior is not None and p.interior.fade_distance is not None
+                                           and p.interior.fade_power is not None for p in rendered),
+        depth=depth,
+    )
+    return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)))

@@ -1,0 +1,125 @@
+"""Image files: OpenEXR (linear float32 RGB) and PNG (sRGB-encoded, 8- or 16-bit), written atomically.
+
+A render is written to a temporary file in the destination folder and renamed over the target,
+so an interrupted write never leaves a half-written image behind.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1) of linear values, clipped to [0, 1]."""
+    x = np.clip(np.nan_to_num(linear, nan=0.0), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    x = np.clip(encoded, 0.0, 1.0)
+    return np.where(x <= 0.04045, x / 12.92, np.power((x + 0.055) / 1.055, 2.4))
+
+
+def _atomic_write(path: Path, write) -> None:
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _as_rgb(image) -> np.ndarray:
+    img = np.asarray(image, dtype=np.float32)
+    if img.ndim != 3 or img.shape[-1] != 3:
+        raise ValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
+    return img
+
+
+def write_exr(path, image) -> None:
+    """Writes linear float32 RGB OpenEXR."""
+    import OpenEXR
+
+    img = _as_rgb(image)
+
+    def write(tmp):
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        channels = {c: np.ascontiguousarray(img[..., i]) for i, c in enumerate("RGB")}
+        with OpenEXR.File(header, channels) as f:
+            f.write(tmp)
+
+    _atomic_write(Path(path), write)
+
+
+def write_png(path, image, *, bits: int = 8) -> None:
+    """Writes sRGB-encoded PNG (8-bit, or 16-bit with ``bits=16``) from a linear image."""
+    from PIL import Image
+
+    enc = srgb_encode(_as_rgb(image))
+    if bits == 8:
+        pil = Image.fromarray(np.round(enc * 255).astype(np.uint8), "RGB")
+        _atomic_write(Path(path), lambda tmp: pil.save(tmp, format="PNG"))
+    elif bits == 16:
+        _atomic_write(Path(path), lambda tmp: _write_png16(tmp, np.round(enc * 65535).astype(np.uint16)))
+    else:
+        raise ValueError("bits must be 8 or 16")
+
+
+def _write_png16(path, data: np.ndarray) -> None:
+    # Pillow cannot write 48-bit RGB; write the PNG chunks ourselves (zlib + CRC, PNG spec §11).
+    import struct
+    import zlib
+
+    h, w, _ = data.shape
+    raw = b"".join(b"\x00" + data[y].astype(">u2").tobytes() for y in range(h))
+
+    def chunk(tag, body):
+        return struct.pack(">I", len(body)) + tag + body + struct.pack(">I", zlib.crc32(tag + body))
+
+    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 2, 0, 0, 0))
+           + chunk(b"sRGB", b"\x00") + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    with open(path, "wb") as f:
+        f.write(png)
+
+
+def write_image(path, image, *, bits: int = 8) -> None:
+    """Writes ``image`` (H, W, 3, linear) as .exr (linear float32) or .png (sRGB)."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".exr":
+        write_exr(path, image)
+    elif suffix == ".png":
+        write_png(path, image, bits=bits)
+    else:
+        raise ValueError(f"unsupported image format {suffix!r}: use .exr or .png")
+
+
+def read_image(path) -> np.ndarray:
+    """Reads an image as linear float32 (H, W, 3): EXR as stored, PNG decoded from sRGB."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".exr":
+        import OpenEXR
+
+        with OpenEXR.File(str(path)) as f:
+            ch = f.channels()
+            if "RGB" in ch:
+                return np.asarray(ch["RGB"].pixels, dtype=np.float32)[..., :3]
+            if "RGBA" in ch:
+                return np.asarray(ch["RGBA"].pixels, dtype=np.float32)[..., :3]
+            return np.stack([np.asarray(ch[c].pixels, dtype=np.float32) for c in "RGB"], axis=-1)
+    if suffix == ".png":
+        from PIL import Image
+
+        with Image.open(path) as im:
+            if im.mode in ("I;16", "I;16B") or getattr(im, "bits", 8) == 16:
+                raise ValueError("16-bit PNG reading is not supported by Pillow; use EXR")
+            arr = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+        return srgb_decode(arr).astype(np.float32)
+    raise ValueError(f"unsupported image format {suffix!r}: use .exr or .png")

@@ -1,0 +1,1 @@
+"""Shading: camera rays, pigment patterns, POV-Ray's lighting model, and the Whitted tracer."""

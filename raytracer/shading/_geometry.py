@@ -1,0 +1,257 @@
+"""Scene-level geometry: every primitive of the plan packed by kind, closest hits, CSG visibility,
+and shadow transmittance — all for ONE ray (the caller vmaps over rays).
+
+Primitives of one kind (and one static variant, e.g. open or closed cylinders) are stacked into
+struct-of-arrays *groups*; a ray is inverse-transformed into each instance's object space and the
+kind's kernel is vmapped over the instances. Every kernel reports all ``K`` crossings of the line,
+so CSG (keep a crossing only where it lies inside/outside the other operands, reference §4.2),
+``clipped_by`` and filtered shadows (multiply the filter of every crossing, §2.5) are masks over
+the same candidates.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import kernels as K
+from .._plan import Condition, InAll, InAny, InDiff, InPrim, InsideTree, Plan
+from ..scene._transform import inverse_affine
+
+
+@dataclasses.dataclass(frozen=True)
+class KindSpec:
+    """How to call the kernels of one primitive kind."""
+
+    params: Callable  # shape -> tuple of arrays
+    hits: Callable  # (*params, o, d) -> (t (K,), n (K, 3))
+    inside: Callable | None  # (*params, p) -> bool
+    static: Callable = lambda shape: ()  # shape -> hashable static variant key
+
+
+def _mesh_hits(triangles, normals, o, d):
+    if normals is None:
+        t, n = jax.vmap(lambda tri: K.triangle_hits(tri[0], tri[1], tri[2], o, d))(triangles)
+    else:
+        t, n = jax.vmap(lambda tri, nn: K.smooth_triangle_hits(tri[0], tri[1], tri[2], nn[0], nn[1],
+                                                               nn[2], o, d))(triangles, normals)
+    return t[:, 0], n[:, 0]
+
+
+KINDS: dict[str, KindSpec] = {
+    "sphere": KindSpec(lambda s: (s.center, s.radius), K.sphere_hits, K.sphere_inside),
+    "plane": KindSpec(lambda s: (s.normal, s.distance), K.plane_hits, K.plane_inside),
+    "box": KindSpec(lambda s: (s.corner1, s.corner2), K.box_hits, K.box_inside),
+    "cylinder": KindSpec(
+        lambda s: (s.base, s.cap, s.radius),
+        None, None, static=lambda s: (s.open,)),
+    "cone": KindSpec(
+        lambda s: (s.base, s.base_radius, s.cap, s.cap_radius),
+        None, None, static=lambda s: (s.open,)),
+    "quadric": KindSpec(lambda s: (s.coeffs,), K.quadric_hits, K.quadric_inside),
+    "torus": KindSpec(lambda s: (s.major, s.minor), lambda *a: K.torus_hits(*a),
+                      lambda *a: K.torus_inside(*a)),
+    "disc": KindSpec(lambda s: (s.center, s.normal, s.radius, s.hole_radius), K.disc_hits,
+                     K.disc_inside),
+    "triangle": KindSpec(lambda s: (s.p1, s.p2, s.p3), K.triangle_hits, None),
+    "smooth_triangle": KindSpec(lambda s: (s.p1, s.p2, s.p3, s.n1, s.n2, s.n3),
+                                K.smooth_triangle_hits, None),
+    "polygon": KindSpec(lambda s: (s.vertices,), None, None,
+                        static=lambda s: (s.edges, s.vertices.shape[0])),
+    "mesh": KindSpec(lambda s: (s.triangles, s.normals), None, None,
+                     static=lambda s: (s.triangles.shape[0], s.normals is None)),
+}
+
+
+def _hits_fn(kind: str, static: tuple) -> Callable:
+    if kind == "cylinder":
+        return lambda b, c, r, o, d: K.cylinder_hits(b, c, r, o, d, open=static[0])
+    if kind == "cone":
+        return lambda b, rb, c, rc, o, d: K.cone_hits(b, rb, c, rc, o, d, open=static[0])
+    if kind == "polygon":
+        return lambda v, o, d: K.polygon_hits(v, o, d, edges=static[0])  # noqa: E731
+    if kind == "mesh":
+        return _mesh_hits
+    return KINDS[kind].hits
+
+
+def _inside_fn(kind: str, static: tuple) -> Callable | None:
+    if kind == "cylinder":
+        return lambda b, c, r, p: K.cylinder_inside(b, c, r, p, open=static[0])
+    if kind == "cone":
+        return lambda b, rb, c, rc, p: K.cone_inside(b, rb, c, rc, p, open=static[0])
+    return KINDS[kind].inside
+
+
+@dataclasses.dataclass(frozen=True)
+class Group:
+    """Static description of one stacked group of primitives."""
+
+    kind: str
+    static: tuple
+    prims: tuple[int, ...]  # indices into plan.prims
+    k: int  # crossings per instance
+
+
+@dataclasses.dataclass
+class PackedGeometry:
+    """Arrays of every group (built inside the jit trace from the scene's leaves)."""
+
+    groups: tuple[Group, ...]
+    params: tuple[tuple, ...]  # per group: stacked shape parameters
+    object_from_world: tuple[jax.Array, ...]  # per group: (n, 4, 4)
+    world_from_object: tuple[jax.Array, ...]
+    where: dict[int, tuple[int, int]]  # prim -> (group, index in group)
+    offsets: tuple[int, ...]  # candidate offset of each group in the flat candidate list
+    cand_prim: np.ndarray  # (C,) prim index of every flat candidate
+    n_candidates: int
+
+
+def _stack(trees):
+    return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trees)
+
+
+def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
+    keyed: dict[tuple, list[int]] = {}
+    for i, p in enumerate(plan.prims):
+        keyed.setdefault((p.kind, KINDS[p.kind].static(p.obj.shape)), []).append(i)
+    groups, params, ofw, wfo, where, offsets, cand_prim = [], [], [], [], {}, [], []
+    offset = 0
+    for (kind, static), ids in keyed.items():
+        shapes = [plan.prims[i].obj.shape for i in ids]
+        k = _candidates_per_instance(kind, shapes[0])
+        groups.append(Group(kind, static, tuple(ids), k))
+        params.append(_stack([KINDS[kind].params(s) for s in shapes]))
+        mats = []
+        for i in ids:
+            t = plan.prims[i].world_from_object()
+            mats.append(jnp.eye(4, dtype=dtype) if t is None else t.matrix.astype(dtype))
+        m = jnp.stack(mats)
+        wfo.append(m)
+        ofw.append(jax.vmap(inverse_affine)(m))
+        for j, i in enumerate(ids):
+            where[i] = (len(groups) - 1, j)
+            cand_prim.extend([i] * k)
+        offsets.append(offset)
+        offset += len(ids) * k
+    return PackedGeometry(tuple(groups), tuple(params), tuple(ofw), tuple(wfo), where,
+                          tuple(offsets), np.asarray(cand_prim, dtype=np.int32), offset)
+
+
+def _candidates_per_instance(kind: str, shape) -> int:
+    if kind == "mesh":
+        return int(shape.triangles.shape[0])
+    return getattr(K, f"{kind.upper()}_K")
+
+
+def _to_object(m, o, d):
+    return m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d
+
+
+def all_crossings(geo: PackedGeometry, o, d):
+    """Every crossing of the ray with every primitive.
+
+    Returns:
+        t: (C,) ray parameters (world units of ``|d|``), +inf where a slot is empty.
+        n: (C, 3) unit outward world normals (``inverse`` not applied).
+    """
+    ts, ns = [], []
+    for g, prm, ofw, wfo in zip(geo.groups, geo.params, geo.object_from_world,
+                                geo.world_from_object, strict=True):
+        fn = _hits_fn(g.kind, g.static)
+
+        def one(prm_i, ofw_i, wfo_i, fn=fn):
+            oo, dd = _to_object(ofw_i, o, d)
+            t, n = fn(*prm_i, oo, dd)
+            # normals transform with the inverse transpose
+            nw = n @ ofw_i[:3, :3]
+            return t, K.safe_normalize(nw)
+
+        t, n = jax.vmap(one)(prm, ofw, wfo)
+        ts.append(t.reshape(-1))
+        ns.append(n.reshape(-1, 3))
+    return jnp.concatenate(ts), jnp.concatenate(ns)
+
+
+def inside_prim(geo: PackedGeometry, prim: int, p):
+    """Whether world point ``p`` is strictly inside primitive ``prim`` (its own inverse ignored)."""
+    gi, j = geo.where[prim]
+    g = geo.groups[gi]
+    fn = _inside_fn(g.kind, g.static)
+    if fn is None:  # triangles, polygons, meshes have no inside
+        return jnp.asarray(False)
+    prm = jax.tree_util.tree_map(lambda a: a[j], geo.params[gi])
+    m = geo.object_from_world[gi][j]
+    return fn(*prm, m[:3, :3] @ p + m[:3, 3])
+
+
+def inside_tree(geo: PackedGeometry, tree: InsideTree, p):
+    if isinstance(tree, InPrim):
+        v = inside_prim(geo, tree.prim, p)
+    elif isinstance(tree, InAll):
+        v = jnp.all(jnp.stack([inside_tree(geo, t, p) for t in tree.terms]))
+    elif isinstance(tree, InAny):
+        v = jnp.any(jnp.stack([inside_tree(geo, t, p) for t in tree.terms]))
+    elif isinstance(tree, InDiff):
+        first = inside_tree(geo, tree.terms[0], p)
+        rest = [inside_tree(geo, t, p) for t in tree.terms[1:]]
+        v = first & ~jnp.any(jnp.stack(rest)) if rest else first
+    else:  # pragma: no cover - exhaustive
+        raise TypeError(tree)
+    return v != tree.inverse
+
+
+def _conditions_hold(geo: PackedGeometry, conds: tuple[Condition, ...], p):
+    ok = jnp.asarray(True)
+    for c in conds:
+        ok = ok & (inside_tree(geo, c.tree, p) == c.want)
+    return ok
+
+
+def csg_mask(geo: PackedGeometry, plan: Plan, o, d, t):
+    """(C,) bool: crossings that satisfy their primitive's CSG / clipping conditions."""
+    if not plan.effects.csg:
+        return jnp.ones(t.shape, bool)
+    safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
+    masks = []
+    for c in range(geo.n_candidates):
+        conds = plan.prims[int(geo.cand_prim[c])].conditions
+        if conds:
+            masks.append(_conditions_hold(geo, conds, o + safe_t[c] * d))
+        else:
+            masks.append(jnp.asarray(True))
+    return jnp.stack(masks)
+
+
+def static_prim_mask(geo: PackedGeometry, predicate) -> np.ndarray:
+    """(C,) numpy bool: ``predicate(prim_index)`` for every candidate slot."""
+    return np.array([bool(predicate(int(i))) for i in geo.cand_prim], dtype=bool)
+
+
+@dataclasses.dataclass
+class Hit:
+    """The closest accepted crossing of one ray."""
+
+    found: jax.Array  # bool
+    t: jax.Array  # ray parameter (0 where not found)
+    prim: jax.Array  # int32 primitive index (0 where not found)
+    normal: jax.Array  # (3,) unit outward world normal with ``inverse`` applied
+
+
+def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array,
+                inverse_sign: np.ndarray) -> Hit:
+    """Closest crossing with ``t > t_min`` among candidates where ``visible`` (C,) holds."""
+    t, n = all_crossings(geo, o, d)
+    ok = visible & (t > t_min) & jnp.isfinite(t) & (t < 1e7)
+    ok = ok & csg_mask(geo, plan, o, d, t)
+    tt = jnp.where(ok, t, jnp.inf)
+    c = jnp.argmin(tt)
+    found = jnp.isfinite(tt[c])
+    t_hit = jnp.where(found, tt[c], 0.0)
+    normal = n[c] * jnp.asarray(inverse_sign, n.dtype)[c]
+    prim = jnp.asarray(geo.cand_prim)[c]
+    return Hit(found, t_hit, prim, normal)

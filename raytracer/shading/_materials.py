@@ -1,0 +1,170 @@
+"""Per-primitive material arrays (top texture layer, finish, interior), packed inside the jit trace
+so gradients reach the user's objects, and pigment evaluation at a hit point (reference §5.2)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._plan import Plan
+from ..scene import Finish, Interior, Pigment, Reflection
+from ..scene._transform import inverse_affine
+
+
+@dataclasses.dataclass
+class PackedMaterials:
+    """Struct-of-arrays over primitives (index = plan prim index).
+
+    Pigments of different patterns are evaluated pattern by pattern (only patterns present in the
+    scene are traced) and selected by ``pattern_id``. Colour maps are padded to a common length by
+    repeating their last entry, which leaves the lookup unchanged.
+    """
+
+    pattern_names: tuple[str, ...]
+    pattern_id: np.ndarray  # (N,) int, static
+    turbulent: tuple[bool, ...]  # per pattern name: any pigment of it has turbulence
+    octaves: dict[str, int]  # per pattern name (static; the max over its pigments)
+    waves: np.ndarray  # (N,) int index into patterns.WAVES, static
+    values: jax.Array  # (N, M)
+    colors: jax.Array  # (N, M, 5)
+    pattern_from_world: jax.Array  # (N, 4, 4)
+    vector: jax.Array  # (N, 3)
+    frequency: jax.Array  # (N,)
+    phase: jax.Array  # (N,)
+    turbulence: jax.Array  # (N, 3) (zeros where absent)
+    omega: jax.Array
+    lambda_: jax.Array
+    finish: dict[str, jax.Array]  # name -> (N,) or (N, 3)
+    fresnel: np.ndarray  # (N,) bool static
+    conserve_energy: np.ndarray  # (N,) bool static
+    ior: jax.Array  # (N,) (1 where absent)
+    fade_distance: jax.Array  # (N,) (0 where absent: no fading)
+    fade_power: jax.Array
+    fade_color: jax.Array  # (N, 3)
+    transparent: np.ndarray  # (N,) static: pigment can carry filter/transmit
+
+
+def _f(x, dtype):
+    return jnp.asarray(x, dtype)
+
+
+def _finish_arrays(f: Finish, dtype) -> dict:
+    r = f.reflection if f.reflection is not None else Reflection()
+    zero = jnp.zeros((), dtype)
+    return {
+        "ambient": f.ambient, "emission": f.emission, "diffuse": f.diffuse,
+        "brilliance": f.brilliance,
+        "phong": f.phong if f.phong is not None else zero, "phong_size": f.phong_size,
+        "specular": f.specular if f.specular is not None else zero,
+        "roughness": f.roughness,
+        "metallic": f.metallic if f.metallic is not None else zero,
+        "refl_min": r.min, "refl_max": r.max, "refl_falloff": r.falloff,
+        "refl_exponent": r.exponent, "refl_metallic": r.metallic,
+    }
+
+
+def pack_materials(plan: Plan, dtype) -> PackedMaterials:
+    pigments: list[Pigment] = [p.texture.layers[0].pigment for p in plan.prims]
+    finishes: list[Finish] = [p.texture.layers[0].finish for p in plan.prims]
+    interiors = [p.interior if p.interior is not None else Interior() for p in plan.prims]
+    names = tuple(sorted({pg.pattern for pg in pigments}))
+    m = max(pg.values.shape[0] for pg in pigments)
+
+    def pad(pg: Pigment):
+        extra = m - pg.values.shape[0]
+        v = jnp.concatenate([pg.values, jnp.repeat(pg.values[-1:], extra)]) if extra else pg.values
+        c = jnp.concatenate([pg.colors, jnp.repeat(pg.colors[-1:], extra, 0)]) if extra else pg.colors
+        return v.astype(dtype), c.astype(dtype)
+
+    padded = [pad(pg) for pg in pigments]
+    eye = jnp.eye(4, dtype=dtype)
+    pfw = [eye if pg.transform is None else inverse_affine(pg.transform.matrix.astype(dtype))
+           for pg in pigments]
+    zero3 = jnp.zeros(3, dtype)
+    fin = [_finish_arrays(f, dtype) for f in finishes]
+    return PackedMaterials(
+        pattern_names=names,
+        pattern_id=np.array([names.index(pg.pattern) for pg in pigments], dtype=np.int32),
+        turbulent=tuple(any(pg.turbulence is not None for pg in pigments if pg.pattern == nm)
+                        for nm in names),
+        octaves={nm: max(pg.octaves for pg in pigments if pg.pattern == nm) for nm in names},
+        waves=np.array([pat_wave_index(pg) for pg in pigments], dtype=np.int32),
+        values=jnp.stack([v for v, _ in padded]),
+        colors=jnp.stack([c for _, c in padded]),
+        pattern_from_world=jnp.stack(pfw),
+        vector=jnp.stack([pg.vector.astype(dtype) for pg in pigments]),
+        frequency=jnp.stack([pg.frequency.astype(dtype) for pg in pigments]),
+        phase=jnp.stack([pg.phase.astype(dtype) for pg in pigments]),
+        turbulence=jnp.stack([zero3 if pg.turbulence is None else pg.turbulence.astype(dtype)
+                              for pg in pigments]),
+        omega=jnp.stack([pg.omega.astype(dtype) for pg in pigments]),
+        lambda_=jnp.stack([pg.lambda_.astype(dtype) for pg in pigments]),
+        finish={k: jnp.stack([_f(fi[k], dtype) for fi in fin]) for k in fin[0]},
+        fresnel=np.array([f.reflection is not None and f.reflection.fresnel for f in finishes]),
+        conserve_energy=np.array([f.conserve_energy for f in finishes]),
+        ior=jnp.stack([_f(1.0 if it.ior is None else it.ior, dtype) for it in interiors]),
+        fade_distance=jnp.stack([_f(0.0 if it.fade_distance is None or it.fade_power is None
+                                    else it.fade_distance, dtype) for it in interiors]),
+        fade_power=jnp.stack([_f(0.0 if it.fade_power is None else it.fade_power, dtype)
+                              for it in interiors]),
+        fade_color=jnp.stack([it.fade_color.astype(dtype) for it in interiors]),
+        transparent=np.array([pg.transparent for pg in pigments]),
+    )
+
+
+WAVES = ("ramp", "triangle", "sine", "scallop", "cubic", "poly")
+
+
+def pat_wave_index(pg: Pigment) -> int:
+    return WAVES.index(pg.wave)
+
+
+def _color_map(v, values, colors):
+    """Linear interpolation of all five channels; clamps outside the first/last entries (§5.2)."""
+    i = jnp.clip(jnp.searchsorted(values, v, side="right"), 1, values.shape[0] - 1)
+    v0, v1 = values[i - 1], values[i]
+    span = v1 - v0
+    ok = span > 0
+    s = jnp.where(ok, (v - v0) / jnp.where(ok, span, 1.0), 1.0)
+    s = jnp.clip(s, 0.0, 1.0)
+    c = colors[i - 1] * (1 - s) + colors[i] * s
+    c = jnp.where(v <= values[0], colors[0], c)
+    return jnp.where(v >= values[-1], colors[-1], c)
+
+
+def pigment_at(mats: PackedMaterials, prim, p):
+    """RGBFT (5,) pigment of primitive ``prim`` (traced int) at world point ``p`` (3,)."""
+    if len(mats.pattern_names) == 1 and mats.pattern_names[0] == "solid":
+        return mats.colors[prim, 0]
+    from . import patterns as pat  # noqa: PLC0415 - only scenes with patterns need it
+
+    m = mats.pattern_from_world[prim]
+    q = m[:3, :3] @ p + m[:3, 3]
+    pid = jnp.asarray(mats.pattern_id)[prim]
+    v = jnp.zeros((), p.dtype)
+    for k, name in enumerate(mats.pattern_names):
+        if name == "solid":
+            continue
+        turb = mats.turbulence[prim] if mats.turbulent[k] else None
+        vk = pat.pattern_value(name, q, mats.vector[prim], turb, mats.octaves[name],
+                               mats.omega[prim], mats.lambda_[prim])
+        v = jnp.where(pid == k, vk, v)
+    # frequency / phase with POV's 1.00001 wrap (§5.2 step 3); discrete patterns have frequency 0
+    freq, phase = mats.frequency[prim], mats.phase[prim]
+    w = jnp.fmod(v * freq + phase, 1.00001)
+    w = jnp.where(w < 0, w - jnp.floor(w), w)
+    discrete = jnp.asarray([name in pat.DISCRETE_PATTERNS for name in mats.pattern_names])[pid]
+    v = jnp.where((freq != 0) & ~discrete, w, v)
+    wave = jnp.asarray(mats.waves)[prim]
+    if np.any(mats.waves != 0):
+        waved = jnp.stack([pat.apply_wave(v, name) for name in WAVES])
+        v = waved[wave]
+    c = _color_map(v, mats.values[prim], mats.colors[prim])
+    return jnp.where(pid == _solid_index(mats), mats.colors[prim, 0], c)
+
+
+def _solid_index(mats: PackedMaterials) -> int:
+    return mats.pattern_names.index("solid") if "solid" in mats.pattern_names else -1

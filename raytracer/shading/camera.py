@@ -1,0 +1,44 @@
+"""Camera rays through pixel centres and sub-pixel grids (reference §1.2)."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ..kernels import safe_normalize
+from ..scene import Camera
+
+
+def image_coords(width: int, height: int, k: int = 1, dtype=jnp.float32):
+    """Image-plane coordinates ``(x0, y0)`` of every sample, each (height, width, k*k).
+
+    Pixel (i, j) (column i from the left, row j from the top) spans ``x0 ∈ [i/W − ½, (i+1)/W − ½]``
+    and ``y0 ∈ [½ − (j+1)/H, ½ − j/H]``. ``k = 1`` samples the pixel centre (as POV-Ray ``-A``);
+    ``k > 1`` a deterministic k×k grid at the centres of k×k sub-cells.
+    """
+    sub = (jnp.arange(k, dtype=dtype) + 0.5) / k  # sub-cell centres in [0, 1]
+    i = jnp.arange(width, dtype=dtype)[None, :, None, None] + sub[None, None, None, :]
+    j = jnp.arange(height, dtype=dtype)[:, None, None, None] + sub[None, None, :, None]
+    x0 = jnp.broadcast_to(i / width - 0.5, (height, width, k, k)).reshape(height, width, k * k)
+    y0 = jnp.broadcast_to(0.5 - j / height, (height, width, k, k)).reshape(height, width, k * k)
+    return x0, y0
+
+
+def camera_rays(camera: Camera, x0, y0):
+    """Rays for image coordinates ``x0, y0`` (any matching shapes).
+
+    Returns:
+        ``(origins, directions)`` with a trailing axis of 3; directions are unit vectors.
+        Perspective: from ``location`` along ``D + x0 R + y0 U``; orthographic: from
+        ``location + x0 R + y0 U`` along ``D``.
+    """
+    loc, d, r, u = camera.frame()
+    x0 = x0[..., None]
+    y0 = y0[..., None]
+    offset = x0 * r + y0 * u
+    if camera.projection == "orthographic":
+        origins = loc + offset
+        dirs = jnp.broadcast_to(d, origins.shape)
+    else:
+        dirs = d + offset
+        origins = jnp.broadcast_to(loc, dirs.shape)
+    return origins, safe_normalize(dirs)

@@ -1,0 +1,105 @@
+"""POV-Ray 3.7's local lighting model, term by term (reference §2.4–2.7).
+
+Plain functions of arrays for one shading point; vectors are (3,). ``d`` is the incoming ray
+direction (towards the surface), ``n`` the unit normal flipped to face the ray (``n·d < 0``),
+``l`` the unit direction towards the light. There is no 1/π, no inverse-square falloff and no
+energy conservation unless the scene asks for it: these are POV-Ray's rules, not physics.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ..kernels import safe_arccos, safe_div, safe_pow, safe_sqrt
+
+GREY = (0.297, 0.589, 0.114)  # POV-Ray's grey weights for "trans" (§2.3)
+NL_EPSILON = 1e-10  # lights with n·l below this do not light the point (§2.4)
+
+
+def fade(dist, fade_distance, fade_power):
+    """``2 / (1 + (dist/fade_distance)^fade_power)``; 1 where fading is off (power or distance 0)."""
+    on = (fade_power > 0) & (jnp.abs(fade_distance) > 1e-10)
+    ratio = safe_div(dist, jnp.where(on, fade_distance, 1.0))
+    return jnp.where(on, 2.0 / (1.0 + safe_pow(jnp.abs(ratio), jnp.where(on, fade_power, 1.0))), 1.0)
+
+
+def spot(cos_theta, radius_degrees, falloff_degrees, tightness):
+    """Spotlight factor ``cosθ^tightness · cubic_spline(cos falloff, cos radius, cosθ)``."""
+    lo = jnp.cos(jnp.deg2rad(falloff_degrees))
+    hi = jnp.cos(jnp.deg2rad(radius_degrees))
+    span = hi - lo
+    s = jnp.clip(safe_div(cos_theta - lo, jnp.where(span > 0, span, 1.0)), 0.0, 1.0)
+    smooth = jnp.where(cos_theta >= hi, 1.0, jnp.where(cos_theta < lo, 0.0, (3 - 2 * s) * s * s))
+    c = jnp.maximum(cos_theta, 0.0)
+    tight = jnp.where(tightness != 0, safe_pow(c, tightness), 1.0)
+    return jnp.where(cos_theta > 0, tight * smooth, 0.0)
+
+
+def empirical_fresnel(cos_angle):
+    """POV's empirical metallic Fresnel ``F(x)``, ``x = acos(cos)/(π/2)`` (§2.4)."""
+    x = safe_arccos(jnp.clip(cos_angle, -1.0, 1.0)) / (jnp.pi / 2)
+    f = 0.014567225 / ((x - 1.12) ** 2) - 0.011612903
+    return jnp.clip(f, 0.0, 1.0)
+
+
+def metallic_tint(metallic, cos_angle, rgb):
+    """Highlight/reflection colour multiplier ``1 + m(1 − F)(P − 1)``."""
+    return 1.0 + metallic * (1.0 - empirical_fresnel(cos_angle)) * (rgb - 1.0)
+
+
+def diffuse(att, k_diffuse, brilliance, cos_nl, rgb):
+    """``att · diffuse · |n·l|^brilliance · P`` (to be multiplied by the light colour)."""
+    return att * k_diffuse * safe_pow(jnp.abs(cos_nl), brilliance) * rgb
+
+
+def phong(k_phong, phong_size, d, n, l):
+    """``phong · max(0, r·l)^phong_size`` with ``r = d − 2(d·n)n``; zero when size ≥ 60 and r·l ≤ 8e-4."""
+    r = d - 2.0 * jnp.dot(d, n) * n
+    c = jnp.dot(r, l)
+    on = (c > 0) & ~((phong_size >= 60) & (c <= 0.0008))
+    return jnp.where(on, k_phong * safe_pow(jnp.where(on, c, 1.0), phong_size), 0.0)
+
+
+def specular(k_specular, roughness, d, n, l):
+    """``specular · max(0, n·h)^(1/roughness)`` with ``h = normalize(l − d)``."""
+    h = l - d
+    hh = jnp.dot(h, h)
+    ok = hh > 0
+    c = safe_div(jnp.dot(n, h), safe_sqrt(jnp.where(ok, hh, 1.0)))
+    on = ok & (c > 0)
+    return jnp.where(on, k_specular * safe_pow(jnp.where(on, c, 1.0), safe_div(1.0, roughness)), 0.0)
+
+
+def fresnel(cos_i, eta_rel):
+    """Unpolarised dielectric Fresnel reflectance in POV's form (§2.6).
+
+    ``eta_rel = n_t/n_i``; returns ``(F, total)`` where ``total`` marks ``n² + c² − 1 ≤ 0`` (TIR).
+    """
+    g2 = eta_rel * eta_rel + cos_i * cos_i - 1.0
+    total = g2 <= 0
+    g = safe_sqrt(jnp.where(total, 1.0, g2))
+    a = safe_div(g - cos_i, g + cos_i)
+    b = safe_div(cos_i * (g + cos_i) - 1.0, cos_i * (g - cos_i) + 1.0)
+    f = 0.5 * a * a * (1.0 + b * b)
+    return jnp.clip(f, 0.0, 1.0), total
+
+
+def refract(d, n, eta):
+    """Heckbert refraction of unit ``d`` at a normal ``n`` facing the ray, ``eta = n_i/n_t``.
+
+    Returns ``(direction, tir)``; where ``tir`` the direction is the mirror direction.
+    """
+    c = -jnp.dot(d, n)
+    t = 1.0 + eta * eta * (c * c - 1.0)
+    tir = t < 0
+    out = eta * d + (eta * c - safe_sqrt(jnp.where(tir, 1.0, t))) * n
+    mirror = d + 2.0 * c * n
+    return jnp.where(tir, mirror, out), tir
+
+
+def reflect(d, n):
+    return d - 2.0 * jnp.dot(d, n) * n
+
+
+def grey(rgb):
+    return GREY[0] * rgb[..., 0] + GREY[1] * rgb[..., 1] + GREY[2] * rgb[..., 2]

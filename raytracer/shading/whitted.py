@@ -1,0 +1,282 @@
+"""TraceRay: POV-Ray's recursive (Whitted) model as a wavefront over static depth levels.
+
+The seed's recursion — shoot shadow rays to all lights, add the local lighting, shoot the
+reflected and the refracted ray, combine — is written once per *level*: all rays of a level are
+shaded together (``vmap``), their children are concatenated into the next level's batch, and the
+children's colours are combined on the way back. The shading body is therefore traced once per
+level (compile time linear in depth), not once per tree node. Per-ray decisions are masks and
+weights: a child whose weight falls below ``adc_bailout`` (or that does not exist) is traced but
+contributes nothing.
+
+Only the child slots the scene can spawn exist: reflection rays only if some finish reflects,
+transmitted rays only if some pigment can be transparent (reference §2.3, §2.7).
+
+Modelling shortcuts (stated, not hidden):
+  * only the top texture layer is shaded (layered textures warn in the plan);
+  * entering/leaving an object is decided from the geometric normal (the ray is assumed to come
+    from air when entering, and to leave into air), rather than POV's per-ray interior list —
+    identical for non-nested objects, including POV's quirk-free cases (§2.7);
+  * straight transmission (ior 1) uses one level like refraction does (POV does not count it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._plan import Plan
+from ..kernels import safe_normalize, safe_pow
+from ..scene import Light, Settings
+from . import lighting as lt
+from ._geometry import PackedGeometry, all_crossings, closest_hit, csg_mask, static_prim_mask
+from ._materials import PackedMaterials, pigment_at
+
+
+@dataclasses.dataclass
+class TraceContext:
+    plan: Plan
+    geo: PackedGeometry
+    mats: PackedMaterials
+    lights: tuple[Light, ...]
+    settings: Settings
+    background: jax.Array
+    dtype: object
+    eps: float  # relative spawn offset (times 1 + |p|)
+    vis_camera: np.ndarray  # (C,) visible to camera and transmitted rays
+    vis_reflect: np.ndarray  # (C,) visible to reflected rays
+    casts_shadow: np.ndarray  # (C,)
+    transparent_cands: np.ndarray  # (C,) candidate belongs to a transparent-capable prim
+    inverse_sign: np.ndarray  # (C,) -1 where the prim is inverted
+
+
+def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
+                 background, dtype) -> TraceContext:
+    prims = plan.prims
+    return TraceContext(
+        plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
+        background=background.astype(dtype), dtype=dtype,
+        eps=2e-5 if dtype == jnp.float32 else 1e-9,
+        vis_camera=static_prim_mask(geo, lambda i: prims[i].rendered and "no_image" not in prims[i].flags),
+        vis_reflect=static_prim_mask(geo, lambda i: prims[i].rendered
+                                     and "no_reflection" not in prims[i].flags),
+        casts_shadow=static_prim_mask(geo, lambda i: prims[i].rendered
+                                      and "no_shadow" not in prims[i].flags),
+        transparent_cands=static_prim_mask(geo, lambda i: bool(mats.transparent[i])),
+        inverse_sign=np.where(static_prim_mask(geo, lambda i: prims[i].inverse), -1.0, 1.0),
+    )
+
+
+# ---------------------------------------------------------------- shadows
+def _shadow_filter(ctx: TraceContext, o, l, dist):
+    """RGB transmittance of the segment ``o → o + dist·l`` (§2.5): opaque crossings block,
+    transparent ones multiply by ``f·P + t`` at each crossing; refraction is ignored."""
+    t, _ = all_crossings(ctx.geo, o, l)
+    scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+    ok = jnp.asarray(ctx.casts_shadow) & jnp.isfinite(t) & (t > scale) & (t < dist - scale)
+    ok = ok & csg_mask(ctx.geo, ctx.plan, o, l, t)
+    one = jnp.ones(3, ctx.dtype)
+    if not ctx.plan.effects.filtered_shadows:
+        return jnp.where(jnp.any(ok), 0.0, 1.0) * one
+    opaque = ok & ~jnp.asarray(ctx.transparent_cands)
+    filt = one
+    safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
+    for c in np.flatnonzero(ctx.transparent_cands):
+        prim = int(ctx.geo.cand_prim[c])
+        pig = pigment_at(ctx.mats, prim, o + safe_t[c] * l)
+        f = pig[3] * pig[:3] + pig[4]
+        filt = filt * jnp.where(ok[c], f, 1.0)
+    return jnp.where(jnp.any(opaque), 0.0, 1.0) * filt
+
+
+def _area_weights(n: int) -> np.ndarray:
+    """POV's recursive corner-averaging weights along one area-light axis (§2.5):
+    3 samples → ¼ ½ ¼, 5 → ⅛ ¼ ¼ ¼ ⅛, 4 → uniform."""
+    w = np.zeros(n)
+
+    def rec(a, b, weight):
+        if b - a <= 1:
+            w[a] += weight / 2
+            w[b] += weight / 2
+            return
+        m = (a + b) / 2
+        rec(a, int(np.floor(m)), weight / 2)
+        rec(int(np.ceil(m)), b, weight / 2)
+
+    if n == 1:
+        w[0] = 1.0
+    else:
+        rec(0, n - 1, 1.0)
+    return w
+
+
+def _light_geometry(light: Light, p):
+    """Unit direction to the light, its distance (for fading), and the shadow-ray length."""
+    if light.parallel:
+        l = safe_normalize(light.position - light.point_at)
+        to_light = light.position - p
+        dist = jnp.sqrt(jnp.maximum(jnp.dot(to_light, to_light), 1e-30))
+        return l, dist, jnp.dot(l, to_light)  # objects beyond the light's plane cast no shadow
+    v = light.position - p
+    dist = jnp.sqrt(jnp.maximum(jnp.dot(v, v), 1e-30))
+    return v / dist, dist, dist
+
+
+def _light_visibility(ctx: TraceContext, light: Light, p_spawn, l, shadow_len):
+    if light.shadowless or not ctx.plan.effects.shadows:
+        return jnp.ones(3, ctx.dtype)
+    if light.area is None:
+        return _shadow_filter(ctx, p_spawn, l, shadow_len)
+    a = light.area
+    w1, w2 = _area_weights(a.size1), _area_weights(a.size2)
+    total = jnp.zeros(3, ctx.dtype)
+    for i in range(a.size1):
+        for j in range(a.size2):
+            if w1[i] * w2[j] == 0:
+                continue
+            fu = 0.0 if a.size1 == 1 else i / (a.size1 - 1) - 0.5
+            fv = 0.0 if a.size2 == 1 else j / (a.size2 - 1) - 0.5
+            pos = light.position + fu * a.axis1 + fv * a.axis2
+            v = pos - p_spawn
+            dist = jnp.sqrt(jnp.maximum(jnp.dot(v, v), 1e-30))
+            total = total + w1[i] * w2[j] * _shadow_filter(ctx, p_spawn, v / dist, dist)
+    return total
+
+
+# ---------------------------------------------------------------- local shading
+def _local_light(ctx: TraceContext, light: Light, fin, rgb, att, p, p_spawn, d, n, prim):
+    l, dist, shadow_len = _light_geometry(light, p)
+    c = light.color.astype(ctx.dtype)
+    if light.fade_distance is not None and light.fade_power is not None:
+        c = c * lt.fade(dist, light.fade_distance, light.fade_power)
+    if light.spot is not None:
+        axis = safe_normalize(light.point_at - light.position)
+        c = c * lt.spot(jnp.dot(-l, axis), light.spot.radius_degrees, light.spot.falloff_degrees,
+                        light.spot.tightness)
+    cos_nl = jnp.dot(n, l)
+    lit = cos_nl > lt.NL_EPSILON
+    c = c * _light_visibility(ctx, light, p_spawn, l, shadow_len)
+    out = lt.diffuse(att, fin["diffuse"][prim], fin["brilliance"][prim], cos_nl, rgb) * c
+    eff = ctx.plan.effects
+    if eff.highlights and not light.shadowless:
+        h = jnp.zeros((), ctx.dtype)
+        h = h + lt.phong(fin["phong"][prim], fin["phong_size"][prim], d, n, l)
+        h = h + lt.specular(fin["specular"][prim], fin["roughness"][prim], d, n, l)
+        tint = lt.metallic_tint(fin["metallic"][prim], cos_nl, rgb) if eff.metallic else 1.0
+        out = out + h * c * tint
+    return jnp.where(lit, out, 0.0)
+
+
+def _reflectivity(ctx: TraceContext, prim, cos_i, eta_rel, rgb):
+    """Reflection colour (§2.6) and its ray weight."""
+    fin, mats = ctx.mats.finish, ctx.mats
+    rmin, rmax = fin["refl_min"][prim], fin["refl_max"][prim]
+    frac = safe_pow(1.0 - cos_i, fin["refl_falloff"][prim])
+    reflec = frac * rmax + (1 - frac) * rmin
+    weight = jnp.maximum(jnp.max(rmax), jnp.max(rmin))
+    if ctx.plan.effects.fresnel:
+        f, total = lt.fresnel(cos_i, eta_rel)
+        fres = jnp.where(total, rmax, f * rmax + (1 - f) * rmin)
+        is_f = jnp.asarray(mats.fresnel)[prim]
+        reflec = jnp.where(is_f, fres, reflec)
+        weight = jnp.where(is_f, jnp.max(reflec), weight)
+    if ctx.plan.effects.metallic:
+        reflec = reflec * lt.metallic_tint(fin["refl_metallic"][prim], cos_i, rgb)
+    return reflec, weight
+
+
+def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray):
+    """Shades one ray. Returns the local colour and up to two child rays with their coefficients.
+
+    Children (each a dict with origin, direction, weight, coef (3,), alive, power): slot "T" the
+    transmitted (or totally internally reflected) ray, slot "R" the mirror ray.
+    """
+    eff = ctx.plan.effects
+    vis = jnp.where(is_reflection_ray, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
+    scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+    hit = closest_hit(ctx.geo, ctx.plan, o, d, scale, vis, ctx.inverse_sign)
+    found = hit.found & alive
+    prim = hit.prim
+    p = o + hit.t * d
+    n_geom = hit.normal
+    entering = jnp.dot(n_geom, d) < 0
+    n = jnp.where(entering, n_geom, -n_geom)  # faces the incoming ray
+    offset = ctx.eps * (1.0 + jnp.max(jnp.abs(p)))
+    p_out = p + offset * n  # on the ray's side of the surface
+    p_in = p - offset * n
+
+    mats, fin = ctx.mats, ctx.mats.finish
+    pig = pigment_at(mats, prim, p)
+    rgb, f, t = pig[:3], pig[3], pig[4]
+    att = 1.0 - f - t
+    local = att * rgb * (fin["ambient"][prim] * ctx.settings.ambient_light + fin["emission"][prim])
+    for light in ctx.lights:
+        local = local + _local_light(ctx, light, fin, rgb, att, p, p_out, d, n, prim)
+
+    cos_i = -jnp.dot(d, n)
+    ior = mats.ior[prim]
+    eta_rel = jnp.where(entering, ior, 1.0 / ior)  # n_t / n_i
+    children = {}
+    if eff.reflection:
+        reflec, r_weight = _reflectivity(ctx, prim, cos_i, eta_rel, rgb)
+    else:
+        reflec, r_weight = jnp.zeros(3, ctx.dtype), jnp.zeros((), ctx.dtype)
+    tir = jnp.asarray(False)
+    if eff.transmission:
+        fil = f * rgb + t
+        conserve = jnp.asarray(mats.conserve_energy)[prim]
+        fil = jnp.where(conserve, fil * jnp.minimum(1.0, 1.0 - reflec), fil)
+        trans = jnp.minimum(1.0, jnp.abs(lt.grey(fil)))
+        if eff.refraction:
+            d_t, tir = lt.refract(d, n, 1.0 / eta_rel)
+        else:
+            d_t = d
+        # interior fade on leaving (distance travelled inside = this segment's length)
+        fd, fp = mats.fade_distance[prim], mats.fade_power[prim]
+        if eff.interior_fade:
+            fc = mats.fade_color[prim]
+            on = (~entering) & (fd != 0) & (fp > 0)
+            ratio = jnp.where(on, hit.t / jnp.where(on, fd, 1.0), 0.0)
+            att_col = jnp.where(on, fc + (1 - fc) / (1 + safe_pow(ratio, jnp.where(on, fp, 1.0))), 1.0)
+        else:
+            att_col = jnp.ones(3, ctx.dtype)
+        t_weight = weight * jnp.max(jnp.abs(fil))
+        t_alive = found & (trans > ctx.settings.adc_bailout) & (t_weight >= ctx.settings.adc_bailout)
+        children["T"] = dict(
+            origin=jnp.where(tir, p_out, p_in), direction=d_t,
+            weight=jnp.where(tir, weight, t_weight),
+            coef=jnp.where(tir, att_col, att_col * fil), power=jnp.ones((), ctx.dtype),
+            alive=t_alive, reflection=jnp.asarray(False))
+    if eff.reflection:
+        w = weight * r_weight
+        r_alive = found & jnp.any(reflec != 0) & ~tir & (w >= ctx.settings.adc_bailout)
+        expo = fin["refl_exponent"][prim]
+        children["R"] = dict(
+            origin=p_out, direction=lt.reflect(d, n), weight=w, coef=reflec,
+            power=1.0 / expo, alive=r_alive, reflection=jnp.asarray(True))
+    local = jnp.where(found, local, jnp.where(alive & ~hit.found, ctx.background, 0.0))
+    return local, children
+
+
+def trace(ctx: TraceContext, o, d, weight, alive, is_reflection, level: int):
+    """Colours (B, 3) of a batch of rays at ``level`` (0 = camera rays), recursing per level."""
+    last = level + 1 >= ctx.plan.effects.depth
+    local, children = jax.vmap(lambda *a: shade(ctx, *a))(
+        o, d, weight, alive, is_reflection)
+    if last or not children:
+        return local
+    slots = sorted(children)
+    cat = {k: jnp.concatenate([children[s][k] for s in slots]) for k in children[slots[0]]}
+    colours = trace(ctx, cat["origin"], cat["direction"], cat["weight"], cat["alive"],
+                    cat["reflection"], level + 1)
+    b = o.shape[0]
+    out = local
+    for i, s in enumerate(slots):
+        ch = children[s]
+        c = colours[i * b:(i + 1) * b]
+        if s == "R":
+            c = jnp.where(ch["power"][:, None] == 1.0, c, safe_pow(c, ch["power"][:, None]))
+        out = out + jnp.where(ch["alive"][:, None], ch["coef"] * c, 0.0)
+    return out
