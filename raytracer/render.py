@@ -108,3 +108,24 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None
         return _render(scene, width, height, k, progress is not None)
     finally:
         _progress_state["bar"] = None
+
+
+def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None):
+    """Compiles the render of ``scene``'s structure ahead of time (for timing and benchmarks).
+
+    Returns a function ``f(scene) -> image`` that runs the compiled program for any scene of the
+    same structure (values may differ) without recompiling.
+    """
+    k = math.isqrt(spp)
+    if k * k != spp or spp < 1:
+        raise ValueError(f"spp must be a perfect square (1, 4, 9, 16, …), got {spp}")
+    compiled = _render.lower(scene, width, height, k, progress is not None).compile()
+
+    def run(s: Scene) -> jax.Array:
+        _progress_state["bar"] = progress
+        try:
+            return compiled(s, width, height, k, progress is not None)
+        finally:
+            _progress_state["bar"] = None
+
+    return run

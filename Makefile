@@ -1,0 +1,32 @@
+# Quick start: `make demo` (set-up, then render the seed scene) and `make test` (set-up, then all tests).
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.setup-done
+OUT    := out
+
+.PHONY: setup demo test test-fast validate benchmark clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml scripts/setup.sh
+	bash scripts/setup.sh
+	touch $(STAMP)
+
+demo: setup
+	@mkdir -p $(OUT)
+	$(VENV)/bin/raytracer render examples/scenes/seed.pov -o $(OUT)/seed.png -W 640 -H 480
+	$(VENV)/bin/raytracer render examples/scenes/seed.pov -o $(OUT)/seed.exr -W 640 -H 480
+
+# The full suite, slow tests included (this is what CI runs).
+test: setup
+	$(PY) -m pytest -q -p no:cacheprovider
+
+# Everything but the tests marked slow.
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow" -p no:cacheprovider
+
+validate: setup
+	$(PY) -m validation --report $(OUT)/validation
+
+clean:
+	rm -rf $(OUT) .pytest_cache
