@@ -36,6 +36,9 @@ from ._numerics import solve_quartic as solve_quartic
 from ._plane import PLANE_K as PLANE_K
 from ._plane import plane_hits as plane_hits
 from ._plane import plane_inside as plane_inside
+from ._polygon import POLYGON_K as POLYGON_K
+from ._polygon import polygon_hits as polygon_hits
+from ._polygon import polygon_inside as polygon_inside
 from ._quadric import QUADRIC_K as QUADRIC_K
 from ._quadric import quadric_hits as quadric_hits
 from ._quadric import quadric_inside as quadric_inside
@@ -43,6 +46,10 @@ from ._quadric import quadric_value as quadric_value
 from ._sphere import SPHERE_K as SPHERE_K
 from ._sphere import sphere_hits as sphere_hits
 from ._sphere import sphere_inside as sphere_inside
+from ._torus import TORUS_K as TORUS_K
+from ._torus import torus_hits as torus_hits
+from ._torus import torus_inside as torus_inside
+from ._torus import torus_value as torus_value
 from ._triangle import SMOOTH_TRIANGLE_K as SMOOTH_TRIANGLE_K
 from ._triangle import TRIANGLE_K as TRIANGLE_K
 from ._triangle import smooth_triangle_hits as smooth_triangle_hits

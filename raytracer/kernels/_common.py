@@ -11,7 +11,7 @@ def points_at(o: Float[Array, "3"], d: Float[Array, "3"], t: Float[Array, " K"])
     gradients too (``inf * 0`` never occurs).
     """
     t_safe = jnp.where(jnp.isfinite(t), t, 0.0)
-    return o + t_safe[:, None] * d
+    return o[None, :] + t_safe[:, None] * d[None, :]
 
 
 def masked_hits(

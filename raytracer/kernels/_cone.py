@@ -43,7 +43,7 @@ def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
     side_ok = jnp.isfinite(t_side) & (h_side >= 0) & (h_side <= length) & proper
     p_perp = points_at(l_perp, d_perp, t_side)
     # Gradient of |p⊥|² - r(h)², halved: outward, since the solid is |p⊥| < r(h).
-    n_side = safe_normalize(p_perp - ((base_radius + slope * h_side) * slope)[:, None] * a_hat)
+    n_side = safe_normalize(p_perp - ((base_radius + slope * h_side) * slope)[:, None] * a_hat[None, :])
 
     t_base, ok_base = solve_linear(hd, h0)
     t_cap, ok_cap = solve_linear(hd, h0 - length)

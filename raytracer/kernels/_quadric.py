@@ -49,7 +49,7 @@ def quadric_hits(
     t0, t1, _ = solve_quadratic(a, b, c)
     t = jnp.stack([t0, t1])
     p = points_at(o, d, t)
-    grad = 2.0 * p @ m + g  # M is symmetric, so p M = M p
+    grad = 2.0 * p @ m + g[None, :]  # M is symmetric, so p M = M p
     return masked_hits(t, safe_normalize(grad), jnp.isfinite(t))
 
 

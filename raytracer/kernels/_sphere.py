@@ -38,7 +38,7 @@ def sphere_hits(
     disc = 4.0 * (radius * radius * a - jnp.dot(cross, cross))
     t0, t1, _ = solve_quadratic(a, b, c, disc)
     t = jnp.stack([t0, t1])
-    n = safe_normalize(points_at(o, d, t) - center)
+    n = safe_normalize(points_at(o, d, t) - center[None, :])
     return masked_hits(t, n, jnp.isfinite(t))
 
 
