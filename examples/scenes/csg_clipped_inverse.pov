@@ -1,0 +1,8 @@
+// checks: clipped_by (open result, inner surface visible) and inverse inside a difference
+#version 3.7;
+global_settings { assumed_gamma 1.0 adc_bailout 0 max_trace_level 5 }
+camera { location <0.13, 1.63, -5.11> look_at <0.02, 0.61, 0> right x*image_width/image_height angle 50 }
+light_source { <-30, 50, -20> color rgb 1 parallel point_at <0, 0, 0> }
+plane { y, 0 pigment { rgb <0.7, 0.7, 0.65> } finish { ambient 0.1 diffuse 0.6 } }
+sphere { <-0.8, 0.8, 0>, 0.75 clipped_by { plane { <0.3, 1, -0.5>, 0.75 } } pigment { rgb <0.9, 0.5, 0.2> } finish { ambient 0.15 diffuse 0.8 } }
+intersection { box { <-0.55, 0, -0.55>, <0.55, 1.1, 0.55> } sphere { <0, 0.55, 0>, 0.7 inverse } rotate <0, 20, 0> translate <0.9, 0, 0.3> pigment { rgb <0.3, 0.6, 0.9> } finish { ambient 0.15 diffuse 0.8 } }

@@ -1,0 +1,8 @@
+// checks: disc with and without a hole, seen from both sides
+#version 3.7;
+global_settings { assumed_gamma 1.0 adc_bailout 0 max_trace_level 5 }
+camera { location <0.13, 1.63, -5.11> look_at <0.02, 0.61, 0> right x*image_width/image_height angle 50 }
+light_source { <-30, 50, -20> color rgb 1 parallel point_at <0, 0, 0> }
+plane { y, 0 pigment { rgb <0.7, 0.7, 0.65> } finish { ambient 0.1 diffuse 0.6 } }
+disc { <-0.8, 0.8, 0>, <0.3, 0.2, -1>, 0.7 pigment { rgb <0.8, 0.2, 0.3> } finish { ambient 0.1 diffuse 0.8 } }
+disc { <0.9, 0.7, 0.3>, <-0.4, 0.5, 1>, 0.7, 0.3 pigment { rgb <0.2, 0.4, 0.9> } finish { ambient 0.1 diffuse 0.8 } }

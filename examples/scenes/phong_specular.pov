@@ -1,0 +1,8 @@
+// checks: phong (mirrored view ray) and specular (half vector) highlights in the light colour
+#version 3.7;
+global_settings { assumed_gamma 1.0 adc_bailout 0 max_trace_level 5 }
+camera { location <0.13, 1.63, -5.11> look_at <0.02, 0.61, 0> right x*image_width/image_height angle 50 }
+light_source { <-30, 50, -20> color rgb <1, 0.95, 0.85> parallel point_at <0, 0, 0> }
+plane { y, 0 pigment { rgb <0.7, 0.7, 0.65> } finish { ambient 0.1 diffuse 0.6 } }
+sphere { <-0.9, 0.6, 0>, 0.6 pigment { rgb <0.2, 0.3, 0.8> } finish { ambient 0.1 diffuse 0.6 phong 0.9 phong_size 60 } }
+sphere { <0.7, 0.6, 0.1>, 0.6 pigment { rgb <0.8, 0.2, 0.2> } finish { ambient 0.1 diffuse 0.6 specular 0.8 roughness 0.02 } }
