@@ -1,0 +1,7 @@
+"""POV-Ray scene description language → :class:`raytracer.scene.Scene`."""
+
+from ..errors import SceneError as SceneError
+from ._load import load_scene as load_scene
+from ._stream import Limits as Limits
+
+__all__ = ["Limits", "SceneError", "load_scene"]

@@ -1,0 +1,339 @@
+"""Built-in constants and functions of the SDL (manual 3.3.1.5–3.3.1.8)."""
+
+from __future__ import annotations
+
+import math
+
+from ._expr import as_float, as_vector, parse_expr_paren, type_name
+from ._values import ArrayValue, RandStream, Vec
+
+_CONSTANTS = {
+    "pi": math.pi, "tau": 2 * math.pi, "true": 1.0, "yes": 1.0, "on": 1.0, "false": 0.0, "no": 0.0,
+    "off": 0.0, "clock": 0.0, "clock_delta": 0.0, "clock_on": 0.0, "frame_number": 0.0,
+    "initial_clock": 0.0, "final_clock": 0.0, "initial_frame": 0.0, "final_frame": 0.0,
+    "radiosity": 0.0,
+}
+_VECTORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
+            "t": (0.0, 0.0, 0.0, 1.0), "u": (1.0, 0.0), "v": (0.0, 1.0)}
+
+
+def constant(p, name: str):
+    if name in _CONSTANTS:
+        return _CONSTANTS[name]
+    if name in _VECTORS:
+        return Vec(_VECTORS[name])
+    if name == "image_width":
+        return float(p.image_width)
+    if name == "image_height":
+        return float(p.image_height)
+    if name == "version":
+        return float(p.version)
+    if name == "input_file_name":
+        return p.input_file_name
+    return None
+
+
+def _args(p, tok, n_min: int, n_max: int | None = None) -> list:
+    p.expect_op("(", f"'(' after {tok.value}")
+    args = []
+    if not p.is_op(")"):
+        args.append(parse_expr_paren(p))
+        while p.accept_op(","):
+            args.append(parse_expr_paren(p))
+    p.expect_op(")", f"')' to close {tok.value}(")
+    hi = n_min if n_max is None else n_max
+    if not n_min <= len(args) <= hi:
+        want = n_min if n_min == hi else f"{n_min} to {hi}"
+        raise p.error(f"expected {want} arguments to {tok.value}, found {len(args)}", tok.loc)
+    return args
+
+
+def _floats(p, tok, n):
+    return [as_float(p, a, tok.loc) for a in _args(p, tok, n)]
+
+
+def _f1(fn):
+    def call(p, tok):
+        (a,) = _floats(p, tok, 1)
+        try:
+            return float(fn(a))
+        except (ValueError, OverflowError, ZeroDivisionError):
+            raise p.error(f"{tok.value}({a:g}) is undefined", tok.loc) from None
+    return call
+
+
+def _f2(fn):
+    def call(p, tok):
+        a, b = _floats(p, tok, 2)
+        try:
+            return float(fn(a, b))
+        except (ValueError, OverflowError, ZeroDivisionError):
+            raise p.error(f"{tok.value}({a:g}, {b:g}) is undefined", tok.loc) from None
+    return call
+
+
+def _minmax(fn):
+    def call(p, tok):
+        args = [as_float(p, a, tok.loc) for a in _args(p, tok, 1, 1000)]
+        return float(fn(args))
+    return call
+
+
+def _select(p, tok):
+    args = _args(p, tok, 3, 4)
+    a = as_float(p, args[0], tok.loc)
+    if len(args) == 3:
+        return args[1] if a < 0 else args[2]
+    return args[1] if a < 0 else (args[2] if a == 0 else args[3])
+
+
+def _mod(a, b):
+    return math.fmod(a, b)
+
+
+def _int(a):
+    return float(math.trunc(a))
+
+
+def _div(a, b):
+    return float(math.trunc(a / b))
+
+
+def _log(a):
+    return math.log10(a)
+
+
+def _vec_args(p, tok, n):
+    return [as_vector(p, a, 3, tok.loc) for a in _args(p, tok, n)]
+
+
+def _vlength(p, tok):
+    (a,) = _vec_args(p, tok, 1)
+    return math.sqrt(sum(c * c for c in a))
+
+
+def _vdot(p, tok):
+    a, b = _vec_args(p, tok, 2)
+    return sum(x * y for x, y in zip(a, b, strict=True))
+
+
+def _vcross(p, tok):
+    a, b = _vec_args(p, tok, 2)
+    return Vec((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
+
+
+def _vnormalize(p, tok):
+    (a,) = _vec_args(p, tok, 1)
+    n = math.sqrt(sum(c * c for c in a))
+    if n == 0:
+        return Vec((0.0, 0.0, 0.0))
+    return Vec(tuple(c / n for c in a))
+
+
+def _vrotate(p, tok):
+    import numpy as np
+
+    from ..scene._transform import rotation_matrix
+
+    a, r = _vec_args(p, tok, 2)
+    return Vec(tuple(rotation_matrix(r)[:3, :3] @ np.asarray(a)))
+
+
+def _vaxis_rotate(p, tok):
+    import numpy as np
+
+    from ..scene._transform import axis_rotation_matrix
+
+    args = _args(p, tok, 3)
+    a, ax = as_vector(p, args[0], 3, tok.loc), as_vector(p, args[1], 3, tok.loc)
+    ang = as_float(p, args[2], tok.loc)
+    if not any(ax):
+        raise p.error("vaxis_rotate needs a non-zero axis", tok.loc)
+    return Vec(tuple(axis_rotation_matrix(ax, ang)[:3, :3] @ np.asarray(a)))
+
+
+def _vturbulence(p, tok):
+    _args(p, tok, 4)
+    p.warn("vturbulence", "vturbulence is not implemented; it returns <0,0,0>", tok.loc)
+    return Vec((0.0, 0.0, 0.0))
+
+
+def _trace(p, tok):
+    _args(p, tok, 3, 4)
+    p.warn("trace", "trace() is not implemented at parse time; it returns <0,0,0>", tok.loc)
+    return Vec((0.0, 0.0, 0.0))
+
+
+def _extent(p, tok):
+    _args(p, tok, 1)
+    p.warn(tok.value, f"{tok.value}() is not implemented; it returns <0,0,0>", tok.loc)
+    return Vec((0.0, 0.0, 0.0))
+
+
+def _inside(p, tok):
+    _args(p, tok, 2)
+    p.warn("inside", "inside() is not implemented; it returns 0", tok.loc)
+    return 0.0
+
+
+def _seed(p, tok):
+    (a,) = _floats(p, tok, 1)
+    return RandStream(int(a) & 0xFFFFFFFF)
+
+
+def _rand(p, tok):
+    (s,) = _args(p, tok, 1)
+    if not isinstance(s, RandStream):
+        raise p.error(f"expected a seed() stream in rand(), found {type_name(s)}", tok.loc)
+    return s.next()
+
+
+def _str_arg(p, tok, v):
+    if not isinstance(v, str):
+        raise p.error(f"expected a string in {tok.value}(), found {type_name(v)}", tok.loc)
+    return v
+
+
+def _strlen(p, tok):
+    (a,) = _args(p, tok, 1)
+    return float(len(_str_arg(p, tok, a)))
+
+
+def _str(p, tok):
+    a, w, prec = _args(p, tok, 3)
+    a, w, prec = (as_float(p, v, tok.loc) for v in (a, w, prec))
+    return _format_float(a, int(w), int(prec))
+
+
+def _format_float(a: float, w: int, prec: int) -> str:
+    prec = 6 if prec < 0 else prec
+    s = f"{a:.{prec}f}"
+    if w < 0:
+        s = s.zfill(-w) if a >= 0 else "-" + s[1:].zfill(-w - 1)
+    else:
+        s = s.rjust(w)
+    return s
+
+
+def _vstr(p, tok):
+    args = _args(p, tok, 5)
+    n = int(as_float(p, args[1], tok.loc))
+    v = as_vector(p, args[0], n, tok.loc)
+    sep = _str_arg(p, tok, args[2])
+    w, prec = int(as_float(p, args[3], tok.loc)), int(as_float(p, args[4], tok.loc))
+    return sep.join(_format_float(c, w, prec) for c in v)
+
+
+def _chr(p, tok):
+    (a,) = _floats(p, tok, 1)
+    return chr(int(a))
+
+
+def _asc(p, tok):
+    (a,) = _args(p, tok, 1)
+    s = _str_arg(p, tok, a)
+    return float(ord(s[0])) if s else 0.0
+
+
+def _val(p, tok):
+    (a,) = _args(p, tok, 1)
+    s = _str_arg(p, tok, a).strip()
+    import re
+
+    m = re.match(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", s)
+    return float(m.group(0)) if m else 0.0
+
+
+def _concat(p, tok):
+    args = _args(p, tok, 1, 10000)
+    return "".join(_str_arg(p, tok, a) for a in args)
+
+
+def _substr(p, tok):
+    s, a, n = _args(p, tok, 3)
+    s = _str_arg(p, tok, s)
+    a, n = int(as_float(p, a, tok.loc)), int(as_float(p, n, tok.loc))
+    if a < 1 or n < 0 or a - 1 + n > len(s):
+        raise p.error(f"substr({s!r}, {a}, {n}) is out of range", tok.loc)
+    return s[a - 1:a - 1 + n]
+
+
+def _strcase(fn):
+    def call(p, tok):
+        (a,) = _args(p, tok, 1)
+        return fn(_str_arg(p, tok, a))
+    return call
+
+
+def _strcmp(p, tok):
+    a, b = (_str_arg(p, tok, v) for v in _args(p, tok, 2))
+    return float((a > b) - (a < b))
+
+
+def _file_exists(p, tok):
+    _args(p, tok, 1)
+    return 0.0
+
+
+def _defined(p, tok):
+    p.expect_op("(")
+    name = p.raw_ident().value
+    p.expect_op(")")
+    return float(p.find(name)[0] is not None or p.lookup_macro(name) is not None)
+
+
+def _array_arg(p, tok):
+    p.expect_op("(")
+    v = parse_expr_paren(p)
+    if not isinstance(v, ArrayValue):
+        raise p.error(f"expected an array in {tok.value}(), found {type_name(v)}", tok.loc)
+    return v
+
+
+def _dimensions(p, tok):
+    a = _array_arg(p, tok)
+    p.expect_op(")")
+    return float(len(a.dims))
+
+
+def _dimension_size(p, tok):
+    a = _array_arg(p, tok)
+    p.expect_op(",")
+    n = int(as_float(p, parse_expr_paren(p)))
+    p.expect_op(")")
+    return float(a.dims[n - 1]) if 1 <= n <= len(a.dims) else 0.0
+
+
+def _bitwise(fn):
+    def call(p, tok):
+        args = [int(as_float(p, a, tok.loc)) for a in _args(p, tok, 2, 100)]
+        out = args[0]
+        for a in args[1:]:
+            out = fn(out, a)
+        return float(out)
+    return call
+
+
+def _now(p, tok):
+    return 0.0
+
+
+BUILTIN_FUNCTIONS = {
+    "abs": _f1(abs), "acos": _f1(math.acos), "acosh": _f1(math.acosh), "asin": _f1(math.asin),
+    "asinh": _f1(math.asinh), "atan": _f1(math.atan), "atanh": _f1(math.atanh),
+    "atan2": _f2(math.atan2), "ceil": _f1(math.ceil), "cos": _f1(math.cos), "cosh": _f1(math.cosh),
+    "degrees": _f1(math.degrees), "radians": _f1(math.radians), "exp": _f1(math.exp),
+    "floor": _f1(math.floor), "int": _f1(_int), "ln": _f1(math.log), "log": _f1(_log),
+    "mod": _f2(_mod), "div": _f2(_div), "pow": _f2(math.pow), "sin": _f1(math.sin),
+    "sinh": _f1(math.sinh), "sqrt": _f1(math.sqrt), "tan": _f1(math.tan), "tanh": _f1(math.tanh),
+    "max": _minmax(max), "min": _minmax(min), "select": _select,
+    "vlength": _vlength, "vdot": _vdot, "vcross": _vcross, "vnormalize": _vnormalize,
+    "vrotate": _vrotate, "vaxis_rotate": _vaxis_rotate, "vturbulence": _vturbulence,
+    "trace": _trace, "min_extent": _extent, "max_extent": _extent, "inside": _inside,
+    "seed": _seed, "rand": _rand, "strlen": _strlen, "str": _str, "vstr": _vstr, "chr": _chr,
+    "asc": _asc, "val": _val, "concat": _concat, "substr": _substr, "strupr": _strcase(str.upper),
+    "strlwr": _strcase(str.lower), "strcmp": _strcmp, "file_exists": _file_exists,
+    "defined": _defined, "dimensions": _dimensions, "dimension_size": _dimension_size,
+    "bitwise_and": _bitwise(lambda a, b: a & b), "bitwise_or": _bitwise(lambda a, b: a | b),
+    "bitwise_xor": _bitwise(lambda a, b: a ^ b),
+}

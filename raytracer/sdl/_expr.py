@@ -1,0 +1,367 @@
+"""Expressions: POV-Ray's float/vector/colour/string arithmetic with its precedence.
+
+Lowest to highest: ``?:``; ``|`` ``&``; comparisons; ``+ -``; ``* /``; unary ``- + !``; ``^`` (function
+bodies); postfix ``.x``/``.red`` and ``[i]``; primaries (literals, ``< >`` vectors, identifiers,
+built-in constants and functions, colour keywords).
+"""
+
+from __future__ import annotations
+
+import math
+
+from ._lexer import ID, NUM, OP, STR
+from ._values import ArrayValue, FunctionValue, SplineValue, Vec
+
+EPSILON = 1e-10
+COLOR_KEYWORDS = ("color", "colour", "rgb", "rgbf", "rgbt", "rgbft", "srgb", "srgbf", "srgbt", "srgbft")
+_COLOR_PARTS = {"red": 0, "green": 1, "blue": 2, "filter": 3, "transmit": 4}
+_DOT = {"x": 0, "u": 0, "red": 0, "y": 1, "v": 1, "green": 1, "z": 2, "blue": 2,
+        "t": 3, "filter": 3, "transmit": 4}
+
+
+# ---- value helpers ---------------------------------------------------------------------------
+def type_name(v) -> str:
+    if isinstance(v, float):
+        return "float"
+    if isinstance(v, Vec):
+        return "vector"
+    if isinstance(v, str):
+        return "string"
+    return type(v).__name__.replace("Rec", "").replace("Value", "").lower()
+
+
+def _num(p, v, loc):
+    if isinstance(v, (float, Vec)):
+        return v
+    raise p.error(f"expected a float or vector, found {type_name(v)}", loc)
+
+
+def binop(p, op: str, a, b, loc):
+    a, b = _num(p, a, loc), _num(p, b, loc)
+    if isinstance(a, float) and isinstance(b, float):
+        return _fop(p, op, a, b, loc)
+    n = max(len(a) if isinstance(a, Vec) else 0, len(b) if isinstance(b, Vec) else 0)
+    ft = (isinstance(a, Vec) and a.ft) or (isinstance(b, Vec) and b.ft)
+    ac = a.padded(n) if isinstance(a, Vec) else (a,) * n
+    bc = b.padded(n) if isinstance(b, Vec) else (b,) * n
+    return Vec([_fop(p, op, x, y, loc) for x, y in zip(ac, bc, strict=True)], ft)
+
+
+def _fop(p, op, x, y, loc) -> float:
+    if op == "+":
+        return x + y
+    if op == "-":
+        return x - y
+    if op == "*":
+        return x * y
+    if op == "/":
+        if y == 0.0:
+            raise p.error("division by zero", loc)
+        return x / y
+    if op == "^":
+        try:
+            return float(math.pow(x, y))
+        except (ValueError, OverflowError):
+            raise p.error(f"cannot raise {x:g} to the power {y:g}", loc) from None
+    raise p.error(f"unknown operator {op}", loc)
+
+
+def as_float(p, v, loc=None) -> float:
+    if isinstance(v, float):
+        return v
+    if isinstance(v, bool | int):
+        return float(v)
+    if isinstance(v, Vec):
+        return v.c[0]
+    raise p.error(f"expected a float, found {type_name(v)}", loc)
+
+
+def as_vector(p, v, n: int = 3, loc=None) -> tuple:
+    if isinstance(v, float):
+        return (v,) * n
+    if isinstance(v, Vec):
+        return v.padded(n)
+    raise p.error(f"expected a vector, found {type_name(v)}", loc)
+
+
+def as_color(p, v, loc=None) -> Vec:
+    """A value used as a colour: a float fills all five channels (reference §2.2)."""
+    if isinstance(v, float):
+        return Vec((v,) * 5, True)
+    if isinstance(v, Vec):
+        c = v.as_color()
+        c.ft = v.ft or c.c[3] != 0.0 or c.c[4] != 0.0
+        return c
+    raise p.error(f"expected a colour, found {type_name(v)}", loc)
+
+
+def truthy(p, v, loc=None) -> bool:
+    return abs(as_float(p, v, loc)) > EPSILON
+
+
+# ---- grammar ---------------------------------------------------------------------------------
+def parse_expr(p):
+    """A full expression (ternary level)."""
+    loc = p.peek().loc
+    c = _logic(p)
+    if _is(p, "?"):
+        p.next()
+        a = parse_expr(p)
+        p.expect_op(":")
+        b = parse_expr(p)
+        return a if truthy(p, c, loc) else b
+    return c
+
+
+def _is(p, op: str) -> bool:
+    t = p.peek_op()
+    return t.kind == OP and t.value == op
+
+
+def _peek_any(p, ops):
+    t = p.peek_op()
+    return t.value if t.kind == OP and t.value in ops else None
+
+
+def _logic(p):
+    a = _rel(p)
+    while (op := _peek_any(p, ("&", "|"))) is not None:
+        loc = p.next().loc
+        b = _rel(p)
+        x, y = truthy(p, a, loc), truthy(p, b, loc)
+        a = float((x and y) if op == "&" else (x or y))
+    return a
+
+
+_REL = ("<", "<=", "=", "!=", ">=", ">")
+
+
+def _rel(p):
+    a = _add(p)
+    while True:
+        op = _peek_any(p, _REL)
+        if op is None or (op == ">" and p.no_gt):
+            return a
+        loc = p.next().loc
+        b = _add(p)
+        if isinstance(a, str) and isinstance(b, str):
+            x, y = (a > b) - (a < b), 0.0
+        else:
+            x, y = as_float(p, a, loc), as_float(p, b, loc)
+        a = float({"<": x < y, "<=": x <= y, "=": abs(x - y) < EPSILON, "!=": abs(x - y) >= EPSILON,
+                   ">=": x >= y, ">": x > y}[op])
+
+
+def _add(p):
+    a = _mul(p)
+    while (op := _peek_any(p, ("+", "-"))) is not None:
+        loc = p.next().loc
+        a = binop(p, op, a, _mul(p), loc)
+    return a
+
+
+def _mul(p):
+    a = _unary(p)
+    while (op := _peek_any(p, ("*", "/"))) is not None:
+        loc = p.next().loc
+        a = binop(p, op, a, _unary(p), loc)
+    return a
+
+
+def _unary(p):
+    t = p.peek()
+    if t.kind == OP and t.value in ("-", "+", "!"):
+        p.next()
+        v = _unary(p)
+        if t.value == "-":
+            return binop(p, "*", v, -1.0, t.loc)
+        if t.value == "!":
+            return float(not truthy(p, v, t.loc))
+        return _num(p, v, t.loc)
+    a = _postfix(p)
+    if _is(p, "^"):
+        loc = p.next().loc
+        a = binop(p, "^", a, _unary(p), loc)
+    return a
+
+
+def _postfix(p):
+    v = _primary(p)
+    while True:
+        if isinstance(v, ArrayValue) and _is(p, "["):
+            v = _index(p, v)
+        elif _is(p, "."):
+            loc = p.next().loc
+            name = p.expect_ident("a component name after '.'").value
+            v = dot(p, v, name, loc)
+        else:
+            return v
+
+
+def dot(p, v, name: str, loc):
+    if isinstance(v, float):
+        v = Vec((v,) * 5, True)
+    if not isinstance(v, Vec):
+        raise p.error(f"expected a vector or colour before '.{name}', found {type_name(v)}", loc)
+    if name in ("gray", "grey"):
+        r, g, b = v.padded(3)
+        return 0.297 * r + 0.589 * g + 0.114 * b
+    if name in ("hf",):
+        return 0.0
+    i = _DOT.get(name)
+    if i is None:
+        raise p.error(f"expected a component such as .x or .red, found '.{name}'", loc)
+    if i >= len(v):
+        raise p.error(f"the {len(v)}-component vector has no '.{name}'", loc)
+    return v.c[i]
+
+
+def index_list(p) -> list[int]:
+    idx = []
+    while _is(p, "["):
+        p.next()
+        idx.append(int(as_float(p, parse_expr_paren(p))))
+        p.expect_op("]")
+    return idx
+
+
+def _index(p, arr: ArrayValue):
+    loc = p.peek().loc
+    idx = []
+    while _is(p, "[") and len(idx) < len(arr.dims):
+        p.next()
+        idx.append(int(math.floor(as_float(p, parse_expr_paren(p)) + 1e-9)))
+        p.expect_op("]")
+    if len(idx) < len(arr.dims):
+        # a sub-array: copy the slice
+        size = 1
+        for d in arr.dims[len(idx):]:
+            size *= d
+        start = arr.flat_index(idx + [0] * (len(arr.dims) - len(idx)))
+        return ArrayValue(arr.dims[len(idx):], arr.data[start:start + size])
+    try:
+        v = arr.data[arr.flat_index(idx)]
+    except IndexError as e:
+        raise p.error(str(e), loc) from None
+    if v is None:
+        raise p.error(f"array element {idx} was never initialised", loc)
+    return v
+
+
+def parse_expr_paren(p):
+    """An expression in which '>' is a comparison again (inside () or [] or function arguments)."""
+    saved, p.no_gt = p.no_gt, False
+    try:
+        return parse_expr(p)
+    finally:
+        p.no_gt = saved
+
+
+def parse_vector_literal(p):
+    start = p.expect_op("<")
+    saved, p.no_gt = p.no_gt, True
+    try:
+        comps = [as_float(p, parse_expr(p), start.loc)]
+        while not p.is_op(">"):  # commas between components are optional
+            p.accept_op(",")
+            comps.append(as_float(p, parse_expr(p), start.loc))
+            if len(comps) > 5:
+                break
+    finally:
+        p.no_gt = saved
+    p.expect_op(">", "'>' to close the vector")
+    if not 2 <= len(comps) <= 5:
+        raise p.error(f"expected a vector of 2 to 5 components, found {len(comps)}", start.loc)
+    return Vec(comps)
+
+
+def _primary(p):
+    t = p.peek()
+    if t.kind == NUM:
+        p.next()
+        return t.value
+    if t.kind == STR:
+        p.next()
+        return t.value
+    if t.kind == OP:
+        if t.value == "(":
+            p.next()
+            v = parse_expr_paren(p)
+            p.expect_op(")")
+            return v
+        if t.value == "<":
+            return parse_vector_literal(p)
+        raise p.error(f"expected a value, found {t.describe()}", t.loc)
+    if t.kind == ID:
+        return _identifier(p, t)
+    raise p.error(f"expected a value, found {t.describe()}", t.loc)
+
+
+def _identifier(p, t):
+    from ._builtins import BUILTIN_FUNCTIONS, constant
+
+    name = t.value
+    table, v = p.find(name)
+    if table is not None:
+        p.next()
+        if isinstance(v, FunctionValue) and _is(p, "("):
+            return p.call_function(v, t)
+        if isinstance(v, SplineValue) and _is(p, "("):
+            return p.call_spline(v, t)
+        return v
+    if name in COLOR_KEYWORDS:
+        return parse_color(p)
+    if name in BUILTIN_FUNCTIONS:
+        p.next()
+        return BUILTIN_FUNCTIONS[name](p, t)
+    c = constant(p, name)
+    if c is not None:
+        p.next()
+        return c
+    if name == "function":
+        return p.parse_function()
+    raise p.error(f"expected a value, found undeclared identifier '{name}'", t.loc)
+
+
+# ---- colours ---------------------------------------------------------------------------------
+def parse_color(p) -> Vec:
+    """``[color|colour] (rgb… V | red r | green g | blue b | filter f | transmit t | expression)…``."""
+    p.accept_id("color") or p.accept_id("colour")
+    c = None
+    while True:
+        t = p.peek()
+        if t.kind == ID and t.value in ("rgb", "rgbf", "rgbt", "rgbft", "srgb", "srgbf", "srgbt", "srgbft"):
+            p.next()
+            c = _keyword_color(p, t.value, parse_expr(p), t.loc)
+        elif t.kind == ID and (t.value in _COLOR_PARTS or t.value == "alpha"):
+            p.next()
+            val = as_float(p, parse_expr(p), t.loc)
+            if t.value == "alpha":
+                p.warn("alpha", "'alpha' is obsolete; treated as transmit", t.loc)
+            i = _COLOR_PARTS.get(t.value, 4)
+            base = list((c or Vec((0, 0, 0, 0, 0))).padded(5))
+            base[i] = val
+            c = Vec(base, (c.ft if c else False) or i >= 3)
+        elif c is None:
+            c = as_color(p, parse_expr(p), t.loc)
+        else:
+            return c
+
+
+def _keyword_color(p, kw: str, v, loc) -> Vec:
+    srgb = kw.startswith("s")
+    kw = kw.lstrip("s")
+    n = {"rgb": 3, "rgbf": 4, "rgbt": 4, "rgbft": 5}[kw]
+    if isinstance(v, float):
+        comps = [v] * n
+    else:
+        comps = list(as_vector(p, v, n, loc))
+    if srgb:
+        comps[:3] = [p.srgb_to_working(x) for x in comps[:3]]
+    if kw == "rgb":
+        return Vec(comps[:3] + [0.0, 0.0])
+    if kw == "rgbf":
+        return Vec(comps[:4] + [0.0], True)
+    if kw == "rgbt":
+        return Vec(comps[:3] + [0.0, comps[3]], True)
+    return Vec(comps, True)

@@ -1,0 +1,316 @@
+"""The interpreter: token stream + directives + the scene-level statement loop and values."""
+
+from __future__ import annotations
+
+from ._directives import Directives, skip_block
+from ._expr import as_float, parse_expr, parse_expr_paren, type_name
+from ._keywords import KEYWORDS
+from ._lexer import EOF, ID, OP, STR
+from ._objects import (
+    is_object_start,
+    parse_background,
+    parse_camera,
+    parse_default,
+    parse_global_settings,
+    parse_object,
+)
+from ._stream import Frame, Stream
+from ._textures import (
+    parse_color_map,
+    parse_finish,
+    parse_interior,
+    parse_material,
+    parse_pigment,
+    parse_texture,
+    parse_transform_value,
+    skip_braces,
+)
+from ._values import (
+    ArrayValue,
+    FunctionValue,
+    LayerRec,
+    LightRec,
+    ObjRec,
+    Opaque,
+    SplineValue,
+    TextureRec,
+    TransformRec,
+    Vec,
+)
+
+_SKIPPED_STATEMENTS = ("fog", "sky_sphere", "rainbow", "media", "photons", "radiosity")
+
+
+class Interpreter(Stream, Directives):
+    """Runs a scene: ``run()`` evaluates every statement and collects camera, lights and objects."""
+
+    def __init__(self, *, include_paths=(), strict=False, limits=None, width=160, height=120):
+        super().__init__(include_paths=include_paths, strict=strict, limits=limits)
+        self.directives = self.directive_table()
+        self.macro_call = self.invoke_macro
+        self.no_gt = False
+        self.image_width, self.image_height = width, height
+        self.version = 3.7
+        self.version_seen = False
+        self.first_version = None
+        self.old_version_warned = False
+        self.assumed_gamma = None
+        self.input_file_name = ""
+        self.settings = {}
+        self.background = (0.0, 0.0, 0.0)
+        self.default_layer = LayerRec()
+        self.camera = None
+        self.items: list = []  # ObjRec and LightRec in file order
+        self.parse_default = lambda tok: parse_default(self, tok)
+
+    @staticmethod
+    def reserved_words():
+        return KEYWORDS
+
+    # ---- statements ----------------------------------------------------------------------
+    def run(self) -> None:
+        while True:
+            t = self.peek()
+            if t.kind == EOF:
+                return
+            self.statement(t)
+
+    def statement(self, t) -> None:
+        if t.kind != ID:
+            raise self.error(f"expected an object, light, camera or directive, found {t.describe()}",
+                             t.loc)
+        kw = t.value
+        if is_object_start(self, t):
+            rec = parse_object(self)
+            self.items.append(rec)
+        elif kw == "camera":
+            self.next()
+            if self.camera is not None:
+                self.warn("camera", "a second camera replaces the first", t.loc)
+            self.camera = parse_camera(self, t)
+        elif kw == "global_settings":
+            self.next()
+            parse_global_settings(self, t)
+        elif kw == "background":
+            self.next()
+            parse_background(self, t)
+        elif kw in _SKIPPED_STATEMENTS:
+            self.next()
+            self.warn(kw, f"{kw} is not supported; ignored", t.loc)
+            skip_braces(self)
+        elif kw in KEYWORDS:
+            raise self.error(f"expected an object, light, camera or directive, found '{kw}'", t.loc)
+        else:
+            v = self.lookup(kw)
+            what = f"identifier '{kw}' ({type_name(v)})" if v is not None else \
+                f"undeclared identifier '{kw}'"
+            raise self.error(f"expected an object, light, camera or directive, found {what}", t.loc)
+
+    # ---- right-hand sides of #declare and macro arguments ---------------------------------
+    def parse_rvalue(self):
+        t = self.peek()
+        if t.kind == ID:
+            kw = t.value
+            if is_object_start(self, t):
+                return parse_object(self)
+            handler = _RVALUE_BLOCKS.get(kw)
+            if handler is not None:
+                self.next()
+                return handler(self, t)
+        return parse_expr(self)
+
+    # ---- arrays ----------------------------------------------------------------------------
+    def parse_array(self, t):
+        dims = []
+        while self.accept_op("["):
+            dims.append(int(as_float(self, parse_expr_paren(self), t.loc)))
+            self.expect_op("]")
+        if not dims:
+            raise self.error("expected '[' size ']' after array", t.loc)
+        size = 1
+        for d in dims:
+            if d <= 0:
+                raise self.error(f"expected a positive array size, found {d}", t.loc)
+            size *= d
+        arr = ArrayValue(dims, [None] * size)
+        if self.is_op("{"):
+            flat = []
+            self._array_init(flat, len(dims))
+            if len(flat) > size:
+                raise self.error(f"expected at most {size} array initialisers, found {len(flat)}",
+                                 t.loc)
+            arr.data[:len(flat)] = flat
+        return arr
+
+    def _array_init(self, out, depth):
+        self.expect_op("{")
+        while not self.is_op("}"):
+            if depth > 1 and self.is_op("{"):
+                self._array_init(out, depth - 1)
+            else:
+                out.append(self.parse_rvalue())
+            if not self.accept_op(","):
+                break
+        self.expect_op("}", "'}' to close the array initialiser")
+
+    # ---- functions and splines -------------------------------------------------------------
+    def parse_function(self):
+        t = self.next()  # 'function'
+        params = ["x", "y", "z"]
+        if self.accept_op("("):
+            params = []
+            if not self.is_op(")"):
+                params.append(self.raw_ident("a parameter name").value)
+                while self.accept_op(","):
+                    params.append(self.raw_ident("a parameter name").value)
+            self.expect_op(")")
+        self.expect_op("{", "'{' to start the function body")
+        body, depth = [], 1
+        while True:
+            tok = self.next()
+            if tok.kind == EOF:
+                raise self.error("expected '}' to close the function, found end of file", t.loc)
+            if tok.kind == OP and tok.value in "{}":
+                depth += 1 if tok.value == "{" else -1
+                if depth == 0:
+                    break
+            body.append(tok)
+        kind = "float"
+        if body and body[0].kind == ID and body[0].value in ("pattern", "pigment", "internal",
+                                                            "spline", "transform"):
+            kind = "opaque"
+        body.append(tok)
+        return FunctionValue(params, body, kind, t.loc)
+
+    def call_function(self, f: FunctionValue, t):
+        self.expect_op("(")
+        args = []
+        if not self.is_op(")"):
+            args.append(parse_expr_paren(self))
+            while self.accept_op(","):
+                args.append(parse_expr_paren(self))
+        self.expect_op(")")
+        if f.kind == "opaque":
+            return 0.0
+        if len(args) != len(f.params):
+            raise self.error(f"expected {len(f.params)} arguments to the function, found {len(args)}",
+                             t.loc)
+        if self.macro_depth >= self.limits.max_macro_depth:
+            raise self.error(f"function calls nested deeper than {self.limits.max_macro_depth}",
+                             t.loc)
+        saved_la, saved_raw = self.la, self.la_raw_hash
+        self.la, self.la_raw_hash = None, False
+        self.scopes.append(dict(zip(f.params, args, strict=True)))
+        self.macro_depth += 1
+        self.frames.append(Frame(f.tokens, 0, len(f.tokens) - 1, "func", True, call_loc=t.loc))
+        saved_gt, self.no_gt = self.no_gt, False
+        try:
+            v = parse_expr(self)
+            end = self.peek()
+            if end.kind != EOF:
+                raise self.error(f"expected the end of the function body, found {end.describe()}",
+                                 end.loc)
+        finally:
+            self.no_gt = saved_gt
+        self.la = None
+        self.pop_frame()
+        self.la, self.la_raw_hash = saved_la, saved_raw
+        return v
+
+    def parse_spline(self, t):
+        self.expect_op("{")
+        pts, kind = [], "linear_spline"
+        while not self.accept_op("}"):
+            nt = self.peek()
+            if nt.kind == ID and nt.value.endswith("_spline"):
+                kind = self.next().value
+                continue
+            if nt.kind == ID and isinstance(self.lookup(nt.value), SplineValue):
+                s = self.lookup(self.next().value)
+                pts, kind = list(s.points), s.kind
+                continue
+            k = as_float(self, parse_expr(self), nt.loc)
+            self.accept_op(",")
+            v = parse_expr(self)
+            self.accept_op(",")
+            pts.append((k, v))
+        if kind != "linear_spline":
+            self.warn(kind, f"{kind} is evaluated as a linear spline", t.loc)
+        return SplineValue(sorted(pts, key=lambda kv: kv[0]), kind)
+
+    def call_spline(self, s: SplineValue, t):
+        from ._expr import binop
+
+        self.expect_op("(")
+        x = as_float(self, parse_expr_paren(self), t.loc)
+        if self.accept_op(","):
+            self.next()
+        self.expect_op(")")
+        pts = s.points
+        if not pts:
+            return 0.0
+        if x <= pts[0][0]:
+            return pts[0][1]
+        for (k0, v0), (k1, v1) in zip(pts, pts[1:], strict=False):
+            if x <= k1:
+                w = (x - k0) / (k1 - k0) if k1 != k0 else 0.0
+                return binop(self, "+", binop(self, "*", v0, 1 - w, t.loc),
+                             binop(self, "*", v1, w, t.loc), t.loc)
+        return pts[-1][1]
+
+
+def _opaque(kind):
+    def handler(p, t):
+        if p.is_op("{"):
+            skip_braces(p)
+        p.warn(kind, f"{kind} is not supported; ignored", t.loc)
+        return Opaque(kind, t.loc)
+    return handler
+
+
+def _layered_texture(p):
+    """``texture {…} texture {…}…``: a layered texture (later layers on top)."""
+    tex = parse_texture(p, p.default_layer)
+    while True:
+        t = p.peek_op()
+        if not (t.kind == ID and t.value == "texture"):
+            return tex
+        p.next()
+        tex = TextureRec(tex.layers + parse_texture(p, p.default_layer).layers)
+
+
+def _normal_value(p, t):
+    skip_braces(p)
+    return Opaque("normal", t.loc)
+
+
+def _array_handler(p, t):
+    return p.parse_array(t)
+
+
+def _string_literal(p, t):
+    return t.value
+
+
+_RVALUE_BLOCKS = {
+    "texture": lambda p, t: _layered_texture(p),
+    "pigment": lambda p, t: parse_pigment(p),
+    "finish": lambda p, t: parse_finish(p),
+    "interior": lambda p, t: parse_interior(p),
+    "material": lambda p, t: parse_material(p, p.default_layer),
+    "normal": _normal_value,
+    "camera": lambda p, t: parse_camera(p, t),
+    "transform": lambda p, t: TransformRec(parse_transform_value(p, t)),
+    "color_map": lambda p, t: parse_color_map(p),
+    "colour_map": lambda p, t: parse_color_map(p),
+    "array": _array_handler,
+    "spline": lambda p, t: p.parse_spline(t),
+    "media": _opaque("media"), "density": _opaque("density"), "fog": _opaque("fog"),
+    "rainbow": _opaque("rainbow"), "sky_sphere": _opaque("sky_sphere"),
+    "pigment_map": _opaque("pigment_map"), "normal_map": _opaque("normal_map"),
+    "slope_map": _opaque("slope_map"), "texture_map": _opaque("texture_map"),
+    "density_map": _opaque("density_map"), "photons": _opaque("photons"),
+    "interior_texture": _opaque("interior_texture"),
+}
+
+__all__ = ["Interpreter", "LightRec", "ObjRec", "Vec", "STR", "skip_block"]

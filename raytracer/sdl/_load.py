@@ -1,0 +1,71 @@
+"""``load_scene``: the parser's one entry point."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from ..errors import SceneError
+from ._interpreter import Interpreter
+from ._lexer import tokenize
+from ._lower import lower_scene
+from ._stream import Limits
+
+
+def _is_path(path_or_text) -> bool:
+    if isinstance(path_or_text, os.PathLike):
+        return True
+    s = str(path_or_text)
+    if "\n" in s or "{" in s or len(s) > 4096:
+        return False
+    return s.endswith((".pov", ".inc")) or os.path.isfile(s)
+
+
+def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: int | None = None,
+               height: int | None = None, limits: Limits | None = None):
+    """Parses a POV-Ray 3.7 scene (a file path or SDL text) into a :class:`raytracer.scene.Scene`.
+
+    Args:
+        path_or_text: a path (an existing file, or a name ending in .pov/.inc) or SDL text.
+        include_paths: folders searched for ``#include`` after the including file's folder, before
+            ``$RAYTRACER_INCLUDE_PATH`` and POV-Ray's standard include folder.
+        strict: raise SceneError for unsupported features instead of warning.
+        width, height: the ``image_width``/``image_height`` the scene sees (default 160×120).
+        limits: loop/recursion/include bounds (:class:`Limits`).
+
+    Raises:
+        SceneError: for any scene that cannot be loaded, with ``file:line:col``.
+    """
+    p = Interpreter(include_paths=include_paths, strict=strict, limits=limits,
+                    width=width or 160, height=height or 120)
+    old_limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(old_limit, 20000))
+    try:
+        if _is_path(path_or_text):
+            path = str(path_or_text)
+            if not os.path.isfile(path):
+                raise SceneError(f'expected a scene file, found no file "{path}"')
+            toks = p.file_tokens(path)
+            p.input_file_name = Path(path).name
+            p.push_main(toks, path)
+        else:
+            p.push_main(tokenize(str(path_or_text), "<string>"), None)
+        p.run()
+        _check_open_blocks(p)
+        return lower_scene(p)
+    except SceneError:
+        raise
+    except RecursionError:
+        raise p.error("the scene nests too deeply (recursion limit)") from None
+    except (ValueError, TypeError, IndexError, KeyError, ArithmeticError, AttributeError) as e:
+        raise p.error(f"cannot evaluate the scene here: {type(e).__name__}: {e}") from e
+    finally:
+        sys.setrecursionlimit(old_limit)
+
+
+def _check_open_blocks(p) -> None:
+    for f in p.frames:
+        if f.conds:
+            entry = f.conds[-1]
+            raise p.error(f"expected '#end' to close #{entry[0]}, found end of file")

@@ -1,0 +1,193 @@
+"""Lowering: builder-level records → the JAX scene model (``raytracer.scene``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import scene as S
+from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
+
+_FINISH_KEYS = ("ambient", "emission", "diffuse", "brilliance", "phong", "phong_size", "specular",
+                "roughness", "metallic", "conserve_energy")
+
+
+def _transform(m) -> S.Transform | None:
+    return None if m is None else S.Transform(np.asarray(m, dtype=np.float64))
+
+
+def lower_pigment(pig: PigRec, world: np.ndarray | None) -> S.Pigment:
+    colors = np.array([c.padded(5) for _, c in pig.cmap], dtype=np.float64)
+    values = np.array([v for v, _ in pig.cmap], dtype=np.float64)
+    transparent = bool(pig.ft or np.any(colors[:, 3:] != 0))
+    if pig.pattern == "solid":
+        return S.Pigment("solid", values=values[:1] * 0, colors=colors[:1], transparent=transparent)
+    m = pig.transform
+    if world is not None:
+        m = world if m is None else world @ m
+    wave = pig.wave or "ramp"
+    return S.Pigment(pig.pattern, values=values, colors=colors, transform=_transform(m),
+                     vector=np.asarray(pig.vector, dtype=np.float64), frequency=pig.frequency,
+                     phase=pig.phase, turbulence=pig.turbulence, omega=pig.omega,
+                     lambda_=pig.lambda_, octaves=pig.octaves, wave=wave, transparent=transparent)
+
+
+def lower_finish(fin: dict) -> S.Finish:
+    kwargs = {k: fin[k] for k in _FINISH_KEYS if k in fin}
+    r = fin.get("reflection")
+    if r is not None:
+        kwargs["reflection"] = S.Reflection(min=r["min"], max=r["max"], falloff=r["falloff"],
+                                            exponent=r["exponent"], metallic=r["metallic"],
+                                            fresnel=bool(r["fresnel"]))
+    return S.Finish(**kwargs)
+
+
+class Lowerer:
+    """Converts records, caching textures so objects sharing one get one pytree."""
+
+    def __init__(self):
+        self._tex_cache = {}
+        self.lights: list[S.Light] = []
+
+    def texture(self, layers: list[LayerRec], world) -> S.Texture:
+        key = (tuple(id(layer) for layer in layers), None if world is None else world.tobytes())
+        tex = self._tex_cache.get(key)
+        if tex is None:
+            # the renderer wants the top layer first; records keep them bottom first
+            tex = S.Texture(tuple(S.Layer(lower_pigment(layer.pigment, world),
+                                          lower_finish(layer.finish))
+                                  for layer in reversed(layers)))
+            self._tex_cache[key] = (tex, layers)  # keep layers alive so ids stay unique
+            return tex
+        return tex[0]
+
+    def interior(self, rec, layers) -> S.Interior | None:
+        vals = dict(rec.values) if rec is not None else {}
+        if layers:  # legacy finish { ior refraction fade_* }
+            fin = layers[-1].finish
+            for k in ("ior", "fade_distance", "fade_power"):
+                if "legacy_" + k in fin and k not in vals:
+                    vals[k] = fin["legacy_" + k]
+        if not vals and rec is None:
+            return None
+        return S.Interior(**vals)
+
+    def obj(self, rec, parent_world: np.ndarray | None, top_level: bool):
+        """One ObjRec → Object/CSG (None when nothing renderable is left); lights are collected."""
+        if isinstance(rec, LightRec):
+            self.lights.append(lower_light(rec, parent_world))
+            return None
+        if not rec.supported:
+            return None
+        world = rec.transform if parent_world is None else (
+            parent_world if rec.transform is None else parent_world @ rec.transform)
+        layers = rec.layers
+        if layers is None and top_level:
+            layers = [rec.default_layer or LayerRec()]
+        texture = None if layers is None else self.texture(layers, parent_world)
+        common = dict(
+            transform=_transform(rec.transform), texture=texture,
+            interior=self.interior(rec.interior, layers),
+            clipped_by=tuple(c for c in (self.obj(k, world, False) for k in rec.clipped_by)
+                             if c is not None),
+            inverse=bool(rec.flags.get("inverse", False)),
+            no_shadow=bool(rec.flags.get("no_shadow", False)),
+            no_image=bool(rec.flags.get("no_image", False)),
+            no_reflection=bool(rec.flags.get("no_reflection", False)),
+            double_illuminate=bool(rec.flags.get("double_illuminate", False)))
+        if rec.kind in ("union", "intersection", "difference", "merge"):
+            kids = [self.obj(k, world, False) for k in rec.children]
+            if rec.kind == "difference" and rec.children and kids[0] is None:
+                return None
+            kids = [k for k in kids if k is not None]
+            if not kids:
+                return None
+            return S.CSG(rec.kind, tuple(kids), **common)
+        return S.Object(shape=lower_shape(rec), **common)
+
+
+def lower_shape(rec: ObjRec) -> S.AbstractShape:
+    s, kind = rec.shape, rec.kind
+    if kind == "sphere":
+        return S.Sphere(s["center"], s["radius"])
+    if kind == "plane":
+        return S.Plane(s["normal"], s["distance"])
+    if kind == "box":
+        return S.Box(s["corner1"], s["corner2"])
+    if kind == "cylinder":
+        return S.Cylinder(s["base"], s["cap"], s["radius"], open=s.get("open", False))
+    if kind == "cone":
+        return S.Cone(s["base"], s["base_radius"], s["cap"], s["cap_radius"], open=s.get("open", False))
+    if kind == "torus":
+        return S.Torus(s["major"], s["minor"])
+    if kind == "disc":
+        return S.Disc(s["center"], s["normal"], s["radius"], s["hole_radius"])
+    if kind == "quadric":
+        return S.Quadric(s["coeffs"])
+    if kind == "polygon":
+        return S.polygon_from_points(s["points"])
+    if kind == "triangle":
+        return S.Triangle(s["p1"], s["p2"], s["p3"])
+    if kind == "smooth_triangle":
+        return S.SmoothTriangle(s["p1"], s["p2"], s["p3"], s["n1"], s["n2"], s["n3"])
+    if kind in ("mesh", "mesh2"):
+        return S.Mesh(s["triangles"], s["normals"])
+    raise ValueError(f"cannot lower {kind}")
+
+
+def _apply_point(m, v):
+    return m[:3, :3] @ np.asarray(v, dtype=np.float64) + m[:3, 3]
+
+
+def lower_light(rec: LightRec, parent_world) -> S.Light:
+    m = rec.transform
+    if parent_world is not None:
+        m = parent_world if m is None else parent_world @ m
+    pos, at = np.asarray(rec.position, dtype=np.float64), np.asarray(rec.point_at, dtype=np.float64)
+    area = None
+    if rec.area is not None:
+        a1, a2 = np.asarray(rec.area[0], dtype=np.float64), np.asarray(rec.area[1], dtype=np.float64)
+        if m is not None:
+            a1, a2 = m[:3, :3] @ a1, m[:3, :3] @ a2
+        area = S.AreaLight(a1, a2, rec.area[2], rec.area[3], circular=rec.circular, orient=rec.orient)
+    if m is not None:
+        pos, at = _apply_point(m, pos), _apply_point(m, at)
+    spot = None
+    if rec.kind in ("spotlight", "cylinder"):
+        spot = S.Spot(rec.radius, rec.falloff, rec.tightness)
+    return S.Light(position=pos, color=rec.color.c[:3], point_at=at,
+                   fade_distance=rec.fade_distance, fade_power=rec.fade_power, spot=spot, area=area,
+                   parallel=rec.parallel, shadowless=rec.shadowless)
+
+
+def lower_camera(cam: CameraRec | None) -> S.Camera:
+    if cam is None:
+        return S.Camera()
+    v = cam.values
+    kwargs = {k: v[k] for k in ("location", "direction", "up", "right", "sky", "look_at") if k in v}
+    return S.Camera(**kwargs, angle_degrees=v.get("angle"), transform=_transform(cam.transform),
+                    projection=cam.projection, up_or_right_given="up" in v or "right" in v)
+
+
+def output_transfer(p) -> tuple[str, float]:
+    """§3.1: the transfer from working values to linear output."""
+    if p.assumed_gamma is not None and p.assumed_gamma != 1.0:
+        return "gamma", float(p.assumed_gamma)
+    if p.assumed_gamma is None and p.version < 3.7:
+        return "srgb_decode", 1.0
+    return "linear", 1.0
+
+
+def lower_scene(p) -> S.Scene:
+    low = Lowerer()
+    objects = []
+    for rec in p.items:
+        o = low.obj(rec, None, True)
+        if o is not None:
+            objects.append(o)
+    transfer, gamma = output_transfer(p)
+    st = dict(p.settings)
+    if "max_trace_level" in st:
+        st["max_trace_level"] = max(1, min(256, st["max_trace_level"]))
+    settings = S.Settings(**st, output_transfer=transfer, assumed_gamma=gamma)
+    return S.Scene(camera=lower_camera(p.camera), objects=tuple(objects), lights=tuple(low.lights),
+                   background=p.background, settings=settings, warnings=tuple(p.warnings))

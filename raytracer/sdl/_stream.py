@@ -1,0 +1,340 @@
+"""The token stream: files, include frames, macro frames, lookahead and symbol tables.
+
+POV-Ray evaluates directives while it reads tokens, so ``#if``, ``#while``, ``#include`` and macro
+calls are handled here, below the expression parser and the builders: whatever asks for the next
+token gets the token the directives produce. Loops jump back in the token list of their frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+from pathlib import Path
+
+from ..errors import SceneError, SceneWarning, SourceLoc
+from ._lexer import EOF, ID, OP, Token, tokenize
+from ._values import Alias
+
+logger = logging.getLogger("raytracer.sdl")
+
+STANDARD_INCLUDE = Path("/usr/share/povray-3.7/include")
+
+
+@dataclasses.dataclass(frozen=True)
+class Limits:
+    """Bounds that stop runaway scenes with a SceneError instead of a hang.
+
+    Attributes:
+        max_loop_iterations: iterations of one ``#while``/``#for`` loop.
+        max_macro_depth:     nested macro (and function) calls.
+        max_include_depth:   nested ``#include`` files.
+        max_tokens:          tokens read in total (a budget for the whole scene).
+    """
+
+    max_loop_iterations: int = 1_000_000
+    max_macro_depth: int = 150
+    max_include_depth: int = 64
+    max_tokens: int = 50_000_000
+
+
+@dataclasses.dataclass
+class Frame:
+    """A position in a token list: a file, an include, a macro body or a function body."""
+
+    tokens: list
+    pos: int
+    stop: int
+    kind: str  # main, include, macro, func
+    scope: bool  # pushed a symbol table
+    call_loc: SourceLoc | None = None
+    path: str | None = None
+    conds: list = dataclasses.field(default_factory=list)
+
+
+class Stream:
+    """Tokens with directives applied, plus the symbol tables (global first)."""
+
+    def __init__(self, *, include_paths=(), strict=False, limits: Limits | None = None):
+        self.frames: list[Frame] = []
+        self.scopes: list[dict] = [{}]
+        self.la: Token | None = None  # lookahead (already processed, or a raw '#')
+        self.la_raw_hash = False
+        self.last_hash: Token | None = None
+        self.last = None  # last consumed token
+        self.strict = strict
+        self.limits = limits or Limits()
+        self.include_paths = [Path(p) for p in include_paths]
+        self.warnings: list[SceneWarning] = []
+        self.token_cache: dict[str, list] = {}
+        self.hash_stops = 0  # >0 while reading a #declare's expression
+        self.macro_depth = 0
+        self.tokens_read = 0
+        self.directives = None  # set by the interpreter: name -> handler(hash_token)
+        self.macro_call = None  # set by the interpreter: handler(ident token, MacroDef)
+
+    # ---- errors and warnings -------------------------------------------------------------
+    def chain(self) -> tuple[SourceLoc, ...]:
+        return tuple(f.call_loc for f in reversed(self.frames) if f.call_loc is not None)
+
+    def error(self, message: str, loc: SourceLoc | None = None) -> SceneError:
+        if loc is None:
+            loc = self.here()
+        return SceneError(message, loc, self.chain())
+
+    def here(self) -> SourceLoc | None:
+        if self.la is not None:
+            return self.la.loc
+        if self.last is not None:
+            return self.last.loc
+        return None
+
+    def warn(self, feature: str, message: str, loc: SourceLoc | None = None) -> None:
+        loc = loc or self.here()
+        if self.strict:
+            raise self.error(f"{message} [{feature}]", loc)
+        w = SceneWarning(feature, message, loc)
+        self.warnings.append(w)
+        logger.warning("%s", w)
+
+    # ---- files ---------------------------------------------------------------------------
+    def file_tokens(self, path: str) -> list[Token]:
+        toks = self.token_cache.get(path)
+        if toks is None:
+            try:
+                text = Path(path).read_text(encoding="utf-8", errors="replace")
+            except OSError as e:
+                raise self.error(f"cannot read {path}: {e.strerror}") from None
+            toks = tokenize(text, path)
+            self.token_cache[path] = toks
+        return toks
+
+    def push_main(self, tokens: list[Token], path: str | None) -> None:
+        self.frames.append(Frame(tokens, 0, len(tokens) - 1, "main", False, path=path))
+
+    def resolve_include(self, name: str, loc: SourceLoc) -> str:
+        """Search order: including file's folder, include_paths, $RAYTRACER_INCLUDE_PATH, POV's folder."""
+        if os.path.isabs(name):
+            if os.path.isfile(name):
+                return name
+            raise self.error(f'expected an include file, found no file "{name}"', loc)
+        dirs = []
+        for f in reversed(self.frames):
+            if f.path is not None and f.kind in ("main", "include"):
+                dirs.append(Path(f.path).parent)
+                break
+        dirs += self.include_paths
+        env = os.environ.get("RAYTRACER_INCLUDE_PATH", "")
+        dirs += [Path(d) for d in env.split(os.pathsep) if d]
+        if STANDARD_INCLUDE.is_dir():
+            dirs.append(STANDARD_INCLUDE)
+        if not dirs:
+            dirs.append(Path("."))
+        for d in dirs:
+            for cand in (name, name.lower()):
+                p = d / cand
+                if p.is_file():
+                    return str(p)
+        where = ", ".join(str(d) for d in dirs)
+        raise self.error(f'expected an include file, found no "{name}" in {where}', loc)
+
+    def push_include(self, name: str, loc: SourceLoc) -> None:
+        path = self.resolve_include(name, loc)
+        real = os.path.realpath(path)
+        depth = sum(1 for f in self.frames if f.kind == "include")
+        if depth >= self.limits.max_include_depth:
+            raise self.error(f"include depth exceeds {self.limits.max_include_depth}", loc)
+        for f in self.frames:
+            if f.path is not None and os.path.realpath(f.path) == real:
+                raise self.error(f'include cycle: "{name}" is already being included', loc)
+        toks = self.file_tokens(path)
+        self.scopes.append({})
+        self.frames.append(Frame(toks, 0, len(toks) - 1, "include", True, call_loc=loc, path=path))
+
+    def unread_lookahead(self) -> None:
+        """Puts the lookahead token back in front of the current frame (before pushing a new one)."""
+        if self.la is not None:
+            tok = self.la
+            self.la, self.la_raw_hash = None, False
+            self.frames.append(Frame([tok, tok], 0, 1, "pushback", False))
+
+    # ---- frames --------------------------------------------------------------------------
+    def pop_frame(self) -> Frame:
+        f = self.frames.pop()
+        if f.scope:
+            self.scopes.pop()
+        if f.kind in ("macro", "func"):
+            self.macro_depth -= 1
+        return f
+
+    def raw(self) -> Token:
+        """The next token of the current frame, with no directive processing."""
+        while True:
+            f = self.frames[-1]
+            if f.pos < f.stop:
+                tok = f.tokens[f.pos]
+                f.pos += 1
+                self.tokens_read += 1
+                if self.tokens_read > self.limits.max_tokens:
+                    raise self.error(f"the scene reads more than {self.limits.max_tokens} tokens")
+                return tok
+            if f.kind in ("main", "func"):
+                tok = f.tokens[f.stop] if f.stop < len(f.tokens) else f.tokens[-1]
+                if f.kind == "func":
+                    return Token(EOF, None, tok.loc)
+                return tok
+            self.pop_frame()
+
+    def raw_peek(self, k: int = 0) -> Token | None:
+        """Looks ``k`` raw tokens ahead in the current frame (None past its end)."""
+        f = self.frames[-1]
+        i = f.pos + k
+        return f.tokens[i] if i < f.stop else None
+
+    def _fetch(self, stop_hash: bool) -> Token:
+        while True:
+            if self.la is not None:  # a directive handler read one token too far
+                tok, self.la, self.la_raw_hash = self.la, None, False
+            else:
+                tok = self.raw()
+            if tok.kind == OP and tok.value == "#":
+                if stop_hash:
+                    return tok
+                self.directive(tok)
+                continue
+            if tok.kind == ID:
+                m = self.lookup_macro(tok.value)
+                if m is not None:
+                    self.macro_call(tok, m)
+                    continue
+            return tok
+
+    def directive(self, hash_tok: Token) -> None:
+        name = self.raw()
+        if name.kind != ID:
+            raise self.error(f"expected a directive after '#', found {name.describe()}", name.loc)
+        handler = self.directives.get(name.value)
+        if handler is None:
+            raise self.error(f"expected a directive, found '#{name.value}'", name.loc)
+        handler(name)
+
+    # ---- public token API ----------------------------------------------------------------
+    def peek(self) -> Token:
+        if self.la is None or self.la_raw_hash:
+            self.la = self._fetch(False)
+        return self.la
+
+    def peek_op(self) -> Token:
+        """Like peek, but while reading a #declare expression a '#' ends the expression."""
+        if self.la is None:
+            tok = self._fetch(self.hash_stops > 0)
+            if tok.kind == OP and tok.value == "#":
+                self.la_raw_hash = True
+            self.la = tok
+        return self.la
+
+    def next(self) -> Token:
+        tok = self.peek()
+        self.la = None
+        self.last = tok
+        return tok
+
+    def is_op(self, value: str) -> bool:
+        t = self.peek()
+        return t.kind == OP and t.value == value
+
+    def is_id(self, value: str) -> bool:
+        t = self.peek()
+        return t.kind == ID and t.value == value
+
+    def accept_op(self, value: str) -> bool:
+        if self.is_op(value):
+            self.next()
+            return True
+        return False
+
+    def accept_id(self, value: str) -> bool:
+        if self.is_id(value):
+            self.next()
+            return True
+        return False
+
+    def expect_op(self, value: str, what: str | None = None) -> Token:
+        t = self.peek()
+        if t.kind != OP or t.value != value:
+            raise self.error(f"expected {what or repr(value)}, found {t.describe()}", t.loc)
+        return self.next()
+
+    def expect_ident(self, what: str = "an identifier") -> Token:
+        t = self.peek()
+        if t.kind != ID:
+            raise self.error(f"expected {what}, found {t.describe()}", t.loc)
+        return self.next()
+
+    def raw_ident(self, what: str = "an identifier") -> Token:
+        """An identifier read without macro expansion (for #declare, #ifdef, #undef …)."""
+        if self.la is not None:
+            t = self.la
+            if t.kind != ID:
+                raise self.error(f"expected {what}, found {t.describe()}", t.loc)
+            self.la = None
+            self.last = t
+            return t
+        t = self.raw()
+        while t.kind == OP and t.value == "#":
+            self.directive(t)
+            t = self.raw()
+        if t.kind != ID:
+            raise self.error(f"expected {what}, found {t.describe()}", t.loc)
+        self.last = t
+        return t
+
+    # ---- symbol tables -------------------------------------------------------------------
+    def find(self, name: str):
+        """(table, value) of the most local binding of ``name`` (aliases followed), or (None, None)."""
+        for table in reversed(self.scopes):
+            if name in table:
+                v = table[name]
+                while isinstance(v, Alias):
+                    table, name = v.table, v.name
+                    if name not in table:
+                        return None, None
+                    v = table[name]
+                return table, v
+        return None, None
+
+    def lookup(self, name: str):
+        return self.find(name)[1]
+
+    def lookup_macro(self, name: str):
+        from ._values import MacroDef
+
+        for table in reversed(self.scopes):
+            if name in table:
+                v = table[name]
+                return v if isinstance(v, MacroDef) else None
+        return None
+
+    def _write(self, table: dict, name: str, value) -> None:
+        v = table.get(name)
+        while isinstance(v, Alias):
+            table, name = v.table, v.name
+            v = table.get(name)
+        table[name] = value
+
+    def declare(self, name: str, value) -> None:
+        """#declare: updates the most local existing binding, else creates a global one."""
+        for table in reversed(self.scopes):
+            if name in table:
+                self._write(table, name, value)
+                return
+        self.scopes[0][name] = value
+
+    def local(self, name: str, value) -> None:
+        self._write(self.scopes[-1], name, value)
+
+    def undef(self, name: str) -> None:
+        for table in reversed(self.scopes):
+            if name in table:
+                del table[name]
+                return

@@ -1,0 +1,616 @@
+"""Builders for transforms, pigments, finishes, textures, interiors and materials."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..scene._transform import pov_matrix, rotation_matrix, scale_matrix, translation_matrix
+from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
+from ._lexer import ID, NUM, OP
+from ._values import InteriorRec, LayerRec, MaterialRec, PigRec, TextureRec, TransformRec, Vec
+
+TRANSFORM_KEYWORDS = ("translate", "rotate", "scale", "matrix", "transform")
+PATTERN_NAMES = ("checker", "gradient", "bozo", "spotted", "bumps", "granite", "marble", "wood",
+                 "agate", "radial", "onion", "leopard", "ripples", "waves", "wrinkles", "dents",
+                 "spiral1", "spiral2", "boxed", "spherical", "cylindrical", "planar", "hexagon", "brick")
+UNSUPPORTED_PATTERNS = ("crackle", "cells", "quilted", "mandel", "julia", "magnet", "facets",
+                        "average", "tiling", "pavement", "slope", "aoi", "density_file",
+                        "image_pattern", "object", "function", "pigment_pattern", "fractal",
+                        "cubic", "square", "triangular", "granite_", "noise_pigment", "image_map",
+                        "bump_map", "material_map", "spherical_", "toroidal")
+WAVE_KEYWORDS = {"ramp_wave": "ramp", "triangle_wave": "triangle", "sine_wave": "sine",
+                 "scallop_wave": "scallop", "cubic_wave": "cubic", "poly_wave": "poly"}
+BLUE, GREEN = Vec((0, 0, 1, 0, 0)), Vec((0, 1, 0, 0, 0))
+BLACK, WHITE = Vec((0, 0, 0, 0, 0)), Vec((1, 1, 1, 0, 0))
+
+
+def vector3(p, loc=None) -> tuple:
+    t = p.peek()
+    return as_vector(p, parse_expr(p), 3, loc or t.loc)
+
+
+def float_(p) -> float:
+    t = p.peek()
+    return as_float(p, parse_expr(p), t.loc)
+
+
+def opt_comma(p) -> None:
+    p.accept_op(",")
+
+
+# ---- transforms ------------------------------------------------------------------------------
+def parse_transform_item(p, tok) -> np.ndarray:
+    """The matrix of ``translate/rotate/scale/matrix/transform`` (``tok`` already consumed)."""
+    kw = tok.value
+    if kw == "translate":
+        return translation_matrix(vector3(p))
+    if kw == "rotate":
+        return rotation_matrix(vector3(p))
+    if kw == "scale":
+        v = list(vector3(p))
+        if any(c == 0.0 for c in v):
+            p.warn("scale", "a scale component of 0 is replaced by 1", tok.loc)
+            v = [1.0 if c == 0.0 else c for c in v]
+        return scale_matrix(v)
+    if kw == "matrix":
+        return pov_matrix(_matrix_values(p, tok))
+    return parse_transform_value(p, tok)
+
+
+def _matrix_values(p, tok) -> list[float]:
+    p.expect_op("<", "'<' after matrix")
+    saved, p.no_gt = p.no_gt, True
+    try:
+        vals = [float_(p)]
+        while p.accept_op(","):
+            vals.append(float_(p))
+    finally:
+        p.no_gt = saved
+    p.expect_op(">")
+    if len(vals) != 12:
+        raise p.error(f"expected 12 matrix values, found {len(vals)}", tok.loc)
+    return vals
+
+
+def parse_transform_value(p, tok) -> np.ndarray:
+    """``transform Ident`` or ``transform { [Ident] items… [inverse] }``."""
+    if not p.is_op("{"):
+        return _transform_ident(p, p.next())
+    p.next()
+    m = np.eye(4)
+    while not p.accept_op("}"):
+        t = p.next()
+        if t.kind == ID and t.value in TRANSFORM_KEYWORDS:
+            m = parse_transform_item(p, t) @ m
+        elif t.kind == ID and t.value == "inverse":
+            m = np.linalg.inv(m)
+        elif t.kind == ID:
+            m = _transform_ident(p, t) @ m
+        else:
+            raise p.error(f"expected a transformation, found {t.describe()}", t.loc)
+    return m
+
+
+def _transform_ident(p, t) -> np.ndarray:
+    v = p.lookup(t.value) if t.kind == ID else None
+    if isinstance(v, TransformRec):
+        return v.matrix
+    raise p.error(f"expected a transform identifier, found {t.describe()}", t.loc)
+
+
+# ---- colour maps -----------------------------------------------------------------------------
+def parse_color_map(p) -> list:
+    """``color_map { [v color] … }`` (also the old ``[v1 v2 color c1 color c2]`` form) or Ident."""
+    p.expect_op("{")
+    entries = []
+    if p.peek().kind == ID and not p.is_id("color") and not p.is_id("colour"):
+        v = p.lookup(p.peek().value)
+        if isinstance(v, list):
+            p.next()
+            entries = list(v)
+    while p.accept_op("["):
+        a = float_(p)
+        opt_comma(p)
+        if p.peek().kind == NUM or (p.peek().kind == OP and p.peek().value in ("-", "(", ".")):
+            b = float_(p)
+            c1 = parse_color(p)
+            opt_comma(p)
+            c2 = parse_color(p)
+            entries += [(a, c1), (b, c2)]
+        else:
+            entries.append((a, parse_color(p)))
+        p.expect_op("]", "']' to close the colour map entry")
+    p.expect_op("}", "'}' to close the colour map")
+    return entries
+
+
+def _default_map(pattern: str) -> list:
+    if pattern == "checker":
+        return [(0.0, BLUE), (1.0, GREEN)]
+    if pattern == "bozo":
+        w, g, b, r = WHITE, GREEN, BLUE, Vec((1, 0, 0, 0, 0))
+        return [(0.0, w), (0.4, w), (0.4, g), (0.6, g), (0.6, b), (0.8, b), (0.8, r), (1.0, r)]
+    if pattern == "hexagon":
+        return [(0.0, BLUE), (0.5, GREEN), (1.0, Vec((1, 0, 0, 0, 0)))]
+    if pattern == "brick":
+        return [(0.0, WHITE), (1.0, Vec((1, 0, 0, 0, 0)))]
+    return [(0.0, BLACK), (1.0, WHITE)]
+
+
+# ---- pigments --------------------------------------------------------------------------------
+def parse_pigment(p, base: PigRec | None = None) -> PigRec:
+    """``pigment { … }``; ``base`` is the pigment being modified (an object's current one)."""
+    p.expect_op("{", "'{' after pigment")
+    pig = dataclasses.replace(base) if base is not None else PigRec()
+    first = True
+    while not p.accept_op("}"):
+        t = p.peek()
+        if first and t.kind == ID:
+            v = p.lookup(t.value)
+            if isinstance(v, PigRec):
+                p.next()
+                pig = dataclasses.replace(v)
+                first = False
+                continue
+        first = False
+        pig = pigment_item(p, pig)
+    return pig
+
+
+def _solid(c: Vec) -> PigRec:
+    return PigRec("solid", [(0.0, c)], ft=c.ft)
+
+
+def pigment_item(p, pig: PigRec) -> PigRec:
+    t = p.peek()
+    if t.kind != ID:
+        return _solid(as_color(p, parse_expr(p), t.loc))
+    kw = t.value
+    if kw in COLOR_KEYWORDS or kw in ("red", "green", "blue", "filter", "transmit"):
+        return _solid(parse_color(p))
+    if kw in PATTERN_NAMES:
+        p.next()
+        return _pattern(p, kw, pig)
+    if kw in ("color_map", "colour_map"):
+        p.next()
+        cmap = parse_color_map(p)
+        return dataclasses.replace(pig, cmap=cmap, cmap_given=True, ft=pig.ft or _map_ft(cmap))
+    if kw in TRANSFORM_KEYWORDS:
+        p.next()
+        return pig.transformed(parse_transform_item(p, t)) if pig.pattern != "solid" else _keep(
+            pig, parse_transform_item(p, t))
+    if kw in WAVE_KEYWORDS:
+        p.next()
+        if kw == "poly_wave" and _starts_value(p):
+            float_(p)
+        return dataclasses.replace(pig, wave=WAVE_KEYWORDS[kw])
+    if kw in ("turbulence", "octaves", "omega", "lambda", "frequency", "phase"):
+        p.next()
+        return _pattern_modifier(p, kw, pig)
+    if kw in ("pigment_map", "texture_map", "normal_map", "slope_map"):
+        p.next()
+        return _pigment_map(p, kw, pig, t.loc)
+    if kw in ("warp", "quick_color", "quick_colour", "noise_generator", "agate_turb", "brick_size",
+              "mortar", "arms", "form", "metric", "offset", "solid", "exponent", "interior",
+              "exterior", "control0", "control1", "coords", "size", "orientation", "dist_exp",
+              "major_radius", "repeat", "flip", "black_hole", "falloff"):
+        p.next()
+        return _ignored_modifier(p, kw, pig, t.loc)
+    if kw in UNSUPPORTED_PATTERNS:
+        p.next()
+        return _unsupported_pattern(p, kw, pig, t.loc)
+    v = p.lookup(kw)
+    if isinstance(v, (float, Vec)):
+        return _solid(as_color(p, parse_expr(p), t.loc))
+    if isinstance(v, list):  # a colour map identifier
+        p.next()
+        return dataclasses.replace(pig, cmap=list(v), cmap_given=True, ft=pig.ft or _map_ft(v))
+    raise p.error(f"expected a pigment item, found {t.describe()}", t.loc)
+
+
+def _keep(pig, m):
+    # transforming a solid colour changes nothing, but a pattern given later must see it
+    return dataclasses.replace(pig, transform=m if pig.transform is None else m @ pig.transform)
+
+
+def _map_ft(cmap) -> bool:
+    return any(c.ft for _, c in cmap)
+
+
+def _starts_value(p) -> bool:
+    t = p.peek()
+    if t.kind == NUM or (t.kind == OP and t.value in ("-", "+", "(", "<")):
+        return True
+    return t.kind == ID and isinstance(p.lookup(t.value), (float, Vec))
+
+
+def _pattern(p, kw: str, pig: PigRec) -> PigRec:
+    new = PigRec(kw, _default_map(kw), transform=pig.transform, turbulence=pig.turbulence,
+                 wave="triangle" if kw in ("marble", "wood") else None)
+    if kw in ("checker", "hexagon", "brick"):
+        new.frequency = 0.0
+        colors = []
+        n = {"checker": 2, "hexagon": 3, "brick": 2}[kw]
+        while len(colors) < n and _starts_color(p):
+            colors.append(parse_color(p))
+            opt_comma(p)
+        if colors:
+            defaults = [c for _, c in new.cmap]
+            colors += defaults[len(colors):]
+            values = [0.0, 1.0] if n == 2 else [0.0, 0.5, 1.0]
+            new.cmap = list(zip(values, colors, strict=True))
+            new.cmap_given = True
+            new.ft = _map_ft(new.cmap)
+    elif kw == "gradient":
+        new.vector = vector3(p)
+    elif kw in ("spiral1", "spiral2"):
+        new.vector = (float_(p), 0.0, 0.0)
+    elif kw == "agate":
+        pass
+    return new
+
+
+def _starts_color(p) -> bool:
+    t = p.peek()
+    if t.kind == ID and (t.value in COLOR_KEYWORDS or t.value in ("red", "green", "blue")):
+        return True
+    return _starts_value(p)
+
+
+def _pattern_modifier(p, kw, pig):
+    if kw == "turbulence":
+        v = parse_expr(p)
+        return dataclasses.replace(pig, turbulence=as_vector(p, v, 3))
+    if kw == "octaves":
+        return dataclasses.replace(pig, octaves=max(1, min(10, int(float_(p)))))
+    if kw == "omega":
+        return dataclasses.replace(pig, omega=float_(p))
+    if kw == "lambda":
+        return dataclasses.replace(pig, lambda_=float_(p))
+    if kw == "frequency":
+        return dataclasses.replace(pig, frequency=float_(p))
+    return dataclasses.replace(pig, phase=float_(p))
+
+
+def _skip_args(p):
+    """Skips the values or block after an ignored keyword."""
+    if p.is_op("{"):
+        skip_braces(p)
+        return
+    while _starts_value(p) or p.peek().kind == 'str':
+        parse_expr(p)
+        if not p.accept_op(","):
+            return
+
+
+def _ignored_modifier(p, kw, pig, loc):
+    if kw not in ("quick_color", "quick_colour", "noise_generator"):
+        p.warn(kw, f"pattern modifier '{kw}' is not supported; ignored", loc)
+    if kw in ("quick_color", "quick_colour"):
+        parse_color(p)
+        return pig
+    _skip_args(p)
+    return pig
+
+
+def _unsupported_pattern(p, kw, pig, loc):
+    p.warn(kw, f"pattern '{kw}' is not supported; a neutral colour is used", loc)
+    if kw in ("image_map", "bump_map", "material_map", "image_pattern", "object", "function",
+              "pigment_pattern", "density_file", "slope"):
+        if kw == "density_file":
+            p.next()  # df3
+            parse_expr(p)
+        elif p.is_op("{"):
+            skip_braces(p)
+        else:
+            _skip_args(p)
+    else:
+        _skip_args(p)
+    cmap = [(0.0, Vec((0.5, 0.5, 0.5, 0, 0)))]
+    return PigRec("solid", cmap, cmap_given=True)
+
+
+def _pigment_map(p, kw, pig, loc):
+    p.warn(kw, f"'{kw}' is approximated by the first colour of each entry", loc)
+    p.expect_op("{")
+    entries = []
+    while p.accept_op("["):
+        v = float_(p)
+        opt_comma(p)
+        t = p.peek()
+        if t.kind == ID and t.value in ("pigment", "texture", "normal"):
+            p.next()
+            if t.value == "pigment":
+                sub = parse_pigment(p)
+                entries.append((v, sub.cmap[0][1]))
+            else:
+                skip_braces(p)
+        elif t.kind == ID and isinstance(p.lookup(t.value), (PigRec, TextureRec)):
+            sub = p.lookup(p.next().value)
+            if isinstance(sub, PigRec):
+                entries.append((v, sub.cmap[0][1]))
+        else:
+            parse_expr(p)
+        while not p.is_op("]"):
+            p.next()
+        p.expect_op("]")
+    p.expect_op("}")
+    if kw == "pigment_map" and entries:
+        return dataclasses.replace(pig, cmap=entries, cmap_given=True, ft=pig.ft or _map_ft(entries))
+    return pig
+
+
+def skip_braces(p) -> None:
+    """Skips a balanced ``{ … }`` block (directives and macros inside still run)."""
+    start = p.expect_op("{")
+    depth = 1
+    while depth:
+        t = p.next()
+        if t.kind == "eof":
+            raise p.error("expected '}', found end of file", start.loc)
+        if t.kind == OP:
+            if t.value == "{":
+                depth += 1
+            elif t.value == "}":
+                depth -= 1
+
+
+# ---- finish ----------------------------------------------------------------------------------
+def parse_finish(p, base: dict | None = None) -> dict:
+    p.expect_op("{", "'{' after finish")
+    fin = dict(base or {})
+    first = True
+    while not p.accept_op("}"):
+        t = p.next()
+        if t.kind != ID:
+            raise p.error(f"expected a finish item, found {t.describe()}", t.loc)
+        if first and isinstance(p.lookup(t.value), dict):
+            fin = dict(p.lookup(t.value))
+            first = False
+            continue
+        first = False
+        finish_item(p, t, fin)
+    return fin
+
+
+def _rgb_of(p, loc):
+    return as_color(p, parse_expr(p), loc).c[:3]
+
+
+def finish_item(p, t, fin: dict) -> None:
+    kw = t.value
+    if kw in ("ambient", "emission"):
+        fin[kw] = _rgb_of(p, t.loc)
+    elif kw == "diffuse":
+        if p.accept_id("albedo"):
+            p.warn("albedo", "diffuse albedo is used as the plain diffuse value", t.loc)
+        fin["diffuse"] = float_(p)
+        if p.accept_op(","):
+            float_(p)
+            p.warn("diffuse back", "the back-side diffuse term is not supported", t.loc)
+    elif kw in ("phong", "specular"):
+        if p.accept_id("albedo"):
+            p.warn("albedo", f"{kw} albedo is used as the plain {kw} value", t.loc)
+        fin[kw] = float_(p)
+    elif kw in ("brilliance", "phong_size", "roughness"):
+        fin[kw] = float_(p)
+    elif kw == "metallic":
+        fin["metallic"] = float_(p) if _starts_value(p) else 1.0
+    elif kw == "reflection":
+        fin["reflection"] = _parse_reflection(p, t, fin.get("reflection"))
+    elif kw == "reflection_exponent":
+        fin["reflection"] = dict(fin.get("reflection") or _refl_default(), exponent=float_(p))
+    elif kw == "conserve_energy":
+        fin["conserve_energy"] = _opt_bool(p)
+    elif kw in ("crand", "irid", "subsurface", "caustics", "refraction", "ior", "fade_distance",
+                "fade_power", "reflect_metallic", "brilliance_", "translucency"):
+        _legacy_finish(p, t, fin)
+    else:
+        raise p.error(f"expected a finish item, found '{kw}'", t.loc)
+
+
+def _opt_bool(p) -> bool:
+    if _starts_value(p) or p.peek().kind == ID and p.peek().value in ("on", "off", "true", "false",
+                                                                       "yes", "no"):
+        return float_(p) != 0.0
+    return True
+
+
+def _legacy_finish(p, t, fin):
+    kw = t.value
+    if kw == "ior":
+        fin["legacy_ior"] = float_(p)
+    elif kw == "refraction":
+        fin["legacy_refraction"] = float_(p)
+    elif kw in ("fade_distance", "fade_power"):
+        fin["legacy_" + kw] = float_(p)
+    elif kw in ("irid", "subsurface"):
+        p.warn(kw, f"finish {kw} is not supported; ignored", t.loc)
+        if p.is_op("{"):
+            skip_braces(p)
+    elif kw == "reflect_metallic":
+        pass
+    else:
+        p.warn(kw, f"finish {kw} is not supported; ignored", t.loc)
+        _skip_args(p)
+
+
+def _refl_default():
+    return {"min": (0.0, 0.0, 0.0), "max": (0.0, 0.0, 0.0), "falloff": 1.0, "exponent": 1.0,
+            "metallic": 0.0, "fresnel": False}
+
+
+def _parse_reflection(p, t, old):
+    r = dict(old or _refl_default())
+    if not p.is_op("{"):
+        c = _rgb_of(p, t.loc)
+        r["min"] = r["max"] = c
+        return r
+    p.next()
+    if not p.is_id("fresnel") and not p.is_id("falloff") and not p.is_id("exponent") \
+            and not p.is_id("metallic") and not p.is_op("}"):
+        c1 = _rgb_of(p, t.loc)
+        r["min"] = r["max"] = c1
+        opt_comma(p)
+        if _starts_color(p):
+            r["max"] = _rgb_of(p, t.loc)
+    while not p.accept_op("}"):
+        k = p.next()
+        if k.kind == ID and k.value == "fresnel":
+            r["fresnel"] = _opt_bool(p)
+        elif k.kind == ID and k.value in ("falloff", "exponent"):
+            r[k.value] = float_(p)
+        elif k.kind == ID and k.value == "metallic":
+            r["metallic"] = float_(p) if _starts_value(p) else 1.0
+        else:
+            raise p.error(f"expected a reflection item, found {k.describe()}", k.loc)
+    return r
+
+
+# ---- interior --------------------------------------------------------------------------------
+def parse_interior(p, base: InteriorRec | None = None) -> InteriorRec:
+    p.expect_op("{", "'{' after interior")
+    vals = dict(base.values) if base else {}
+    first = True
+    while not p.accept_op("}"):
+        t = p.next()
+        if t.kind != ID:
+            raise p.error(f"expected an interior item, found {t.describe()}", t.loc)
+        if first and isinstance(p.lookup(t.value), InteriorRec):
+            vals = dict(p.lookup(t.value).values)
+            first = False
+            continue
+        first = False
+        if t.value in ("ior", "fade_distance", "fade_power"):
+            vals[t.value] = float_(p)
+        elif t.value in ("fade_color", "fade_colour"):
+            vals["fade_color"] = as_color(p, parse_expr(p), t.loc).c[:3]
+        elif t.value in ("caustics", "dispersion", "dispersion_samples"):
+            p.warn(t.value, f"interior {t.value} is not supported; ignored", t.loc)
+            float_(p)
+        elif t.value == "media":
+            p.warn("media", "media is not supported; ignored", t.loc)
+            skip_braces(p)
+        else:
+            raise p.error(f"expected an interior item, found '{t.value}'", t.loc)
+    return InteriorRec(vals)
+
+
+# ---- textures --------------------------------------------------------------------------------
+def parse_texture(p, default: LayerRec) -> TextureRec:
+    """``texture { [Ident] pigment finish normal transforms … }`` → a TextureRec (layers)."""
+    p.expect_op("{", "'{' after texture")
+    layers = [LayerRec(default.pigment, dict(default.finish))]
+    first = True
+    while not p.accept_op("}"):
+        t = p.peek()
+        if first and t.kind == ID and isinstance(p.lookup(t.value), TextureRec):
+            p.next()
+            layers = list(p.lookup(t.value).layers)
+            first = False
+            continue
+        first = False
+        p.next()
+        layers = texture_item(p, t, layers, default)
+    return TextureRec(layers)
+
+
+def texture_item(p, t, layers, default):
+    kw = t.value if t.kind == ID else None
+    top = layers[-1]
+    if kw == "pigment":
+        return layers[:-1] + [LayerRec(parse_pigment(p, top.pigment), top.finish)]
+    if kw == "finish":
+        return layers[:-1] + [LayerRec(top.pigment, parse_finish(p, top.finish))]
+    if kw == "normal":
+        parse_normal(p, t)
+        return layers
+    if kw in TRANSFORM_KEYWORDS:
+        m = parse_transform_item(p, t)
+        return [layer.transformed(m) for layer in layers]
+    if kw in ("checker", "hexagon", "brick", "gradient", "bozo", "spotted", "marble", "wood",
+              "agate", "granite", "radial", "onion", "leopard", "tiling", "crackle", "cells",
+              "wrinkles", "ripples", "waves", "dents", "bumps", "boxed", "spherical", "cylindrical",
+              "planar", "image_map", "material_map", "object", "function", "slope", "spiral1",
+              "spiral2", "average", "texture_map"):
+        return _patterned_texture(p, t, layers, default)
+    if kw in ("uv_mapping", "interior_texture"):
+        return layers
+    if kw in ("quick_color", "quick_colour"):
+        parse_color(p)
+        return layers
+    raise p.error(f"expected a texture item, found {t.describe()}", t.loc)
+
+
+def _patterned_texture(p, t, layers, default):
+    """A texture pattern (``checker texture{A} texture{B}``, ``texture_map``…): approximated."""
+    p.warn("texture pattern", f"patterned texture '{t.value}' is approximated by its first texture",
+           t.loc)
+    first = None
+    depth_guard = 0
+    while not p.is_op("}"):
+        k = p.next()
+        depth_guard += 1
+        if k.kind == ID and k.value == "texture" and p.is_op("{"):
+            tex = parse_texture(p, default)
+            first = first or tex
+        elif k.kind == ID and k.value in ("texture_map", "material_map") or (
+                k.kind == OP and k.value == "{"):
+            if k.kind == ID:
+                p.expect_op("{")
+            depth = 1
+            while depth:
+                q = p.next()
+                if q.kind == ID and q.value == "texture" and p.is_op("{") and first is None:
+                    first = parse_texture(p, default)
+                    continue
+                if q.kind == ID and first is None and isinstance(p.lookup(q.value), TextureRec):
+                    first = p.lookup(q.value)
+                if q.kind == "eof":
+                    raise p.error("expected '}', found end of file", t.loc)
+                if q.kind == OP and q.value in "{}":
+                    depth += 1 if q.value == "{" else -1
+        elif k.kind == ID and first is None and isinstance(p.lookup(k.value), TextureRec):
+            first = p.lookup(k.value)
+        elif k.kind == "eof":
+            raise p.error("expected '}', found end of file", t.loc)
+    return list(first.layers) if first is not None else layers
+
+
+def parse_normal(p, t) -> None:
+    p.warn("normal", "normal perturbation is not supported; ignored", t.loc)
+    skip_braces(p)
+
+
+def parse_material(p, default: LayerRec) -> MaterialRec:
+    p.expect_op("{", "'{' after material")
+    mat = MaterialRec()
+    first = True
+    while not p.accept_op("}"):
+        t = p.next()
+        if first and t.kind == ID and isinstance(p.lookup(t.value), MaterialRec):
+            m = p.lookup(t.value)
+            mat = MaterialRec(m.texture, m.interior)
+            first = False
+            continue
+        first = False
+        if t.kind == ID and t.value == "texture":
+            tex = parse_texture(p, default)
+            mat.texture = tex if mat.texture is None else TextureRec(mat.texture.layers + tex.layers)
+        elif t.kind == ID and t.value == "interior":
+            mat.interior = parse_interior(p, mat.interior)
+        elif t.kind == ID and t.value in TRANSFORM_KEYWORDS:
+            m = parse_transform_item(p, t)
+            if mat.texture is not None:
+                mat.texture = TextureRec([layer.transformed(m) for layer in mat.texture.layers])
+        elif t.kind == ID and t.value == "interior_texture":
+            skip_braces(p)
+        else:
+            raise p.error(f"expected a material item, found {t.describe()}", t.loc)
+    return mat
+
+
+def describe_value(v) -> str:
+    return type_name(v)

@@ -1,0 +1,260 @@
+"""Values of the SDL interpreter and the builder-level records objects are parsed into.
+
+Numbers are Python floats; vectors and colours are :class:`Vec` (a tuple of 2–5 floats plus a flag
+saying whether the value can carry filter/transmit). Scene items are light mutable records that are
+lowered to the JAX scene model only at the end (``_lower.py``), so ``object { Ident … }`` can copy and
+modify a declared object cheaply.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+
+import numpy as np
+
+from ..errors import SourceLoc
+
+
+class Vec:
+    """A vector or colour value: 2–5 float components.
+
+    Attributes:
+        c:  tuple of floats (colours always have 5: r g b filter transmit).
+        ft: whether the value may carry filter/transmit (rgbf/rgbt/rgbft, the ``filter``/``transmit``
+            keywords, a float promoted to a colour); decides ``Pigment.transparent``.
+    """
+
+    __slots__ = ("c", "ft")
+
+    def __init__(self, comps, ft: bool = False):
+        self.c = tuple(float(v) for v in comps)
+        self.ft = ft
+
+    def __len__(self) -> int:
+        return len(self.c)
+
+    def __repr__(self) -> str:
+        return f"Vec({self.c}{', ft' if self.ft else ''})"
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Vec) and self.c == other.c
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def padded(self, n: int) -> tuple[float, ...]:
+        return (self.c + (0.0,) * n)[:n]
+
+    def as_color(self) -> Vec:
+        """The 5-component colour of this value (missing filter/transmit are 0)."""
+        return Vec(self.padded(5), self.ft)
+
+
+@dataclasses.dataclass
+class ArrayValue:
+    """``array[d1][d2]…``: ``data`` is a flat list in row-major order (None = not initialised)."""
+
+    dims: list[int]
+    data: list
+
+    def flat_index(self, idx: list[int]) -> int:
+        k = 0
+        for i, d in zip(idx, self.dims, strict=True):
+            if not 0 <= i < d:
+                raise IndexError(f"array index {i} out of range 0..{d - 1}")
+            k = k * d + i
+        return k
+
+
+@dataclasses.dataclass
+class Alias:
+    """A macro parameter passed by reference: reads and writes go to ``table[name]``."""
+
+    table: dict
+    name: str
+
+
+@dataclasses.dataclass
+class MacroDef:
+    name: str
+    params: list[str]
+    tokens: list
+    start: int
+    stop: int
+    loc: SourceLoc
+
+
+@dataclasses.dataclass
+class FunctionValue:
+    """A user ``function(params) { body }``: the body's tokens are re-parsed on each call.
+
+    ``kind`` is "float" (the expression in ``tokens``) or "opaque" (pattern/pigment/internal
+    functions, which evaluate to 0 with a warning).
+    """
+
+    params: list[str]
+    tokens: list
+    kind: str = "float"
+    loc: SourceLoc | None = None
+
+
+@dataclasses.dataclass
+class SplineValue:
+    """``spline { … }``: control points ``(t, Vec)``, evaluated piecewise-linearly."""
+
+    points: list
+    kind: str = "linear_spline"
+
+
+@dataclasses.dataclass
+class RandStream:
+    """``seed(n)``: a deterministic random stream for ``rand``.
+
+    Like POV-Ray's, it is a 32-bit linear congruential generator, so a scene gives the same
+    numbers on every run; the sequence is not POV-Ray's own.
+    """
+
+    state: int
+
+    def next(self) -> float:
+        self.state = (self.state * 1103515245 + 12345) & 0xFFFFFFFF
+        return ((self.state >> 16) & 0x7FFF) / 32767.0
+
+
+@dataclasses.dataclass
+class Opaque:
+    """A parsed value we keep only so identifiers resolve (media, normal, photons …)."""
+
+    kind: str
+    loc: SourceLoc | None = None
+
+
+def identity() -> np.ndarray:
+    return np.eye(4)
+
+
+@dataclasses.dataclass
+class TransformRec:
+    """A ``transform { … }`` value: a world_from_object 4×4 numpy matrix."""
+
+    matrix: np.ndarray
+
+
+@dataclasses.dataclass
+class PigRec:
+    """A pigment as parsed. ``cmap`` is a list of ``(value, Vec5)``; ``pattern`` "solid" or a name."""
+
+    pattern: str = "solid"
+    cmap: list = dataclasses.field(default_factory=lambda: [(0.0, Vec((0, 0, 0, 0, 0)))])
+    cmap_given: bool = False
+    transform: np.ndarray | None = None
+    vector: tuple = (0.0, 1.0, 0.0)
+    frequency: float = 1.0
+    phase: float = 0.0
+    turbulence: tuple | None = None
+    omega: float = 0.5
+    lambda_: float = 2.0
+    octaves: int = 6
+    wave: str | None = None
+    ft: bool = False
+
+    def transformed(self, m: np.ndarray) -> PigRec:
+        if self.pattern == "solid":
+            return self
+        t = m if self.transform is None else m @ self.transform
+        return dataclasses.replace(self, transform=t)
+
+
+@dataclasses.dataclass
+class LayerRec:
+    """One texture layer: pigment, finish (a dict of the keywords given) and whether a normal was given."""
+
+    pigment: PigRec = dataclasses.field(default_factory=PigRec)
+    finish: dict = dataclasses.field(default_factory=dict)
+
+    def transformed(self, m: np.ndarray) -> LayerRec:
+        return LayerRec(self.pigment.transformed(m), self.finish)
+
+
+@dataclasses.dataclass
+class TextureRec:
+    """A texture value: layers bottom first (as written)."""
+
+    layers: list
+
+
+@dataclasses.dataclass
+class InteriorRec:
+    values: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class MaterialRec:
+    texture: TextureRec | None = None
+    interior: InteriorRec | None = None
+
+
+@dataclasses.dataclass
+class LightRec:
+    position: np.ndarray
+    color: Vec = dataclasses.field(default_factory=lambda: Vec((1, 1, 1, 0, 0)))
+    point_at: np.ndarray = dataclasses.field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    kind: str = "point"  # point, spotlight, cylinder
+    parallel: bool = False
+    shadowless: bool = False
+    fade_distance: float | None = None
+    fade_power: float | None = None
+    radius: float = 30.0
+    falloff: float = 45.0
+    tightness: float = 0.0
+    area: tuple | None = None  # (axis1, axis2, n1, n2)
+    circular: bool = False
+    orient: bool = False
+    transform: np.ndarray | None = None
+    loc: SourceLoc | None = None
+
+    def clone(self) -> LightRec:
+        return copy.copy(self)
+
+
+@dataclasses.dataclass
+class ObjRec:
+    """An object as parsed: a primitive (``shape`` = (kind, params)) or a CSG (``children``)."""
+
+    kind: str
+    shape: dict = dataclasses.field(default_factory=dict)
+    children: list = dataclasses.field(default_factory=list)
+    transform: np.ndarray | None = None
+    layers: list | None = None  # LayerRec, bottom first; None = no texture given
+    interior: InteriorRec | None = None
+    clipped_by: list = dataclasses.field(default_factory=list)
+    flags: dict = dataclasses.field(default_factory=dict)
+    default_layer: LayerRec | None = None
+    layers_given: bool = False
+    bounded_by: list = dataclasses.field(default_factory=list)
+    supported: bool = True
+    loc: SourceLoc | None = None
+
+    def clone(self) -> ObjRec:
+        o = copy.copy(self)
+        o.layers = None if self.layers is None else list(self.layers)
+        o.clipped_by = list(self.clipped_by)
+        o.flags = dict(self.flags)
+        o.shape = dict(self.shape)
+        return o
+
+    def apply_transform(self, m: np.ndarray) -> None:
+        """Applies ``m`` after the current transform; textures already attached move with it."""
+        self.transform = m if self.transform is None else m @ self.transform
+        if self.layers is not None:
+            self.layers = [layer.transformed(m) for layer in self.layers]
+
+
+@dataclasses.dataclass
+class CameraRec:
+    values: dict = dataclasses.field(default_factory=dict)
+    transform: np.ndarray | None = None
+    projection: str = "perspective"
+
+    def clone(self) -> CameraRec:
+        return CameraRec(dict(self.values), self.transform, self.projection)
