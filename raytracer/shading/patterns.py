@@ -75,16 +75,17 @@ _VECTOR_TABLE = _RNG.uniform(-1.0, 1.0, size=(1 << _TABLE_BITS, 3, 4))
 # Ripple/wave centres: 10 (POV's default number_of_waves) of our own points in the unit cube.
 NUMBER_OF_WAVES = 10
 _WAVE_CENTRES = _RNG.uniform(0.0, 1.0, size=(NUMBER_OF_WAVES, 3))
+_WAVE_FREQUENCIES = _RNG.uniform(0.1, 0.5, size=NUMBER_OF_WAVES)
 
 # Weight of the per-corner constant relative to the per-corner gradient, and the affine map of the raw
 # lattice sum onto [0, 1]. Calibrated (tests/shading/test_patterns.py) so that bozo = noise has POV-Ray
 # 3.7's measured mean 0.506, standard deviation 0.117 and autocorrelation 0.92/0.58/0.10 at lags
 # 0.25/0.5/1 (POV's generator 2 maps its own sum with clamp((s + 1.05242)·0.48985582, 0, 1)).
-_CONSTANT_WEIGHT = 0.35
-_NOISE_SCALE = 0.38
+_CONSTANT_WEIGHT = 0.55
+_NOISE_SCALE = 0.44
 _NOISE_OFFSET = 0.506
 # Vector noise: each component calibrated to POV's measured DNoise standard deviation 0.242.
-_DNOISE_SCALE = 0.80
+_DNOISE_SCALE = 0.92
 
 # Corners of the unit cell, (8, 3).
 _CORNERS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=np.int32)
@@ -294,32 +295,37 @@ def _granite(p):
     return value
 
 
-# Wrinkles: our own 1/f sum of ridged noise, affinely calibrated to POV's mean 0.51 / std 0.134.
+# Wrinkles: our own 1/f sum of signed noise (ten octaves, ω = ½, λ = 2), affinely calibrated to POV's
+# measured mean 0.51 and std 0.134; its autocorrelation (0.82/0.43/0.07 at ¼/½/1) then matches too.
 _WRINKLES_OCTAVES = 10
-_WRINKLES_SCALE = 0.62
-_WRINKLES_OFFSET = 0.27
+_WRINKLES_SCALE = 0.50
+_WRINKLES_OFFSET = 0.50
 
 
 def _wrinkles(p):
     value = jnp.zeros((), p.dtype)
     for i in range(_WRINKLES_OCTAVES):
-        value = value + jnp.abs(2.0 * noise((2.0**i) * p) - 1.0) / 2.0**i
+        value = value + (2.0 * noise((2.0**i) * p) - 1.0) / 2.0**i
     return jnp.clip(_WRINKLES_OFFSET + _WRINKLES_SCALE * value, 0.0, 1.0)
 
 
 def _ripples(p, kind):
-    """Superposed circular waves from NUMBER_OF_WAVES centres (our own points in the unit cube)."""
+    """Superposed circular waves from NUMBER_OF_WAVES centres (our own points in the unit cube).
+
+    ripples: sin(2π d) per centre (crests 1 unit apart); waves: cos(2π f d) with our own per-centre
+    spatial frequency f in [0.1, 0.5] (broader, rounder swells). Gains calibrated to POV's std.
+    """
     value = jnp.zeros((), p.dtype)
-    for c in _WAVE_CENTRES:
+    for c, f in zip(_WAVE_CENTRES, _WAVE_FREQUENCIES, strict=True):
         d = _safe_sqrt(jnp.sum((p - jnp.asarray(c, p.dtype)) ** 2))
         if kind == "ripples":
             value = value + jnp.sin((2.0 * math.pi) * _frac(d))
-        else:  # waves: broader, rounder crests
-            value = value + jnp.cos((2.0 * math.pi) * _frac(0.25 * d))
-    return jnp.clip(0.5 + value / (2.0 * NUMBER_OF_WAVES) * _RIPPLE_GAIN[kind], 0.0, 1.0)
+        else:
+            value = value + jnp.cos((2.0 * math.pi) * _frac(float(f) * d))
+    return jnp.clip(0.5 + _RIPPLE_GAIN[kind] * value, 0.0, 1.0)
 
 
-_RIPPLE_GAIN = {"ripples": 1.15, "waves": 1.1}
+_RIPPLE_GAIN = {"ripples": 0.0613, "waves": 0.0556}
 
 
 def _marble(p, turb, octaves, omega, lambda_):
@@ -371,7 +377,8 @@ _SIMPLE = {
     "waves": lambda p: _ripples(p, "waves"),
 }
 PATTERNS = frozenset(_SIMPLE) | {"gradient"} | _INTERNAL_TURBULENCE
-DEFAULT_WAVE: dict[str, str] = {name: "ramp" for name in PATTERNS} | {"marble": "triangle", "wood": "triangle"}
+DEFAULT_WAVE: dict[str, str] = {name: "ramp" for name in PATTERNS} | {"marble": "triangle",
+                                                                      "wood": "triangle"}
 
 
 def pattern_value(name: str, p, vector, turbulence, octaves: int = 6, omega=0.5, lambda_=2.0, *,
