@@ -239,7 +239,7 @@ def _similarity_scale(m) -> float | None:
     """The uniform scale of a rotation·scale (+translation) matrix, or None if it is not one."""
     a = m[:3, :3]
     s2 = np.trace(a.T @ a) / 3.0
-    if s2 <= 0 or not np.allclose(a.T @ a, s2 * np.eye(3), rtol=1e-6, atol=1e-9 * max(1.0, s2)):
+    if s2 <= 0 or not np.allclose(a.T @ a, s2 * np.eye(3), rtol=0.0, atol=1e-5 * s2):  # float32 input
         return None
     return math.sqrt(s2)
 

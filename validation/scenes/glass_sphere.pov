@@ -1,0 +1,8 @@
+// checks: glass sphere (ior 1.5, fresnel, conserve_energy) in front of an emissive checker: refraction, Fresnel, TIR; no glass shadow
+#version 3.7;
+global_settings { assumed_gamma 1.0 adc_bailout 0 max_trace_level 10 }
+camera { location <0.13, 1.63, -5.11> look_at <0.02, 0.61, 0> right x*image_width/image_height angle 50 }
+light_source { <-30, 50, -20> color rgb 1 parallel point_at <0, 0, 0> }
+plane { -z, -4 pigment { checker rgb <0.9, 0.35, 0.1>, rgb <0.1, 0.3, 0.9> scale 0.5 translate <0.13, 0.07, 0> } finish { ambient 1 diffuse 0 } }
+plane { y, 0 pigment { checker rgb <0.8, 0.8, 0.75>, rgb <0.2, 0.3, 0.2> } finish { ambient 0.1 diffuse 0.6 } }
+sphere { <0, 0.8, 0>, 0.8 pigment { rgbt <1, 1, 1, 1> } finish { ambient 0 diffuse 0 reflection { 0, 1 fresnel on } conserve_energy } interior { ior 1.5 } }
