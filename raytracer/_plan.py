@@ -31,7 +31,7 @@ from .scene._transform import compose
 SUPPORTED_PATTERNS = frozenset({"solid", "checker", "gradient", "bozo", "spotted", "bumps", "granite",
                                 "marble", "wood", "agate", "radial", "onion", "leopard", "spherical",
                                 "cylindrical", "planar", "boxed", "ripples", "waves", "wrinkles",
-                                "dents", "spiral1", "spiral2", "hexagon", "brick"})
+                                "dents", "hexagon", "brick"})
 
 
 # ---------------------------------------------------------------- inside-test trees (static)

@@ -52,6 +52,9 @@ def _output_transfer(img, settings):
 def _render(scene: Scene, width: int, height: int, k: int, progress: bool):
     p = make_plan(scene)
     dtype = scene.camera.location.dtype
+    if not any(prim.rendered for prim in p.prims):  # nothing to hit: every ray sees the background
+        img = jnp.broadcast_to(scene.background.astype(dtype), (height, width, 3))
+        return _output_transfer(img, scene.settings)
     geo = pack_geometry(p, dtype)
     mats = pack_materials(p, dtype)
     ctx = make_context(p, geo, mats, scene.lights, scene.settings, scene.background, dtype)

@@ -73,7 +73,7 @@ def _hits_fn(kind: str, static: tuple) -> Callable:
     if kind == "cone":
         return lambda b, rb, c, rc, o, d: K.cone_hits(b, rb, c, rc, o, d, open=static[0])
     if kind == "polygon":
-        return lambda v, o, d: K.polygon_hits(v, o, d, edges=static[0])  # noqa: E731
+        return lambda v, o, d: K.polygon_hits(v, static[0], o, d)
     if kind == "mesh":
         return _mesh_hits
     return KINDS[kind].hits
@@ -81,9 +81,9 @@ def _hits_fn(kind: str, static: tuple) -> Callable:
 
 def _inside_fn(kind: str, static: tuple) -> Callable | None:
     if kind == "cylinder":
-        return lambda b, c, r, p: K.cylinder_inside(b, c, r, p, open=static[0])
+        return K.cylinder_inside  # open or not, the inside is the solid's (reference §4.1)
     if kind == "cone":
-        return lambda b, rb, c, rc, p: K.cone_inside(b, rb, c, rc, p, open=static[0])
+        return K.cone_inside
     return KINDS[kind].inside
 
 

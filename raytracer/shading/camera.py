@@ -34,11 +34,11 @@ def camera_rays(camera: Camera, x0, y0):
     loc, d, r, u = camera.frame()
     x0 = x0[..., None]
     y0 = y0[..., None]
-    offset = x0 * r + y0 * u
+    offset = x0 * r.reshape((1,) * (x0.ndim - 1) + (3,)) + y0 * u.reshape((1,) * (y0.ndim - 1) + (3,))
     if camera.projection == "orthographic":
-        origins = loc + offset
+        origins = jnp.broadcast_to(loc, offset.shape) + offset
         dirs = jnp.broadcast_to(d, origins.shape)
     else:
-        dirs = d + offset
+        dirs = jnp.broadcast_to(d, offset.shape) + offset
         origins = jnp.broadcast_to(loc, dirs.shape)
     return origins, safe_normalize(dirs)

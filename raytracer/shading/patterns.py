@@ -213,13 +213,22 @@ def apply_wave(v, wave: str = "ramp", exponent=1.0):
 
 _CHECKER_OFFSET = 1e-10  # POV nudges each coordinate so that integer faces fall into the upper cell
 _SQRT3 = math.sqrt(3.0)
+
+
+def _face_offset(p):
+    """POV's 1e-10 in float64; 32 ulps of the coordinate's magnitude (at least 1e-6) in float32."""
+    if p.dtype == jnp.float64:
+        return _CHECKER_OFFSET
+    return jnp.maximum(1e-6, 32 * jnp.finfo(p.dtype).eps * jnp.abs(p))
 BRICK_SIZE = (8.0, 3.0, 4.5)  # POV defaults: brick + mortar, per axis
 BRICK_MORTAR = 0.5
 
 
 def _checker(p):
-    # 0 = first colour, 1 = second colour.
-    k = jnp.sum(jnp.floor(p + _CHECKER_OFFSET))
+    # 0 = first colour, 1 = second colour. POV's 1e-10 nudge assumes float64 hit points; a float32
+    # hit on the face y = -1 lands ±1e-7 off it, so the nudge scales with the dtype's precision
+    # (a face at an integer coordinate must fall into one cell, not flicker between two).
+    k = jnp.sum(jnp.floor(p + _face_offset(p)))
     return k - 2.0 * jnp.floor(0.5 * k)
 
 

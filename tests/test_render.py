@@ -1,0 +1,196 @@
+"""Whole-renderer tests against closed forms of POV-Ray's lighting model (reference §2).
+
+Each scene is built so that one pixel's radiance can be written down by hand: a 1×1 image's
+only ray goes exactly along the camera direction, so hit points, normals and light directions
+are known exactly.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import raytracer as rt
+
+S = 1 / np.sqrt(2)
+
+
+def one_pixel(scene, **kw):
+    return np.asarray(rt.render(scene, width=1, height=1, **kw))[0, 0]
+
+
+def sphere_scene(finish, pigment=(0.8, 0.4, 0.2), lights=None, extra=(), **kw):
+    """Unit sphere at the origin, camera at z = -5 looking at it: the centre ray hits (0,0,-1)."""
+    lights = lights if lights is not None else (
+        rt.Light(position=(0.0, 10 * S, -10 * S), point_at=(0, 0, 0), parallel=True),)
+    return rt.Scene(
+        camera=rt.Camera(location=(0, 0, -5), look_at=(0, 0, 0)),
+        objects=(rt.Object(rt.Sphere((0, 0, 0), 1.0),
+                           texture=rt.Texture.of(rt.Pigment.solid(pigment), finish)),) + tuple(extra),
+        lights=lights, **kw)
+
+
+def test_ambient_and_diffuse_with_brilliance_match_the_closed_form():
+    # N = (0,0,-1), L = (0, s, -s): N·L = s; colour = P (ambient + diffuse s^brilliance)
+    p = np.array([0.8, 0.4, 0.2])
+    fin = rt.Finish(ambient=(0.1, 0.2, 0.3), diffuse=0.7, brilliance=2.5)
+    got = one_pixel(sphere_scene(fin))
+    np.testing.assert_allclose(got, p * (np.array([0.1, 0.2, 0.3]) + 0.7 * S**2.5), rtol=1e-5)
+
+
+def test_phong_and_specular_highlights_use_the_light_colour():
+    # mirrored view ray R = (0,0,-1): R·L = s; H = normalize(L - D) = normalize((0, s, -s-1))
+    light = rt.Light(position=(0.0, 10 * S, -10 * S), point_at=(0, 0, 0), parallel=True,
+                     color=(0.5, 1.0, 2.0))
+    fin = rt.Finish(ambient=(0, 0, 0), diffuse=0.0, phong=0.6, phong_size=7.0, specular=0.3,
+                    roughness=0.1)
+    got = one_pixel(sphere_scene(fin, lights=(light,)))
+    n_dot_h = (S + 1) / np.sqrt(S**2 + (S + 1) ** 2)
+    expected = (0.6 * S**7 + 0.3 * n_dot_h**10) * np.array([0.5, 1.0, 2.0])
+    np.testing.assert_allclose(got, expected, rtol=1e-5)
+
+
+def test_metallic_tints_highlights_by_the_pigment():
+    fin = rt.Finish(ambient=(0, 0, 0), diffuse=0.0, phong=1.0, phong_size=1.0, metallic=0.7)
+    got = one_pixel(sphere_scene(fin))
+    x = np.arccos(S) / (np.pi / 2)
+    f = np.clip(0.014567225 / (x - 1.12) ** 2 - 0.011612903, 0, 1)
+    tint = 1 + 0.7 * (1 - f) * (np.array([0.8, 0.4, 0.2]) - 1)
+    np.testing.assert_allclose(got, S * tint, rtol=1e-5)
+
+
+def test_point_light_fade_follows_povs_formula_not_inverse_square():
+    # point light straight in front: N·L = 1, distance 4 from the hit point
+    light = rt.Light(position=(0, 0, -5), fade_distance=2.0, fade_power=2.0)
+    fin = rt.Finish(ambient=(0, 0, 0), diffuse=1.0)
+    got = one_pixel(sphere_scene(fin, pigment=(1, 1, 1), lights=(light,)))
+    np.testing.assert_allclose(got, 2 / (1 + (4 / 2) ** 2), rtol=1e-5)
+
+
+def test_opaque_object_casts_a_full_shadow_and_transparent_one_filters_it():
+    blocker_pos = (0.0, 3 * S, -1 - 3 * S)  # on the segment from the hit point to the light
+    light = rt.Light(position=(0.0, 10 * S, -1 - 10 * S))
+    fin = rt.Finish(ambient=(0.1, 0.1, 0.1), diffuse=1.0)
+    opaque = rt.Object(rt.Sphere(blocker_pos, 0.2), texture=rt.Texture.of(rt.Pigment.solid((1, 1, 1))))
+    got = one_pixel(sphere_scene(fin, pigment=(1, 1, 1), lights=(light,), extra=(opaque,)))
+    np.testing.assert_allclose(got, 0.1, rtol=1e-5)
+    # rgbf <0.5, 1, 1, 0.6> filters (f P + t) = (0.3, 0.6, 0.6) at each of its two surfaces
+    glass = rt.Object(rt.Sphere(blocker_pos, 0.2),
+                      texture=rt.Texture.of(rt.Pigment.solid((0.5, 1, 1), filter=0.6)))
+    got = one_pixel(sphere_scene(fin, pigment=(1, 1, 1), lights=(light,), extra=(glass,)))
+    np.testing.assert_allclose(got, 0.1 + S * np.array([0.3, 0.6, 0.6]) ** 2, rtol=1e-4)
+
+
+def test_constant_reflection_adds_the_mirrored_background():
+    fin = rt.Finish(ambient=(0, 0, 0), diffuse=0.0,
+                    reflection=rt.Reflection(min=(0.3, 0.3, 0.3), max=(0.3, 0.3, 0.3)))
+    got = one_pixel(sphere_scene(fin, background=(0.2, 0.5, 1.0)))
+    np.testing.assert_allclose(got, 0.3 * np.array([0.2, 0.5, 1.0]), rtol=1e-5)
+
+
+def test_reflection_falloff_interpolates_between_min_and_max():
+    # tilt the sphere's hit normal: look at the sphere from an angle so cos_i is known
+    scene = rt.Scene(
+        camera=rt.Camera(location=(0, 0, -5), look_at=(0, 0, 0)),
+        objects=(rt.Object(rt.Plane((0, -S, -S), -1.0),  # plane through z=-1·... facing the camera at 45°
+                           texture=rt.Texture.of(rt.Pigment.solid((1, 1, 1)), rt.Finish(
+                               ambient=(0, 0, 0), diffuse=0.0,
+                               reflection=rt.Reflection(min=(0.1,) * 3, max=(0.9,) * 3, falloff=2.0)))),),
+        background=(1.0, 1.0, 1.0))
+    got = one_pixel(scene)
+    frac = (1 - S) ** 2
+    np.testing.assert_allclose(got, frac * 0.9 + (1 - frac) * 0.1, rtol=1e-5)
+
+
+@pytest.mark.parametrize("depth, expected", [(2, 0.04), (3, 0.04 + 0.96 * 0.96)])
+def test_glass_slab_at_normal_incidence_follows_fresnel_and_the_trace_level(depth, expected):
+    # F = ((n-1)/(n+1))² = 0.04 at both faces for n = 1.5; conserve_energy leaves 0.96 transmitted.
+    # depth 2: front reflection (background) + transmitted ray that dies at the back face.
+    # depth 3: the back face passes 0.96 of the background through.
+    glass = rt.Object(rt.Box((-2, -2, -1), (2, 2, 1)), interior=rt.Interior(ior=1.5),
+                      texture=rt.Texture.of(rt.Pigment.solid((1, 1, 1), filter=1.0), rt.Finish(
+                          ambient=(0, 0, 0), diffuse=0.0, conserve_energy=True,
+                          reflection=rt.Reflection(max=(1, 1, 1), fresnel=True))))
+    scene = rt.Scene(camera=rt.Camera(location=(0, 0, -5), look_at=(0, 0, 0)), objects=(glass,),
+                     background=(0.5, 0.5, 0.5),
+                     settings=rt.Settings(max_trace_level=depth, adc_bailout=0.0))
+    np.testing.assert_allclose(one_pixel(scene), 0.5 * expected, rtol=1e-4)
+
+
+def test_background_shows_where_nothing_is_hit():
+    scene = rt.Scene(background=(0.1, 0.2, 0.3))
+    img = np.asarray(rt.render(scene, width=4, height=3))
+    np.testing.assert_allclose(img, np.broadcast_to([0.1, 0.2, 0.3], (3, 4, 3)), rtol=1e-6)
+
+
+def test_supersampling_averages_a_regular_grid_of_subpixels():
+    # a box edge through the pixel centre: half of any k×k grid (k even) sees the box
+    scene = rt.Scene(
+        camera=rt.Camera(location=(0, 0, 0), right=(1, 0, 0), up=(0, 1, 0)),
+        objects=(rt.Object(rt.Box((0, -10, 1), (10, 10, 2)), texture=rt.Texture.of(
+            rt.Pigment.solid((1, 1, 1)), rt.Finish(ambient=(1, 1, 1), diffuse=0.0))),),
+        background=(0, 0, 0))
+    np.testing.assert_allclose(one_pixel(scene, spp=4), 0.5, rtol=1e-6)
+    np.testing.assert_allclose(one_pixel(scene, spp=16), 0.5, rtol=1e-6)
+
+
+def test_render_rejects_non_square_sample_counts():
+    with pytest.raises(ValueError, match="perfect square"):
+        rt.render(rt.Scene(), width=2, height=2, spp=3)
+
+
+# ---------------------------------------------------------------- the render plan
+def test_diffuse_only_scene_compiles_without_secondary_rays():
+    fin = rt.Finish(ambient=(0.1,) * 3, diffuse=0.6)
+    scene = sphere_scene(fin)
+    assert rt.plan(scene).effects.depth == 1
+    assert not rt.plan(scene).effects.reflection and not rt.plan(scene).effects.transmission
+    jaxpr = jax.make_jaxpr(lambda s: rt.render(s, width=2, height=2))(scene)
+    assert str(jaxpr).count("argmin") == 1  # one closest-hit search: camera rays only
+
+
+def test_reflective_scene_traces_one_level_per_bounce():
+    fin = rt.Finish(reflection=rt.Reflection(min=(0.5,) * 3, max=(0.5,) * 3))
+    scene = sphere_scene(fin, settings=rt.Settings(max_trace_level=3))
+    eff = rt.plan(scene).effects
+    assert eff.depth == 3 and eff.reflection and not eff.transmission and not eff.highlights
+    jaxpr = jax.make_jaxpr(lambda s: rt.render(s, width=2, height=2))(scene)
+    assert str(jaxpr).count("argmin") == 3
+
+
+# ---------------------------------------------------------------- hard cases stay finite
+def _finite_value_and_grad(scene, width=6, height=4):
+    def loss(s):
+        return jnp.sum(rt.render(s, width=width, height=height))
+
+    value, grads = jax.value_and_grad(loss)(scene)
+    leaves = jax.tree_util.tree_leaves(grads)
+    assert np.isfinite(float(value))
+    assert all(np.all(np.isfinite(np.asarray(g))) for g in leaves)
+    return value, grads
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_camera_inside_a_glass_sphere_gives_finite_image_and_gradients(precision):
+    with jax.enable_x64(precision == "float64"):
+        glass = rt.Object(rt.Sphere((0, 0, 0), 3.0), interior=rt.Interior(ior=1.5),
+                          texture=rt.Texture.of(rt.Pigment.solid((1, 1, 1), filter=0.9), rt.Finish(
+                              reflection=rt.Reflection(max=(1, 1, 1), fresnel=True), conserve_energy=True)))
+        scene = rt.Scene(camera=rt.Camera(location=(0, 0, -1), look_at=(0, 0, 0)), objects=(glass,),
+                         lights=(rt.Light((5, 5, -5)),), background=(0.2, 0.4, 0.8))
+        _finite_value_and_grad(scene)
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_huge_and_tiny_scales_render_without_acne(precision):
+    with jax.enable_x64(precision == "float64"):
+        for scale in (1e5, 1e-4):
+            fin = rt.Finish(ambient=(0.0,) * 3, diffuse=1.0)
+            scene = rt.Scene(
+                camera=rt.Camera(location=(0, 0, -5 * scale), look_at=(0, 0, 0)),
+                objects=(rt.Object(rt.Sphere((0, 0, 0), scale),
+                                   texture=rt.Texture.of(rt.Pigment.solid((1, 1, 1)), fin)),),
+                lights=(rt.Light((0, 0, -10 * scale)),))
+            # centre ray: N·L = 1 and no self-shadowing → exactly 1
+            np.testing.assert_allclose(one_pixel(scene), 1.0, rtol=1e-4)
+            _finite_value_and_grad(scene, 3, 3)
