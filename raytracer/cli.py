@@ -148,8 +148,10 @@ def _render(args) -> int:
         print(f"raytracer: --spp must be a perfect square (1, 4, 9, 16, …), got {args.spp}", file=sys.stderr)
         return EXIT_SCENE_ERROR
     t0 = time.perf_counter()
-    run = compile_render(scene, width=args.width, height=args.height, spp=args.spp, progress=_Progress())
+    progress = _Progress()
+    run = compile_render(scene, width=args.width, height=args.height, spp=args.spp, progress=progress)
     t_compile = time.perf_counter() - t0
+    progress.start = time.perf_counter()
     t1 = time.perf_counter()
     image = jax.block_until_ready(run(scene))
     t_render = time.perf_counter() - t1
