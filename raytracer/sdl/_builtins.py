@@ -166,8 +166,9 @@ def _trace(p, tok):
 
 def _extent(p, tok):
     _args(p, tok, 1)
-    p.warn(tok.value, f"{tok.value}() is not implemented; it returns <0,0,0>", tok.loc)
-    return Vec((0.0, 0.0, 0.0))
+    p.warn(tok.value, f"{tok.value}() is not implemented; the unit box <0,0,0>..<1,1,1> is used",
+           tok.loc)
+    return Vec((0.0, 0.0, 0.0) if tok.value == "min_extent" else (1.0, 1.0, 1.0))
 
 
 def _inside(p, tok):

@@ -71,12 +71,12 @@ class Directives:
 
     # ---- declarations --------------------------------------------------------------------
     def d_declare(self, tok):
-        self._assign(tok, self.declare)
+        self._assign(tok, False)
 
     def d_local(self, tok):
-        self._assign(tok, self.local)
+        self._assign(tok, True)
 
-    def _assign(self, tok, setter):
+    def _assign(self, tok, is_local):
         name_tok = self.raw_ident(f"an identifier after #{tok.value}")
         if name_tok.value == "deprecated":  # #declare deprecated [once] ["message"] Name = …
             name_tok = self.raw()
@@ -87,6 +87,9 @@ class Directives:
             if name_tok.kind != ID:
                 raise self.error(f"expected an identifier, found {name_tok.describe()}", name_tok.loc)
         name = name_tok.value
+        # the target table is chosen before the value is read: a macro called on the right-hand
+        # side has its own table, gone by the time we assign
+        target = self.scopes[-1] if is_local else self._owner_table(name)
         idx = index_list(self) if self.is_op("[") else []
         self.expect_op("=", f"'=' after #{tok.value} {name}")
         self.hash_stops += 1
@@ -106,7 +109,7 @@ class Directives:
             except (IndexError, ValueError) as e:
                 raise self.error(str(e), name_tok.loc) from None
             return
-        setter(name, value)
+        self._write(target, name, value)
 
     def d_undef(self, tok):
         self.undef(self.raw_ident("an identifier after #undef").value)
@@ -314,7 +317,8 @@ class Directives:
         args = []
         if not self.is_op(")") and m.params:
             args.append(self._macro_arg(table, m, 0))
-            while self.accept_op(","):
+            # POV-Ray tolerates a missing comma after an object argument
+            while self.accept_op(",") or (len(args) < len(m.params) and not self.is_op(")")):
                 args.append(self._macro_arg(table, m, len(args)))
         if len(args) != len(m.params):
             raise self.error(f"expected {len(m.params)} arguments to macro {m.name}, found "
@@ -330,14 +334,14 @@ class Directives:
 
     def close_raw(self, op: str, what: str | None = None):
         """Consumes ``op`` without looking at the token after it."""
-        if self.la is not None and not self.la_raw_hash:
+        if self.la is not None and not self.la_raw:
             t = self.la
         else:
-            if self.la_raw_hash:
+            if self.la_raw:
                 t = self.la
             else:
                 t = self.raw()
-        self.la, self.la_raw_hash = None, False
+        self.la, self.la_raw = None, False
         if t.kind != OP or t.value != op:
             raise self.error(f"expected {what or repr(op)}, found {t.describe()}", t.loc)
         self.last = t
@@ -359,6 +363,7 @@ class Directives:
         return name
 
     def _owner_table(self, name):
+        """The most local table binding ``name``, else the global table (where #declare writes)."""
         for table in reversed(self.scopes):
             if name in table:
                 return table

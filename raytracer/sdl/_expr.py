@@ -1,6 +1,7 @@
 """Expressions: POV-Ray's float/vector/colour/string arithmetic with its precedence.
 
-Lowest to highest: ``?:``; ``|`` ``&``; comparisons; ``+ -``; ``* /``; unary ``- + !``; ``^`` (function
+Lowest to highest: ``?:``; ``|`` ``&``; comparisons (these three only inside parentheses, as the
+manual requires: at the top level ``<`` starts a vector); ``+ -``; ``* /``; unary ``- + !``; ``^`` (function
 bodies); postfix ``.x``/``.red`` and ``[i]``; primaries (literals, ``< >`` vectors, identifiers,
 built-in constants and functions, colour keywords).
 """
@@ -104,7 +105,7 @@ def parse_expr(p):
     """A full expression (ternary level)."""
     loc = p.peek().loc
     c = _logic(p)
-    if _is(p, "?"):
+    if p.in_parens and _is(p, "?"):
         p.next()
         a = parse_expr(p)
         p.expect_op(":")
@@ -125,7 +126,7 @@ def _peek_any(p, ops):
 
 def _logic(p):
     a = _rel(p)
-    while (op := _peek_any(p, ("&", "|"))) is not None:
+    while p.in_parens and (op := _peek_any(p, ("&", "|"))) is not None:
         loc = p.next().loc
         b = _rel(p)
         x, y = truthy(p, a, loc), truthy(p, b, loc)
@@ -139,8 +140,9 @@ _REL = ("<", "<=", "=", "!=", ">=", ">")
 def _rel(p):
     a = _add(p)
     while True:
-        op = _peek_any(p, _REL)
-        if op is None or (op == ">" and p.no_gt):
+        # as the manual says, comparisons need parentheses: at the top level '<' starts a vector
+        op = _peek_any(p, _REL) if p.in_parens else None
+        if op is None:
             return a
         loc = p.next().loc
         b = _add(p)
@@ -249,26 +251,27 @@ def _index(p, arr: ArrayValue):
 
 
 def parse_expr_paren(p):
-    """An expression in which '>' is a comparison again (inside () or [] or function arguments)."""
-    saved, p.no_gt = p.no_gt, False
+    """An expression inside () [] or function arguments: comparisons, & | and ?: are allowed."""
+    saved, p.in_parens = p.in_parens, True
     try:
         return parse_expr(p)
     finally:
-        p.no_gt = saved
+        p.in_parens = saved
 
 
 def parse_vector_literal(p):
     start = p.expect_op("<")
-    saved, p.no_gt = p.no_gt, True
+    saved, p.in_parens = p.in_parens, False
     try:
         comps = [as_float(p, parse_expr(p), start.loc)]
         while not p.is_op(">"):  # commas between components are optional
-            p.accept_op(",")
+            if p.accept_op(",") and p.is_op(">"):
+                break  # a trailing comma
             comps.append(as_float(p, parse_expr(p), start.loc))
             if len(comps) > 5:
                 break
     finally:
-        p.no_gt = saved
+        p.in_parens = saved
     p.expect_op(">", "'>' to close the vector")
     if not 2 <= len(comps) <= 5:
         raise p.error(f"expected a vector of 2 to 5 components, found {len(comps)}", start.loc)

@@ -48,7 +48,7 @@ class Interpreter(Stream, Directives):
         super().__init__(include_paths=include_paths, strict=strict, limits=limits)
         self.directives = self.directive_table()
         self.macro_call = self.invoke_macro
-        self.no_gt = False
+        self.in_parens = False
         self.image_width, self.image_height = width, height
         self.version = 3.7
         self.version_seen = False
@@ -94,6 +94,9 @@ class Interpreter(Stream, Directives):
         elif kw == "background":
             self.next()
             parse_background(self, t)
+        elif kw == "default":  # the old spelling of #default
+            self.next()
+            parse_default(self, t)
         elif kw in _SKIPPED_STATEMENTS:
             self.next()
             self.warn(kw, f"{kw} is not supported; ignored", t.loc)
@@ -122,7 +125,8 @@ class Interpreter(Stream, Directives):
     # ---- arrays ----------------------------------------------------------------------------
     def parse_array(self, t):
         dims = []
-        while self.accept_op("["):
+        while self._peek_op_is("["):
+            self.next()
             dims.append(int(as_float(self, parse_expr_paren(self), t.loc)))
             self.expect_op("]")
         if not dims:
@@ -133,7 +137,7 @@ class Interpreter(Stream, Directives):
                 raise self.error(f"expected a positive array size, found {d}", t.loc)
             size *= d
         arr = ArrayValue(dims, [None] * size)
-        if self.is_op("{"):
+        if self._peek_op_is("{"):
             flat = []
             self._array_init(flat, len(dims))
             if len(flat) > size:
@@ -149,9 +153,12 @@ class Interpreter(Stream, Directives):
                 self._array_init(out, depth - 1)
             else:
                 out.append(self.parse_rvalue())
-            if not self.accept_op(","):
-                break
+            self.accept_op(",")  # POV lets the commas out
         self.expect_op("}", "'}' to close the array initialiser")
+
+    def _peek_op_is(self, op: str) -> bool:
+        t = self.peek_op()
+        return t.kind == OP and t.value == op
 
     # ---- functions and splines -------------------------------------------------------------
     def parse_function(self):
@@ -198,12 +205,12 @@ class Interpreter(Stream, Directives):
         if self.macro_depth >= self.limits.max_macro_depth:
             raise self.error(f"function calls nested deeper than {self.limits.max_macro_depth}",
                              t.loc)
-        saved_la, saved_raw = self.la, self.la_raw_hash
-        self.la, self.la_raw_hash = None, False
+        saved_la, saved_raw = self.la, self.la_raw
+        self.la, self.la_raw = None, False
         self.scopes.append(dict(zip(f.params, args, strict=True)))
         self.macro_depth += 1
         self.frames.append(Frame(f.tokens, 0, len(f.tokens) - 1, "func", True, call_loc=t.loc))
-        saved_gt, self.no_gt = self.no_gt, False
+        saved_gt, self.in_parens = self.in_parens, True
         try:
             v = parse_expr(self)
             end = self.peek()
@@ -211,10 +218,10 @@ class Interpreter(Stream, Directives):
                 raise self.error(f"expected the end of the function body, found {end.describe()}",
                                  end.loc)
         finally:
-            self.no_gt = saved_gt
+            self.in_parens = saved_gt
         self.la = None
         self.pop_frame()
-        self.la, self.la_raw_hash = saved_la, saved_raw
+        self.la, self.la_raw = saved_la, saved_raw
         return v
 
     def parse_spline(self, t):

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr
+from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
 from ._lexer import EOF, ID, OP
 from ._textures import (
     TRANSFORM_KEYWORDS,
     _opt_bool,
     _starts_value,
+    declared,
     float_,
     opt_comma,
     parse_finish,
@@ -69,9 +70,12 @@ def _parse_object_ident(p, t):
     nt = p.peek()
     if is_object_start(p, nt):
         rec = parse_object(p)
-    elif nt.kind == ID and isinstance(p.lookup(nt.value), (ObjRec, LightRec)):
-        p.next()
-        rec = p.lookup(nt.value).clone()
+    elif declared(p, nt):
+        v = parse_expr(p)
+        if not isinstance(v, (ObjRec, LightRec)):
+            raise p.error(f"expected an object identifier, found {type_name(v)} '{nt.value}'",
+                          nt.loc)
+        rec = v.clone()
     else:
         raise p.error(f"expected an object identifier or object, found {nt.describe()}", nt.loc)
     if isinstance(rec, LightRec):
@@ -153,7 +157,8 @@ def _modifier(p, rec: ObjRec, t) -> None:
         rec.flags["inverse"] = not rec.flags.get("inverse", False)
     elif kw == "open" and rec.kind in ("cylinder", "cone"):
         rec.shape["open"] = True
-    elif kw in ("hollow", "sturm", "smooth", "split_union", "cutaway_textures", "no_radiosity",
+    elif kw in ("hollow", "sturm", "smooth", "split_union", "global_lights", "cutaway_textures",
+                "no_radiosity",
                 "uv_mapping", "hierarchy"):
         if _starts_value(p):
             float_(p)
@@ -324,6 +329,11 @@ def _mesh(p, rec):
             k = p.next()
             if k.kind == ID and k.value == "texture":
                 _mesh_texture(p, rec, k)
+            elif k.kind == ID and k.value == "uv_vectors":
+                for i in range(3):
+                    if i:
+                        opt_comma(p)
+                    parse_expr(p)
             else:
                 raise p.error(f"expected '}}' after the mesh triangle, found {k.describe()}", k.loc)
     _set_mesh(p, rec, tris, norms, smooth)
@@ -439,9 +449,11 @@ SHAPES = {"sphere": _sphere, "plane": _plane, "box": _box, "cylinder": _cylinder
 def parse_light(p, t) -> LightRec:
     p.expect_op("{", "'{' after light_source")
     nt = p.peek()
-    if nt.kind == ID and isinstance(p.lookup(nt.value), LightRec):
-        p.next()
-        rec = p.lookup(nt.value).clone()
+    if declared(p, nt) and not isinstance(p.lookup(nt.value), (float, Vec)):
+        v = parse_expr(p)
+        if not isinstance(v, LightRec):
+            raise p.error(f"expected a light_source, found {type_name(v)} '{nt.value}'", nt.loc)
+        rec = v.clone()
     else:
         rec = LightRec(np.asarray(vector3(p), dtype=np.float64), loc=t.loc)
         opt_comma(p)
@@ -522,9 +534,11 @@ def parse_camera(p, t) -> CameraRec:
     p.expect_op("{", "'{' after camera")
     nt = p.peek()
     cam = CameraRec()
-    if nt.kind == ID and isinstance(p.lookup(nt.value), CameraRec):
-        p.next()
-        cam = p.lookup(nt.value).clone()
+    if declared(p, nt):
+        v = parse_expr(p)
+        if not isinstance(v, CameraRec):
+            raise p.error(f"expected a camera, found {type_name(v)} '{nt.value}'", nt.loc)
+        cam = v.clone()
     while not p.accept_op("}"):
         k = p.next()
         if k.kind != ID:
@@ -539,6 +553,7 @@ def _camera_item(p, cam, k):
         cam.values[kw] = vector3(p)
     elif kw == "angle":
         cam.values["angle"] = float_(p)
+        opt_comma(p)
         if _starts_value(p):
             float_(p)
     elif kw in ("perspective", "orthographic"):

@@ -59,7 +59,7 @@ class Stream:
         self.frames: list[Frame] = []
         self.scopes: list[dict] = [{}]
         self.la: Token | None = None  # lookahead (already processed, or a raw '#')
-        self.la_raw_hash = False
+        self.la_raw = False
         self.last_hash: Token | None = None
         self.last = None  # last consumed token
         self.strict = strict
@@ -155,7 +155,7 @@ class Stream:
         """Puts the lookahead token back in front of the current frame (before pushing a new one)."""
         if self.la is not None:
             tok = self.la
-            self.la, self.la_raw_hash = None, False
+            self.la, self.la_raw = None, False
             self.frames.append(Frame([tok, tok], 0, 1, "pushback", False))
 
     # ---- frames --------------------------------------------------------------------------
@@ -188,13 +188,16 @@ class Stream:
     def raw_peek(self, k: int = 0) -> Token | None:
         """Looks ``k`` raw tokens ahead in the current frame (None past its end)."""
         f = self.frames[-1]
+        while f.kind == "pushback" and f.pos >= f.stop:
+            self.frames.pop()
+            f = self.frames[-1]
         i = f.pos + k
         return f.tokens[i] if i < f.stop else None
 
     def _fetch(self, stop_hash: bool) -> Token:
         while True:
             if self.la is not None:  # a directive handler read one token too far
-                tok, self.la, self.la_raw_hash = self.la, None, False
+                tok, self.la, self.la_raw = self.la, None, False
             else:
                 tok = self.raw()
             if tok.kind == OP and tok.value == "#":
@@ -205,14 +208,19 @@ class Stream:
             if tok.kind == ID:
                 m = self.lookup_macro(tok.value)
                 if m is not None:
+                    if stop_hash:
+                        return tok
                     self.macro_call(tok, m)
                     continue
             return tok
 
     def directive(self, hash_tok: Token) -> None:
+        name = self.raw_peek()
+        if name is None or name.kind != ID:
+            # POV-Ray ignores a stray '#'; so do we, with a warning
+            self.warn("#", "a '#' not followed by a directive is ignored", hash_tok.loc)
+            return
         name = self.raw()
-        if name.kind != ID:
-            raise self.error(f"expected a directive after '#', found {name.describe()}", name.loc)
         handler = self.directives.get(name.value)
         if handler is None:
             raise self.error(f"expected a directive, found '#{name.value}'", name.loc)
@@ -220,16 +228,17 @@ class Stream:
 
     # ---- public token API ----------------------------------------------------------------
     def peek(self) -> Token:
-        if self.la is None or self.la_raw_hash:
+        if self.la is None or self.la_raw:
             self.la = self._fetch(False)
         return self.la
 
     def peek_op(self) -> Token:
-        """Like peek, but while reading a #declare expression a '#' ends the expression."""
+        """Like peek, but while reading a #declare expression a directive or macro call ends it."""
         if self.la is None:
             tok = self._fetch(self.hash_stops > 0)
-            if tok.kind == OP and tok.value == "#":
-                self.la_raw_hash = True
+            if self.hash_stops > 0 and ((tok.kind == OP and tok.value == "#") or (
+                    tok.kind == ID and self.lookup_macro(tok.value) is not None)):
+                self.la_raw = True  # a directive or macro call: run it only after the #declare
             self.la = tok
         return self.la
 

@@ -61,13 +61,13 @@ def parse_transform_item(p, tok) -> np.ndarray:
 
 def _matrix_values(p, tok) -> list[float]:
     p.expect_op("<", "'<' after matrix")
-    saved, p.no_gt = p.no_gt, True
+    saved, p.in_parens = p.in_parens, False
     try:
         vals = [float_(p)]
         while p.accept_op(","):
             vals.append(float_(p))
     finally:
-        p.no_gt = saved
+        p.in_parens = saved
     p.expect_op(">")
     if len(vals) != 12:
         raise p.error(f"expected 12 matrix values, found {len(vals)}", tok.loc)
@@ -144,19 +144,21 @@ def parse_pigment(p, base: PigRec | None = None) -> PigRec:
     """``pigment { … }``; ``base`` is the pigment being modified (an object's current one)."""
     p.expect_op("{", "'{' after pigment")
     pig = dataclasses.replace(base) if base is not None else PigRec()
-    first = True
     while not p.accept_op("}"):
-        t = p.peek()
-        if first and t.kind == ID:
-            v = p.lookup(t.value)
-            if isinstance(v, PigRec):
-                p.next()
-                pig = dataclasses.replace(v)
-                first = False
-                continue
-        first = False
         pig = pigment_item(p, pig)
     return pig
+
+
+def _declared_value(p, t, cls, what: str):
+    v = parse_expr(p)
+    if not isinstance(v, cls):
+        raise p.error(f"expected a {what}, found {type_name(v)} '{t.value}'", t.loc)
+    return v
+
+
+def declared(p, t) -> bool:
+    """Whether ``t`` is an identifier the scene declared (so it is a value, not a keyword)."""
+    return t.kind == ID and p.find(t.value)[0] is not None
 
 
 def _solid(c: Vec) -> PigRec:
@@ -167,6 +169,15 @@ def pigment_item(p, pig: PigRec) -> PigRec:
     t = p.peek()
     if t.kind != ID:
         return _solid(as_color(p, parse_expr(p), t.loc))
+    if declared(p, t):
+        v = parse_expr(p)
+        if isinstance(v, PigRec):
+            return dataclasses.replace(v)
+        if isinstance(v, list):  # a colour map identifier
+            return dataclasses.replace(pig, cmap=list(v), cmap_given=True, ft=pig.ft or _map_ft(v))
+        if isinstance(v, (float, Vec)):
+            return _solid(as_color(p, v, t.loc))
+        raise p.error(f"expected a pigment, found {type_name(v)} '{t.value}'", t.loc)
     kw = t.value
     if kw in COLOR_KEYWORDS or kw in ("red", "green", "blue", "filter", "transmit"):
         return _solid(parse_color(p))
@@ -195,18 +206,14 @@ def pigment_item(p, pig: PigRec) -> PigRec:
     if kw in ("warp", "quick_color", "quick_colour", "noise_generator", "agate_turb", "brick_size",
               "mortar", "arms", "form", "metric", "offset", "solid", "exponent", "interior",
               "exterior", "control0", "control1", "coords", "size", "orientation", "dist_exp",
-              "major_radius", "repeat", "flip", "black_hole", "falloff"):
+              "major_radius", "repeat", "flip", "black_hole", "falloff", "uv_mapping", "interpolate",
+              "map_type", "once", "gamma", "premultiplied", "accuracy", "return", "turb_depth",
+              "use_color", "use_colour", "use_index", "use_alpha"):
         p.next()
         return _ignored_modifier(p, kw, pig, t.loc)
     if kw in UNSUPPORTED_PATTERNS:
         p.next()
         return _unsupported_pattern(p, kw, pig, t.loc)
-    v = p.lookup(kw)
-    if isinstance(v, (float, Vec)):
-        return _solid(as_color(p, parse_expr(p), t.loc))
-    if isinstance(v, list):  # a colour map identifier
-        p.next()
-        return dataclasses.replace(pig, cmap=list(v), cmap_given=True, ft=pig.ft or _map_ft(v))
     raise p.error(f"expected a pigment item, found {t.describe()}", t.loc)
 
 
@@ -220,10 +227,16 @@ def _map_ft(cmap) -> bool:
 
 
 def _starts_value(p) -> bool:
+    from ._builtins import _CONSTANTS, BUILTIN_FUNCTIONS
+
     t = p.peek()
-    if t.kind == NUM or (t.kind == OP and t.value in ("-", "+", "(", "<")):
+    if t.kind == NUM or (t.kind == OP and t.value in ("-", "+", "(", "<", "!")):
         return True
-    return t.kind == ID and isinstance(p.lookup(t.value), (float, Vec))
+    if t.kind != ID:
+        return False
+    if t.value in _CONSTANTS or t.value in BUILTIN_FUNCTIONS:
+        return p.find(t.value)[0] is None or isinstance(p.lookup(t.value), (float, Vec))
+    return isinstance(p.lookup(t.value), (float, Vec))
 
 
 def _pattern(p, kw: str, pig: PigRec) -> PigRec:
@@ -233,8 +246,13 @@ def _pattern(p, kw: str, pig: PigRec) -> PigRec:
         new.frequency = 0.0
         colors = []
         n = {"checker": 2, "hexagon": 3, "brick": 2}[kw]
-        while len(colors) < n and _starts_color(p):
-            colors.append(parse_color(p))
+        while len(colors) < n and (_starts_color(p) or p.is_id("pigment")):
+            if p.accept_id("pigment"):
+                p.warn("pigment list", f"{kw} with pigments is approximated by their first colours",
+                       p.here())
+                colors.append(parse_pigment(p).cmap[0][1])
+            else:
+                colors.append(parse_color(p))
             opt_comma(p)
         if colors:
             defaults = [c for _, c in new.cmap]
@@ -286,7 +304,8 @@ def _skip_args(p):
 
 
 def _ignored_modifier(p, kw, pig, loc):
-    if kw not in ("quick_color", "quick_colour", "noise_generator"):
+    if kw not in ("quick_color", "quick_colour", "noise_generator", "uv_mapping", "once",
+                  "interpolate", "map_type", "use_color", "use_colour", "use_index", "accuracy"):
         p.warn(kw, f"pattern modifier '{kw}' is not supported; ignored", loc)
     if kw in ("quick_color", "quick_colour"):
         parse_color(p)
@@ -317,29 +336,36 @@ def _pigment_map(p, kw, pig, loc):
     p.expect_op("{")
     entries = []
     while p.accept_op("["):
-        v = float_(p)
+        v = float_(p) if _starts_value(p) else float(len(entries))
         opt_comma(p)
-        t = p.peek()
-        if t.kind == ID and t.value in ("pigment", "texture", "normal"):
-            p.next()
-            if t.value == "pigment":
-                sub = parse_pigment(p)
-                entries.append((v, sub.cmap[0][1]))
-            else:
-                skip_braces(p)
-        elif t.kind == ID and isinstance(p.lookup(t.value), (PigRec, TextureRec)):
-            sub = p.lookup(p.next().value)
-            if isinstance(sub, PigRec):
-                entries.append((v, sub.cmap[0][1]))
+        if kw == "pigment_map":
+            sub = PigRec()
+            while not p.is_op("]"):
+                sub = pigment_item(p, sub)
+            entries.append((v, sub.cmap[0][1]))
         else:
-            parse_expr(p)
-        while not p.is_op("]"):
-            p.next()
+            _skip_to(p, "]")
         p.expect_op("]")
     p.expect_op("}")
     if kw == "pigment_map" and entries:
         return dataclasses.replace(pig, cmap=entries, cmap_given=True, ft=pig.ft or _map_ft(entries))
     return pig
+
+
+def _skip_to(p, op: str) -> None:
+    """Skips tokens (balanced in braces and brackets) up to, not including, ``op``."""
+    depth = 0
+    while True:
+        t = p.peek()
+        if t.kind == "eof":
+            raise p.error(f"expected '{op}', found end of file", t.loc)
+        if t.kind == OP and depth == 0 and t.value == op:
+            return
+        p.next()
+        if t.kind == OP and t.value in "{[(":
+            depth += 1
+        elif t.kind == OP and t.value in "}])":
+            depth -= 1
 
 
 def skip_braces(p) -> None:
@@ -361,16 +387,14 @@ def skip_braces(p) -> None:
 def parse_finish(p, base: dict | None = None) -> dict:
     p.expect_op("{", "'{' after finish")
     fin = dict(base or {})
-    first = True
     while not p.accept_op("}"):
-        t = p.next()
+        t = p.peek()
+        if declared(p, t):
+            fin = dict(_declared_value(p, t, dict, "finish"))
+            continue
+        p.next()
         if t.kind != ID:
             raise p.error(f"expected a finish item, found {t.describe()}", t.loc)
-        if first and isinstance(p.lookup(t.value), dict):
-            fin = dict(p.lookup(t.value))
-            first = False
-            continue
-        first = False
         finish_item(p, t, fin)
     return fin
 
@@ -473,16 +497,14 @@ def _parse_reflection(p, t, old):
 def parse_interior(p, base: InteriorRec | None = None) -> InteriorRec:
     p.expect_op("{", "'{' after interior")
     vals = dict(base.values) if base else {}
-    first = True
     while not p.accept_op("}"):
-        t = p.next()
+        t = p.peek()
+        if declared(p, t):
+            vals = dict(_declared_value(p, t, InteriorRec, "interior").values)
+            continue
+        p.next()
         if t.kind != ID:
             raise p.error(f"expected an interior item, found {t.describe()}", t.loc)
-        if first and isinstance(p.lookup(t.value), InteriorRec):
-            vals = dict(p.lookup(t.value).values)
-            first = False
-            continue
-        first = False
         if t.value in ("ior", "fade_distance", "fade_power"):
             vals[t.value] = float_(p)
         elif t.value in ("fade_color", "fade_colour"):
@@ -503,15 +525,14 @@ def parse_texture(p, default: LayerRec) -> TextureRec:
     """``texture { [Ident] pigment finish normal transforms … }`` → a TextureRec (layers)."""
     p.expect_op("{", "'{' after texture")
     layers = [LayerRec(default.pigment, dict(default.finish))]
-    first = True
     while not p.accept_op("}"):
         t = p.peek()
-        if first and t.kind == ID and isinstance(p.lookup(t.value), TextureRec):
-            p.next()
-            layers = list(p.lookup(t.value).layers)
-            first = False
+        if declared(p, t):
+            v = parse_expr(p)
+            if not isinstance(v, TextureRec):
+                raise p.error(f"expected a texture, found {type_name(v)} '{t.value}'", t.loc)
+            layers = list(v.layers)
             continue
-        first = False
         p.next()
         layers = texture_item(p, t, layers, default)
     return TextureRec(layers)
@@ -534,7 +555,9 @@ def texture_item(p, t, layers, default):
               "agate", "granite", "radial", "onion", "leopard", "tiling", "crackle", "cells",
               "wrinkles", "ripples", "waves", "dents", "bumps", "boxed", "spherical", "cylindrical",
               "planar", "image_map", "material_map", "object", "function", "slope", "spiral1",
-              "spiral2", "average", "texture_map"):
+              "spiral2", "average", "texture_map", "tiles", "quilted", "mandel", "pavement",
+              "tiling", "facets", "julia", "magnet", "pigment_pattern", "image_pattern",
+              "density_file"):
         return _patterned_texture(p, t, layers, default)
     if kw in ("uv_mapping", "interior_texture"):
         return layers
@@ -587,15 +610,13 @@ def parse_normal(p, t) -> None:
 def parse_material(p, default: LayerRec) -> MaterialRec:
     p.expect_op("{", "'{' after material")
     mat = MaterialRec()
-    first = True
     while not p.accept_op("}"):
-        t = p.next()
-        if first and t.kind == ID and isinstance(p.lookup(t.value), MaterialRec):
-            m = p.lookup(t.value)
+        t = p.peek()
+        if declared(p, t):
+            m = _declared_value(p, t, MaterialRec, "material")
             mat = MaterialRec(m.texture, m.interior)
-            first = False
             continue
-        first = False
+        p.next()
         if t.kind == ID and t.value == "texture":
             tex = parse_texture(p, default)
             mat.texture = tex if mat.texture is None else TextureRec(mat.texture.layers + tex.layers)

@@ -1,0 +1,127 @@
+"""Expression evaluation: precedence, vectors, colours and the built-in functions."""
+
+import math
+
+import pytest
+
+from raytracer.errors import SceneError
+
+from .conftest import value
+
+
+@pytest.mark.parametrize("expr, expected", [
+    ("1 + 2 * 3", 7.0),
+    ("(1 + 2) * 3", 9.0),
+    ("-2 * 3 + 10 / 4", -3.5),
+    ("2 - 3 - 4", -5.0),
+    ("8 / 2 / 2", 2.0),
+    ("1 + 2 < 4", 1.0),
+    ("(1 < 2) & (3 > 4)", 0.0),
+    ("(1 < 2) | (3 > 4)", 1.0),
+    ("!0 + 1", 2.0),
+    ("1 ? 5 : 6", 5.0),
+    ("0 ? 5 : 1 ? 7 : 8", 7.0),
+    ("1 + 1 = 2", 1.0),
+    ("3 != 3", 0.0),
+    ("2 >= 2", 1.0),
+])
+def test_precedence(expr, expected):
+    assert value(f"#declare R = {expr};") == pytest.approx(expected)
+
+
+def test_vector_arithmetic_promotes_floats():
+    assert value("#declare R = <1, 2, 3> * 2 + 1;") == (3.0, 5.0, 7.0)
+    assert value("#declare R = 2 * x - y;") == (2.0, -1.0, 0.0)
+
+
+def test_vectors_of_different_length_pad_with_zero():
+    assert value("#declare R = <1, 2> + <1, 1, 1>;") == (2.0, 3.0, 1.0)
+
+
+def test_comparison_inside_vector_needs_parentheses():
+    assert value("#declare R = <1, (2 > 1), 3>;") == (1.0, 1.0, 3.0)
+
+
+def test_dot_access_of_vectors_and_colours():
+    assert value("#declare R = <4, 5, 6>.y;") == 5.0
+    assert value("#declare R = (rgbft <.1, .2, .3, .4, .5>).transmit;") == pytest.approx(0.5)
+    assert value("#declare C = rgb <1, 0, 0>; #declare R = C.red + C.filter;") == 1.0
+    assert value("#declare R = <1,2,3,4>.t;") == 4.0
+
+
+def test_gray_is_the_luminance_weighting():
+    assert value("#declare R = (rgb <1, 0, 0>).gray;") == pytest.approx(0.297)
+
+
+@pytest.mark.parametrize("expr, expected", [
+    ("abs(-2)", 2.0), ("ceil(1.2)", 2.0), ("floor(-1.2)", -2.0), ("int(-1.7)", -1.0),
+    ("mod(7, 3)", 1.0), ("mod(-7, 3)", -1.0), ("div(7, 2)", 3.0), ("pow(2, 10)", 1024.0),
+    ("sqrt(16)", 4.0), ("exp(0)", 1.0), ("log(100)", 2.0), ("ln(1)", 0.0),
+    ("min(3, 1, 2)", 1.0), ("max(3, 1, 2)", 3.0), ("degrees(pi)", 180.0), ("radians(180)", math.pi),
+    ("sin(pi/2)", 1.0), ("atan2(1, 1)", math.pi / 4), ("select(-1, 10, 20)", 10.0),
+    ("select(0, 10, 20)", 20.0), ("select(0, 10, 20, 30)", 20.0), ("select(1, 10, 20, 30)", 30.0),
+    ("vlength(<3, 4, 0>)", 5.0), ("vdot(x, y)", 0.0), ("strlen(\"abc\")", 3.0),
+    ("val(\"2.5e1\")", 25.0), ("asc(\"A\")", 65.0), ("bitwise_and(12, 10)", 8.0),
+    ("bitwise_or(12, 10)", 14.0), ("bitwise_xor(12, 10)", 6.0), ("file_exists(\"x\")", 0.0),
+    ("true + yes + on", 3.0), ("false + no + off", 0.0), ("clock", 0.0),
+])
+def test_float_builtins(expr, expected):
+    assert value(f"#declare R = {expr};") == pytest.approx(expected)
+
+
+def test_vector_builtins():
+    assert value("#declare R = vcross(x, y);") == (0.0, 0.0, 1.0)
+    assert value("#declare R = vnormalize(<0, 3, 4>);") == pytest.approx((0.0, 0.6, 0.8))
+    # rotate x by 90° about z: POV's left-handed rule takes +x to +y (reference §4.3)
+    assert value("#declare R = vrotate(x, <0, 0, 90>);") == pytest.approx((0.0, 1.0, 0.0))
+    assert value("#declare R = vaxis_rotate(x, z, 90);") == pytest.approx((0.0, 1.0, 0.0))
+
+
+def test_string_builtins():
+    assert value('#declare R = concat("a", str(1.5, 0, 2), chr(66));') == "a1.50B"
+    assert value('#declare R = substr("hello", 2, 3);') == "ell"
+    assert value('#declare R = strupr("aB");') == "AB"
+    assert value('#declare R = strlwr("aB");') == "ab"
+    assert value('#declare R = str(3, -4, 0);') == "0003"
+
+
+def test_image_size_and_version_constants():
+    assert value("#declare R = image_width / image_height;", width=200, height=100) == 2.0
+    assert value("#version 3.6; #declare R = version;") == pytest.approx(3.6)
+
+
+def test_rand_is_deterministic_and_in_unit_interval():
+    a = value("#declare S = seed(7); #declare R = <rand(S), rand(S), rand(S)>;")
+    b = value("#declare S = seed(7); #declare R = <rand(S), rand(S), rand(S)>;")
+    assert a == b
+    assert all(0.0 <= v <= 1.0 for v in a)
+    assert len(set(a)) == 3
+
+
+def test_defined_and_arrays():
+    text = """
+    #declare A = array[2][3] { {1, 2, 3}, {4, 5, 6} };
+    #declare A[1][0] = 40;
+    #declare R = <A[0][2], A[1][0], dimension_size(A, 2), dimensions(A), defined(A) + defined(B)>;
+    """
+    assert value(text) == (3.0, 40.0, 3.0, 2.0, 1.0)
+
+
+def test_uninitialised_array_element_is_an_error():
+    with pytest.raises(SceneError, match="never initialised"):
+        value("#declare A = array[2]; #declare R = A[1];")
+
+
+def test_user_function_is_evaluated():
+    assert value("#declare F = function(a, b) { a * b + 1 }; #declare R = F(2, 3);") == 7.0
+    assert value("#declare F = function { x + y * z }; #declare R = F(1, 2, 3);") == 7.0
+
+
+def test_linear_spline_interpolates():
+    text = "#declare S = spline { linear_spline 0, <0,0,0> 1, <2,4,6> }; #declare R = S(0.5);"
+    assert value(text) == (1.0, 2.0, 3.0)
+
+
+def test_division_by_zero_is_a_scene_error():
+    with pytest.raises(SceneError, match="t.pov:1:16: division by zero"):
+        value("#declare R = 1 / 0;")
