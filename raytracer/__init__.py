@@ -51,3 +51,4 @@ from .scene import translation_matrix as translation_matrix
 from .imageio import read_image as read_image
 from .imageio import write_image as write_image
 from .sdl import load_scene as load_scene
+from . import params as params

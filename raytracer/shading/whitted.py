@@ -244,6 +244,7 @@ def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray):
             att_col = jnp.ones(3, ctx.dtype)
         t_weight = weight * jnp.max(jnp.abs(fil))
         t_alive = found & (trans > ctx.settings.adc_bailout) & (t_weight >= ctx.settings.adc_bailout)
+        t_alive = t_alive & jnp.asarray(mats.transparent)[prim]  # opaque pigments never transmit
         # TIR is found by the refraction step, so it only replaces the mirror ray where that step
         # runs; a conserve_energy + fresnel surface under TIR has fil = 0 and reflects instead (§2.3)
         tir = tir & t_alive

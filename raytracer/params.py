@@ -1,0 +1,93 @@
+"""Naming, reading and replacing a scene's differentiable parameters.
+
+Every inexact array leaf of a :class:`~raytracer.Scene` is a parameter. Its name is its path in
+the pytree, written as Python would: ``objects[1].texture.layers[0].finish.diffuse``,
+``lights[0].color``, ``camera.location``. These helpers are thin wrappers over
+``jax.tree_util`` paths and ``eqx.tree_at``, so they work on scenes under ``jit`` and ``grad``.
+
+Which parameters move visibility edges (silhouettes, shadow boundaries, reflected/refracted
+outlines) — there, AD gives the derivative of each pixel's colour with the pixel's *hit object
+held fixed*, and finite differences see a jump where an edge crosses a pixel centre:
+
+================================================  ============================================
+moves edges                                       never moves edges
+================================================  ============================================
+shape parameters and object transforms            pigment colours (incl. filter/transmit), maps
+camera location / look_at / angle / vectors       ambient, emission, diffuse, brilliance,
+light position and point_at (shadow edges)        phong, phong_size, specular, roughness,
+ior (outlines seen through refraction; and TIR)   metallic, reflection amounts, light colour,
+pattern transforms (colour edges of checker…)     fade_distance/fade_power, ambient_light
+================================================  ============================================
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+
+def _name(path) -> str:
+    out = ""
+    for key in path:
+        if isinstance(key, jax.tree_util.GetAttrKey):
+            out += f".{key.name}"
+        elif isinstance(key, jax.tree_util.SequenceKey):
+            out += f"[{key.idx}]"
+        elif isinstance(key, jax.tree_util.DictKey):
+            out += f"[{key.key!r}]"
+        else:
+            out += str(key)
+    return out.lstrip(".")
+
+
+def _is_parameter(x) -> bool:
+    return eqx.is_inexact_array(x)
+
+
+def parameters(tree) -> dict[str, jax.Array]:
+    """All differentiable parameters of ``tree`` (a scene or any sub-pytree), by name."""
+    leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+    return {_name(path): leaf for path, leaf in leaves if _is_parameter(leaf)}
+
+
+def get(tree, name: str) -> jax.Array:
+    """The parameter called ``name`` (see :func:`parameters` for the names)."""
+    params = parameters(tree)
+    if name not in params:
+        close = [n for n in params if name.split(".")[-1] in n][:5]
+        hint = f"; did you mean one of {close}?" if close else ""
+        raise KeyError(f"no parameter {name!r}{hint}")
+    return params[name]
+
+
+def replace(tree, values: dict[str, jax.Array]):
+    """A copy of ``tree`` with the named parameters replaced (shapes must match)."""
+    names = list(values)
+    leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+    by_name = {_name(path): i for i, (path, leaf) in enumerate(leaves) if _is_parameter(leaf)}
+    for n in names:
+        if n not in by_name:
+            raise KeyError(f"no parameter {n!r}")
+    flat, treedef = jax.tree_util.tree_flatten(tree)
+    for n in names:
+        old = flat[by_name[n]]
+        new = jnp.asarray(values[n], dtype=old.dtype)
+        if new.shape != old.shape:
+            raise ValueError(f"parameter {n!r} has shape {old.shape}, got {new.shape}")
+        flat[by_name[n]] = new
+    return jax.tree_util.tree_unflatten(treedef, flat)
+
+
+def split(tree, names: list[str]):
+    """``(selected, rest)`` such that ``eqx.combine(selected, rest) == tree``; ``selected`` holds only
+    the named parameters (others ``None``): the sub-pytree to hand to ``jax.grad`` or an optimiser."""
+    wanted = set(names)
+    missing = wanted - set(parameters(tree))
+    if missing:
+        raise KeyError(f"no parameters {sorted(missing)}")
+    leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+    mask_flat = [(_name(path) in wanted) and _is_parameter(leaf) for path, leaf in leaves]
+    treedef = jax.tree_util.tree_structure(tree)
+    mask = jax.tree_util.tree_unflatten(treedef, mask_flat)
+    return eqx.partition(tree, mask)
