@@ -15,17 +15,9 @@ SCENES = Path(__file__).resolve().parents[2] / "examples" / "scenes"
 W, H = 160, 120
 MIN_PSNR = 40.0
 
-CHECKER_NOISE = ("renderer: checker pigment on planes renders as per-pixel noise (the floor of the "
-                 "coordinate along the plane normal flips with float32 hit-point noise)")
-# Measured failures of our renderer; strict, so each entry must go when its feature is fixed.
-KNOWN_FAILURES = {
-    "plane": CHECKER_NOISE,
-    "patterns": CHECKER_NOISE,
-    "reflection": CHECKER_NOISE,
-    "glass": CHECKER_NOISE,
-    "polygon": "renderer: polygon_hits() got multiple values for argument 'edges'",
-    "csg_intersection_difference": "renderer: cylinder_inside() got an unexpected keyword argument 'open'",
-}
+# Measured failures of our renderer, as {scene stem: reason naming the missing feature}; each
+# becomes a strict xfail, so fixing the feature forces the entry out. Empty since e9b7544.
+KNOWN_FAILURES: dict[str, str] = {}
 
 
 def _cases():

@@ -10,16 +10,9 @@ from validation.povray import povray_executable
 
 needs_povray = pytest.mark.skipif(povray_executable() is None, reason="povray is not installed")
 
-CHECKER_NOISE = "renderer: checker pigment on planes renders as per-pixel noise (float32 floor at the plane)"
-# Measured failures of our renderer (strict: remove an entry when its cause is fixed).
-KNOWN_FAILURES = {
-    name: CHECKER_NOISE for name in (
-        "lambert_sphere", "mirror_sphere", "mirror_corridor", "trace_depth", "glass_sphere", "glass_box",
-        "checker_planes", "scaled_spheres", "pov/plane", "pov/patterns", "pov/reflection", "pov/glass")
-}
-KNOWN_FAILURES["pov/polygon"] = "renderer: polygon_hits() got multiple values for argument 'edges'"
-KNOWN_FAILURES["pov/csg_intersection_difference"] = (
-    "renderer: cylinder_inside() got an unexpected keyword argument 'open'")
+# Measured failures of our renderer, as {suite name: reason}; strict xfails (remove an entry when
+# its cause is fixed). Empty since e9b7544 (checker on planes, polygon and CSG cylinder fixes).
+KNOWN_FAILURES: dict[str, str] = {}
 
 
 def test_suite_has_at_least_twelve_scenes_per_reference():
