@@ -1,0 +1,129 @@
+"""Shared pieces of the benchmarks: scene files and their variants, running one measurement in a
+fresh worker process, and markdown tables."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = {
+    "seed": ROOT / "examples" / "scenes" / "seed.pov",
+    "whitted": ROOT / "benchmarks" / "scenes" / "whitted.pov",
+    "lambert": ROOT / "benchmarks" / "scenes" / "lambert.pov",
+    "area": ROOT / "benchmarks" / "scenes" / "area.pov",
+}
+
+
+class JobFailed(RuntimeError):
+    pass
+
+
+def scene_variant(
+    src: Path, folder: Path, *, max_trace_level: int | None = None, area_samples: int | None = None
+) -> Path:
+    """A copy of scene ``src`` in ``folder`` with ``max_trace_level`` and/or the area-light sample counts
+    (``area_light <a>, <b>, n, n``) rewritten; both renderers read the same file."""
+    text = src.read_text()
+    tag = []
+    if max_trace_level is not None:
+        text, n = re.subn(r"max_trace_level\s+\d+", f"max_trace_level {int(max_trace_level)}", text)
+        if n != 1:
+            raise ValueError(f"{src}: expected one max_trace_level in global_settings")
+        tag.append(f"L{max_trace_level}")
+    if area_samples is not None:
+        text, n = re.subn(
+            r"(area_light\s*<[^>]*>\s*,\s*<[^>]*>\s*,)\s*\d+\s*,\s*\d+",
+            rf"\g<1> {int(area_samples)}, {int(area_samples)}",
+            text,
+        )
+        if n != 1:
+            raise ValueError(f"{src}: expected one area_light")
+        tag.append(f"A{area_samples}")
+    if not tag:
+        return src
+    out = folder / f"{src.stem}_{'_'.join(tag)}.pov"
+    out.write_text(text)
+    return out
+
+
+def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
+    """Runs one measurement (see :mod:`benchmarks._worker`) in a fresh Python process."""
+    env = dict(os.environ)
+    env.setdefault("JAX_PLATFORMS", "cpu")
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    job = {k: (str(v) if isinstance(v, Path) else v) for k, v in job.items()}
+    with tempfile.TemporaryDirectory(prefix="bench-home-") as home:
+        if job["kind"] == "mitsuba":
+            env["HOME"] = home  # Dr.Jit caches compiled kernels under ~/.drjit: start cold
+        proc = subprocess.run(
+            [sys.executable, "-m", "benchmarks._worker"],
+            input=json.dumps(job),
+            text=True,
+            capture_output=True,
+            env=env,
+            cwd=ROOT,
+            timeout=timeout,
+        )
+    lines = proc.stdout.strip().splitlines()
+    if proc.returncode != 0 or not lines:
+        raise JobFailed(f"{job['kind']} job failed ({proc.returncode}): {job}\n{proc.stderr[-3000:]}")
+    return json.loads(lines[-1])
+
+
+def machine() -> dict:
+    """What the numbers were measured on."""
+    try:
+        model = next(
+            line.split(":", 1)[1].strip()
+            for line in Path("/proc/cpuinfo").read_text().splitlines()
+            if line.startswith("model name")
+        )
+    except (OSError, StopIteration):
+        model = platform.processor()
+    try:
+        load = os.getloadavg()
+    except OSError:
+        load = None
+    versions = {}
+    for mod in ("jax", "mitsuba", "numpy"):
+        try:
+            versions[mod] = __import__(mod).__version__
+        except Exception:  # noqa: BLE001 - optional
+            versions[mod] = None
+    try:
+        pov = subprocess.run(["povray", "--version"], capture_output=True, text=True, timeout=30)
+        versions["povray"] = next(x.strip() for x in (pov.stdout + pov.stderr).splitlines() if "POV-Ray" in x)
+    except (OSError, StopIteration, subprocess.SubprocessError):
+        versions["povray"] = None
+    return {
+        "cpu": model,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "load_average_at_start": load,
+        "versions": versions,
+    }
+
+
+def fmt(x, digits: int = 3) -> str:
+    if x is None:
+        return "–"
+    if isinstance(x, str):
+        return x
+    if x == 0:
+        return "0"
+    if abs(x) >= 100:
+        return f"{x:.0f}"
+    return f"{x:.{digits}g}"
+
+
+def md_table(headers: list[str], rows: list[list]) -> str:
+    out = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
+    out += ["| " + " | ".join(fmt(c) for c in row) + " |" for row in rows]
+    return "\n".join(out)

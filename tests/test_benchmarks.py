@@ -1,0 +1,110 @@
+"""Smoke tests of the benchmark entry points: they run on a tiny setting and write well-formed files.
+
+Nothing here checks a time: speed is measured by ``benchmarks/``, never asserted in a test.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from benchmarks import accuracy, speed
+from benchmarks._common import SCENES, md_table, scene_variant
+
+needs_povray = pytest.mark.skipif(shutil.which("povray") is None, reason="needs the povray binary")
+
+
+def test_benchmark_scenes_exist_and_load():
+    from raytracer import load_scene
+
+    for name, path in SCENES.items():
+        assert path.is_file(), name
+        scene = load_scene(path, width=16, height=12)
+        assert scene.objects, name
+
+
+def test_scene_variant_rewrites_depth_and_area_samples(tmp_path):
+    whitted = scene_variant(SCENES["whitted"], tmp_path, max_trace_level=7)
+    assert "max_trace_level 7" in whitted.read_text()
+    assert whitted.parent == tmp_path
+    area = scene_variant(SCENES["area"], tmp_path, area_samples=4)
+    assert ", 4, 4 adaptive" in area.read_text()
+    assert scene_variant(SCENES["seed"], tmp_path) == SCENES["seed"]  # nothing to rewrite: the file itself
+    with pytest.raises(ValueError, match="area_light"):
+        scene_variant(SCENES["seed"], tmp_path, area_samples=3)
+
+
+def test_markdown_table_has_one_row_per_entry():
+    table = md_table(["a", "b"], [[1, 0.000123], ["x", None]])
+    lines = table.splitlines()
+    assert len(lines) == 4
+    assert lines[2] == "| 1 | 0.000123 |"
+    assert lines[3] == "| x | – |"
+
+
+def _fake_row(renderer, scene, time_s, rmse):
+    err = {"rmse": rmse, "max_err": 10 * rmse}
+    return {
+        "renderer": renderer,
+        "scene": scene,
+        "setting": f"spp {int(time_s * 10)}",
+        "params": {},
+        "width": 16,
+        "height": 12,
+        "compile_s": 1.0,
+        "time_s": time_s,
+        "peak_mb": 100.0,
+        "reference": "converged",
+        "rmse": rmse,
+        "max_err": 10 * rmse,
+        "errors": {"converged": err, "povray_aa65": err},
+        "cpu_s": time_s,
+        "runs": 3,
+        "reference_floor": {"converged": {"rmse": 0.0, "max_err": 0.0}, "povray_aa65": err},
+    }
+
+
+def test_plot_and_tables_from_rows(tmp_path):
+    rows = [
+        _fake_row(r, s, t, e)
+        for s in ("seed", "lambert")
+        for r in ("ours", "povray", "mitsuba")
+        for t, e in ((0.1, 1e-2), (0.4, 3e-3), (1.6, 0.0))
+    ]
+    accuracy.plot(rows, tmp_path / "a.png")
+    assert (tmp_path / "a.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = accuracy.tables(rows)
+    assert "### seed (16×12)" in md and "### lambert (16×12)" in md
+    assert md.count("| ours |") == 6
+
+
+@needs_povray
+def test_speed_entry_point_writes_json_and_markdown(tmp_path):
+    assert speed.main(["--out", str(tmp_path), "--scenes", "seed", "--scale", "0.05", "--repeats", "1"]) == 0
+    doc = json.loads((tmp_path / "speed.json").read_text())
+    (result,) = doc["results"]
+    assert result["scene"] == "seed" and (result["width"], result["height"]) == (32, 24)
+    for key in ("parse_s", "compile_s", "time_s", "peak_mb"):
+        assert result["ours"][key] > 0
+    assert result["povray"]["time_s"] >= 0 and result["povray"]["peak_mb"] > 0
+    assert result["ratio_warm_to_trace"] is None or result["ratio_warm_to_trace"] > 0
+    assert "| seed | 32×24 |" in (tmp_path / "speed.md").read_text()
+
+
+@needs_povray
+def test_accuracy_entry_point_writes_json_markdown_and_plot(tmp_path):
+    assert accuracy.main(["--tiny", "--scenes", "seed", "--repeats", "1", "--out", str(tmp_path)]) == 0
+    doc = json.loads((tmp_path / "accuracy.json").read_text())
+    assert not doc["failures"]
+    rows = doc["rows"]
+    assert {r["renderer"] for r in rows} >= {"ours", "povray"}
+    for row in rows:
+        for key in ("renderer", "scene", "setting", "compile_s", "time_s", "peak_mb", "rmse", "max_err"):
+            assert key in row, key
+        assert row["scene"] == "seed"
+        assert np.isfinite(row["rmse"]) and row["rmse"] >= 0 and row["max_err"] >= row["rmse"]
+    assert (tmp_path / "accuracy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "### seed" in (tmp_path / "accuracy.md").read_text()
