@@ -91,3 +91,50 @@ def split(tree, names: list[str]):
     treedef = jax.tree_util.tree_structure(tree)
     mask = jax.tree_util.tree_unflatten(treedef, mask_flat)
     return eqx.partition(tree, mask)
+
+
+# Parameter names (as :func:`parameters` writes them) that can move a visibility edge: a silhouette,
+# a shadow boundary, a reflected/refracted outline, a pattern's colour edge or a bailout threshold.
+# Everything else (colours, finish coefficients, light colour and fading, ambient light, background)
+# changes pixel colours smoothly with the hit objects fixed.
+_EDGE_MOVING = (".shape.", ".transform.", "camera.", ".position", ".point_at", ".spot.", ".area.",
+                ".ior", ".pigment.values", ".pigment.vector", ".pigment.frequency", ".pigment.phase",
+                ".pigment.turbulence", ".pigment.omega", ".pigment.lambda_", "adc_bailout",
+                ".clipped_by")
+
+
+def moves_edges(name: str) -> bool:
+    """Whether the parameter called ``name`` can move a visibility or pattern edge (see the table above).
+
+    ``adc_bailout`` counts as one: it is a threshold, so its derivative is zero almost everywhere and
+    a jump where a ray weight crosses it.
+    """
+    dotted = "." + name
+    return any(key in dotted for key in _EDGE_MOVING)
+
+
+def random_tangent(tree, key: jax.Array, names=None):
+    """A tangent for ``jax.jvp`` with ``tree``'s structure: a standard-normal random direction in the
+    named parameters (all parameters if ``names`` is None; ``names`` may also be a predicate on the
+    name) and zeros elsewhere, so one JVP checks many parameters at once."""
+    if names is None:
+        chosen = lambda n: True  # noqa: E731
+    elif callable(names):
+        chosen = names
+    else:
+        wanted = set(names)
+        missing = wanted - set(parameters(tree))
+        if missing:
+            raise KeyError(f"no parameters {sorted(missing)}")
+        chosen = wanted.__contains__
+    leaves, treedef = jax.tree_util.tree_flatten_with_path(tree)
+    keys = jax.random.split(key, max(len(leaves), 1))
+    out = []
+    for k, (path, leaf) in zip(keys, leaves, strict=False):
+        if not _is_parameter(leaf):
+            out.append(leaf)
+        elif chosen(_name(path)):
+            out.append(jax.random.normal(k, leaf.shape, leaf.dtype))
+        else:
+            out.append(jnp.zeros_like(leaf))
+    return jax.tree_util.tree_unflatten(treedef, out)
