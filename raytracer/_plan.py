@@ -13,8 +13,6 @@ inside-test trees for the CSG conditions and ``clipped_by``.
 from __future__ import annotations
 
 import dataclasses
-from typing import Union
-
 from .errors import SceneError, SceneWarning
 from .scene import (
     CSG,
@@ -63,7 +61,7 @@ class InDiff:
     inverse: bool = False
 
 
-InsideTree = Union[InPrim, InAll, InAny, InDiff]
+InsideTree = InPrim | InAll | InAny | InDiff
 
 
 @dataclasses.dataclass(frozen=True)

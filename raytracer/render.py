@@ -22,7 +22,9 @@ from .shading._materials import pack_materials
 from .shading.camera import camera_rays, image_coords
 from .shading.whitted import make_context, trace
 
-RAYS_PER_TILE = 1 << 15  # rays alive at once across all levels of one tile (memory bound)
+RAYS_PER_TILE = 1 << 18  # ray slots in the widest level of one tile's Whitted tree (memory bound)
+MAX_TILE = 1 << 13  # camera rays per tile
+CHUNKS_PER_TILE = 4  # secondary rays are shaded in chunks of tile/4 rays; chunks with no live ray are skipped
 
 
 def plan(scene: Scene) -> Plan:
@@ -31,11 +33,12 @@ def plan(scene: Scene) -> Plan:
 
 
 def _tile_size(p: Plan, n_rays: int) -> int:
+    """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE``."""
     eff = p.effects
     branch = int(eff.reflection) + int(eff.transmission)
-    per_ray = sum(branch ** k for k in range(eff.depth)) if branch > 1 else eff.depth if branch else 1
-    size = max(64, RAYS_PER_TILE // per_ray)
-    return min(size, n_rays)
+    width = branch ** (eff.depth - 1) if branch > 1 else 1
+    size = max(64, min(MAX_TILE, RAYS_PER_TILE // width)) // CHUNKS_PER_TILE * CHUNKS_PER_TILE
+    return min(size, -(-n_rays // CHUNKS_PER_TILE) * CHUNKS_PER_TILE)
 
 
 def _output_transfer(img, settings):
@@ -71,8 +74,7 @@ def _render(scene: Scene, width: int, height: int, k: int, progress: bool):
     @jax.checkpoint
     def one_tile(args):
         o, d, index = args
-        ones = jnp.ones(o.shape[0], dtype)
-        colour = trace(ctx, o, d, ones, ones > 0, ones < 0, level=0)
+        colour = trace(ctx, o, d, chunk=tile // CHUNKS_PER_TILE)
         if progress:
             jax.debug.callback(_report_progress, index, n_tiles)
         return colour

@@ -145,17 +145,34 @@ def test_diffuse_only_scene_compiles_without_secondary_rays():
     scene = sphere_scene(fin)
     assert rt.plan(scene).effects.depth == 1
     assert not rt.plan(scene).effects.reflection and not rt.plan(scene).effects.transmission
-    jaxpr = jax.make_jaxpr(lambda s: rt.render(s, width=2, height=2))(scene)
-    assert str(jaxpr).count("argmin") == 1  # one closest-hit search: camera rays only
+    jaxpr = str(jax.make_jaxpr(lambda s: rt.render(s, width=2, height=2))(scene))
+    assert jaxpr.count("argmin") == 1  # one closest-hit search: camera rays only
+    assert "reverse=True" not in jaxpr  # no combination of secondary rays
 
 
-def test_reflective_scene_traces_one_level_per_bounce():
+def test_reflective_scene_scans_over_its_trace_levels_with_one_shading_body():
     fin = rt.Finish(reflection=rt.Reflection(min=(0.5,) * 3, max=(0.5,) * 3))
     scene = sphere_scene(fin, settings=rt.Settings(max_trace_level=3))
     eff = rt.plan(scene).effects
     assert eff.depth == 3 and eff.reflection and not eff.transmission and not eff.highlights
-    jaxpr = jax.make_jaxpr(lambda s: rt.render(s, width=2, height=2))(scene)
-    assert str(jaxpr).count("argmin") == 3
+    jaxpr = str(jax.make_jaxpr(lambda s: rt.render(s, width=2, height=2))(scene))
+    assert jaxpr.count("argmin") == 1  # the shading body is traced once …
+    assert jaxpr.count("length=3") == 2 and "reverse=True" in jaxpr  # … and scanned over 3 levels, twice
+
+
+def test_two_bounce_mirror_corridor_matches_the_geometric_series():
+    # camera between two facing mirrors (reflection r = ½, ambient a = 0.1, no light): the centre
+    # ray bounces back and forth and every segment ends on a mirror, so with max_trace_level L the
+    # pixel is a·(1 + r + … + r^(L-1)).
+    mirror = rt.Texture.of(rt.Pigment.solid((1, 1, 1)), rt.Finish(
+        ambient=(0.1, 0.1, 0.1), diffuse=0.0, reflection=rt.Reflection(min=(0.5,) * 3, max=(0.5,) * 3)))
+    for depth in (1, 2, 4):
+        scene = rt.Scene(camera=rt.Camera(location=(0, 0, 0), look_at=(0, 0, 1)),
+                         objects=(rt.Object(rt.Plane((0, 0, 1), 2.0), texture=mirror),
+                                  rt.Object(rt.Plane((0, 0, -1), 2.0), texture=mirror)),
+                         settings=rt.Settings(max_trace_level=depth, adc_bailout=0.0))
+        expected = 0.1 * sum(0.5 ** k for k in range(depth))
+        np.testing.assert_allclose(one_pixel(scene), expected, rtol=1e-5)
 
 
 # ---------------------------------------------------------------- hard cases stay finite

@@ -264,23 +264,133 @@ def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray):
     return local, children
 
 
-def trace(ctx: TraceContext, o, d, weight, alive, is_reflection, level: int):
-    """Colours (B, 3) of a batch of rays at ``level`` (0 = camera rays), recursing per level."""
-    last = level + 1 >= ctx.plan.effects.depth
-    local, children = jax.vmap(lambda *a: shade(ctx, *a))(
-        o, d, weight, alive, is_reflection)
-    if last or not children:
-        return local
-    slots = sorted(children)
-    cat = {k: jnp.concatenate([children[s][k] for s in slots]) for k in children[slots[0]]}
-    colours = trace(ctx, cat["origin"], cat["direction"], cat["weight"], cat["alive"],
-                    cat["reflection"], level + 1)
-    b = o.shape[0]
-    out = local
-    for i, s in enumerate(slots):
-        ch = children[s]
-        c = colours[i * b:(i + 1) * b]
-        if s == "R":
-            c = jnp.where(ch["power"][:, None] == 1.0, c, safe_pow(c, ch["power"][:, None]))
-        out = out + jnp.where(ch["alive"][:, None], ch["coef"] * c, 0.0)
-    return out
+def _partition(alive):
+    """A permutation putting live rays first (stable), and its inverse, in O(n) (no sort)."""
+    n = alive.shape[0]
+    live = alive.astype(jnp.int32)
+    n_live = jnp.sum(live)
+    pos = jnp.where(alive, jnp.cumsum(live) - 1, n_live + jnp.cumsum(1 - live) - 1)
+    order = jnp.zeros(n, jnp.int32).at[pos].set(jnp.arange(n, dtype=jnp.int32))
+    return order, pos
+
+
+def _shade_batch(ctx: TraceContext, o, d, weight, alive, is_reflection, chunk: int):
+    """``shade`` over a batch, in chunks of ``chunk`` rays with the live rays moved to the front;
+    chunks with no live ray are skipped (``lax.cond`` runs only the taken branch and differentiates
+    like any branch), so the empty slots of the Whitted tree cost almost nothing."""
+
+    def shade_all(o, d, weight, alive, is_reflection):
+        return jax.vmap(lambda *a: shade(ctx, *a))(o, d, weight, alive, is_reflection)
+
+    n = o.shape[0]
+    if chunk >= n:
+        return shade_all(o, d, weight, alive, is_reflection)
+    order, inverse = _partition(alive)
+    n_chunks = n // chunk
+    # two levels of skipping: blocks of chunks, then chunks, so a sparse level costs
+    # O(blocks + chunks of one block) loop steps rather than O(chunks)
+    per_block = _divisor_near(n_chunks, int(n_chunks ** 0.5))
+    args = tuple(a[order].reshape((n_chunks // per_block, per_block, chunk) + a.shape[1:])
+                 for a in (o, d, weight, alive, is_reflection))
+    shapes = jax.eval_shape(shade_all, *(a[0, 0] for a in args))
+
+    def zeros(lead=()):
+        return jax.tree_util.tree_map(lambda x: jnp.zeros(lead + x.shape, x.dtype), shapes)
+
+    def one_chunk(a):
+        return jax.lax.cond(jnp.any(a[3]), lambda: shade_all(*a), zeros)
+
+    def one_block(a):
+        return jax.lax.cond(jnp.any(a[3]), lambda: jax.lax.map(one_chunk, a), lambda: zeros((per_block,)))
+
+    out = jax.lax.map(one_block, args)
+    return jax.tree_util.tree_map(lambda x: x.reshape((n,) + x.shape[3:])[inverse], out)
+
+
+def _divisor_near(n: int, target: int) -> int:
+    """The divisor of ``n`` closest to ``target`` (at least 1)."""
+    divisors = [k for k in range(1, n + 1) if n % k == 0]
+    return min(divisors, key=lambda k: abs(k - max(1, target)))
+
+
+def pool_size(ctx: TraceContext, n_camera_rays: int) -> int:
+    """Ray slots per level: the widest level of the Whitted tree, ``n · branch^(depth-1)``."""
+    eff = ctx.plan.effects
+    branch = int(eff.reflection) + int(eff.transmission)
+    return n_camera_rays * (branch ** (eff.depth - 1) if branch > 1 else 1)
+
+
+def trace(ctx: TraceContext, o, d, chunk: int):
+    """Colours (N, 3) of N camera rays: the whole Whitted tree, one ``lax.scan`` step per level.
+
+    Level k of the tree lives in a pool of ``pool_size`` slots (its first ``N·branch^k`` are used;
+    the slots of absent rays are dead). A step shades the level (skipping dead chunks) and writes
+    the children of slot i to slots i and i + N·branch^k of the next level. A reverse scan then
+    combines ``local + coef · child`` from the deepest level up. The shading body is traced once,
+    so compile time does not grow with ``max_trace_level``; scan and cond are differentiable, so
+    reverse mode works (each step's residuals are kept, or recomputed under ``jax.checkpoint``).
+    """
+    n = o.shape[0]
+    depth = ctx.plan.effects.depth
+    p = pool_size(ctx, n)
+    dtype = o.dtype
+    pad = p - n
+    pool = dict(
+        o=jnp.concatenate([o, jnp.zeros((pad, 3), dtype)]),
+        d=jnp.concatenate([d, jnp.broadcast_to(jnp.asarray([0.0, 0.0, 1.0], dtype), (pad, 3))]),
+        weight=jnp.concatenate([jnp.ones(n, dtype), jnp.zeros(pad, dtype)]),
+        alive=jnp.arange(p) < n,
+        reflection=jnp.zeros(p, bool))
+    if depth == 1:
+        local, _ = _shade_batch(ctx, pool["o"], pool["d"], pool["weight"], pool["alive"],
+                                pool["reflection"], chunk)
+        return local[:n]
+    slots = None
+    index = jnp.arange(p)
+
+    def level(pool, k):
+        nonlocal slots
+        local, children = _shade_batch(ctx, pool["o"], pool["d"], pool["weight"], pool["alive"],
+                                       pool["reflection"], chunk)
+        slots = sorted(children)
+        width = n * jnp.power(len(slots), k)  # live slots of this level: [0, width)
+        has_next = k + 1 < depth
+        if len(slots) == 1:
+            ch = children[slots[0]]
+            nxt = {"o": ch["origin"], "d": ch["direction"], "weight": ch["weight"],
+                   "alive": ch["alive"] & has_next, "reflection": ch["reflection"]}
+        else:
+            second = index >= width
+            src = jnp.where(second, index - width, index)
+            a, b = children[slots[0]], children[slots[1]]
+
+            def pick(key):
+                return jnp.where(second.reshape((p,) + (1,) * (a[key].ndim - 1)), b[key][src], a[key][src])
+
+            nxt = {"o": pick("origin"), "d": pick("direction"), "weight": pick("weight"),
+                   "alive": pick("alive") & (index < 2 * width) & has_next,
+                   "reflection": pick("reflection")}
+        record = {"local": local}
+        for s in slots:
+            record[s] = {"coef": children[s]["coef"], "alive": children[s]["alive"] & has_next,
+                         "power": children[s]["power"]}
+        return nxt, record
+
+    _, records = jax.lax.scan(level, pool, jnp.arange(depth))
+
+    def combine(colour_next, rec_k):
+        rec, k = rec_k
+        width = n * jnp.power(len(slots), k)
+        out = rec["local"]
+        for i, s in enumerate(slots):
+            src = index + width * i if i else index
+            c = colour_next[jnp.minimum(src, p - 1)]
+            if s == "R":
+                pw = rec[s]["power"][:, None]
+                c = jnp.where(pw == 1.0, c, safe_pow(c, pw))
+            out = out + jnp.where(rec[s]["alive"][:, None], rec[s]["coef"] * c, 0.0)
+        return out, None
+
+    colour, _ = jax.lax.scan(combine, jnp.zeros((p, 3), dtype), (records, jnp.arange(depth)),
+                             reverse=True)
+    return colour[:n]
