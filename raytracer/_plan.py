@@ -13,6 +13,7 @@ inside-test trees for the CSG conditions and ``clipped_by``.
 from __future__ import annotations
 
 import dataclasses
+
 from .errors import SceneError, SceneWarning
 from .scene import (
     CSG,
