@@ -47,11 +47,11 @@ def _cond(p):
 
 def directive_expr(p):
     """An expression ending a directive: a following '#' is not processed before we are done."""
-    p.hash_stops += 1
+    p.push_stop_mark()
     try:
         return parse_expr(p)
     finally:
-        p.hash_stops -= 1
+        p.stop_marks.pop()
 
 
 class Directives:
@@ -92,12 +92,12 @@ class Directives:
         target = self.scopes[-1] if is_local else self._owner_table(name)
         idx = index_list(self) if self.is_op("[") else []
         self.expect_op("=", f"'=' after #{tok.value} {name}")
-        self.hash_stops += 1
+        self.push_stop_mark()
         try:
             value = self.parse_rvalue()
             t = self.peek_op()
         finally:
-            self.hash_stops -= 1
+            self.stop_marks.pop()
         if t.kind == OP and t.value == ";":
             self.next()
         if idx:
@@ -315,7 +315,8 @@ class Directives:
         self.expect_op("(")
         table = {}
         args = []
-        if not self.is_op(")") and m.params:
+        nxt = self.raw_peek() if self.la is None else self.la
+        if m.params and not (nxt is not None and nxt.kind == OP and nxt.value == ")"):
             args.append(self._macro_arg(table, m, 0))
             # POV-Ray tolerates a missing comma after an object argument
             while self.accept_op(",") or (len(args) < len(m.params) and not self.is_op(")")):
@@ -379,12 +380,12 @@ class Directives:
         self.push_include(v, tok.loc)
 
     def d_version(self, tok):
-        self.hash_stops += 1
+        self.push_stop_mark()
         try:
             v = as_float(self, parse_expr(self), tok.loc)
             t = self.peek_op()
         finally:
-            self.hash_stops -= 1
+            self.stop_marks.pop()
         if t.kind == OP and t.value == ";":
             self.next()
         self.version = v

@@ -67,7 +67,8 @@ class Stream:
         self.include_paths = [Path(p) for p in include_paths]
         self.warnings: list[SceneWarning] = []
         self.token_cache: dict[str, list] = {}
-        self.hash_stops = 0  # >0 while reading a #declare's expression
+        # (frame index, open conditionals) where each #declare being read started: see peek_op
+        self.stop_marks: list[tuple[int, int]] = []
         self.macro_depth = 0
         self.tokens_read = 0
         self.directives = None  # set by the interpreter: name -> handler(hash_token)
@@ -201,18 +202,46 @@ class Stream:
             else:
                 tok = self.raw()
             if tok.kind == OP and tok.value == "#":
-                if stop_hash:
+                if stop_hash and self._stops_declare(True):
                     return tok
                 self.directive(tok)
                 continue
             if tok.kind == ID:
                 m = self.lookup_macro(tok.value)
                 if m is not None:
-                    if stop_hash:
+                    if stop_hash and self._stops_declare(False):
                         return tok
                     self.macro_call(tok, m)
                     continue
             return tok
+
+    def push_stop_mark(self) -> None:
+        f = self._frame_index()
+        self.stop_marks.append((f, len(self.frames[f].conds)))
+
+    def _frame_index(self) -> int:
+        i = len(self.frames) - 1
+        while self.frames[i].kind == "pushback" and i > 0:
+            i -= 1
+        return i
+
+    def _stops_declare(self, is_directive: bool) -> bool:
+        """Whether a directive or macro call found after a #declare's value ends the value.
+
+        A missing ';' must not let ``#declare A = 1 #declare B = A`` or a loop's ``#end`` run before
+        A is assigned; but directives inside a macro the value calls, and the ``#else``/``#end`` of
+        an ``#if`` that began inside the value (``#declare A = #if (c) 1 #else 2 #end;``), run.
+        """
+        frame, conds = self.stop_marks[-1]
+        here = self._frame_index()
+        if here > frame:
+            return False
+        if here < frame or not is_directive:
+            return True
+        name = self.raw_peek()
+        closes = name is not None and name.kind == ID and name.value in (
+            "else", "elseif", "end", "case", "range", "break")
+        return not (closes and len(self.frames[here].conds) > conds)
 
     def directive(self, hash_tok: Token) -> None:
         name = self.raw_peek()
@@ -235,8 +264,8 @@ class Stream:
     def peek_op(self) -> Token:
         """Like peek, but while reading a #declare expression a directive or macro call ends it."""
         if self.la is None:
-            tok = self._fetch(self.hash_stops > 0)
-            if self.hash_stops > 0 and ((tok.kind == OP and tok.value == "#") or (
+            tok = self._fetch(bool(self.stop_marks))
+            if self.stop_marks and ((tok.kind == OP and tok.value == "#") or (
                     tok.kind == ID and self.lookup_macro(tok.value) is not None)):
                 self.la_raw = True  # a directive or macro call: run it only after the #declare
             self.la = tok

@@ -26,7 +26,15 @@ from .conftest import value
     ("2 >= 2", 1.0),
 ])
 def test_precedence(expr, expected):
-    assert value(f"#declare R = {expr};") == pytest.approx(expected)
+    # comparisons, & | and ?: are only allowed inside parentheses (manual 3.3.1.5.3)
+    assert value(f"#declare R = ({expr});") == pytest.approx(expected)
+
+
+def test_top_level_less_than_starts_a_vector():
+    from raytracer.sdl import load_scene
+
+    (box,) = load_scene("box { <-1, -1, -1> <1, 2, 3> }").objects
+    assert [float(v) for v in box.shape.corner2] == [1.0, 2.0, 3.0]
 
 
 def test_vector_arithmetic_promotes_floats():

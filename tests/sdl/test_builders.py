@@ -1,0 +1,241 @@
+"""Builders and lowering: what each construct becomes in the scene model."""
+
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+from raytracer import scene as S
+from raytracer.sdl import load_scene
+
+SEED = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "seed.pov"
+
+
+def same_pytree(a, b) -> bool:
+    la, ta = jax.tree_util.tree_flatten(a)
+    lb, tb = jax.tree_util.tree_flatten(b)
+    return ta == tb and all(np.allclose(x, y) for x, y in zip(la, lb, strict=True))
+
+
+def only_object(text):
+    s = load_scene(text)
+    assert len(s.objects) == 1
+    return s.objects[0]
+
+
+def rgbft(obj):
+    return np.asarray(obj.texture.layers[0].pigment.colors[0])
+
+
+def test_seed_scene_objects():
+    s = load_scene(SEED)
+    sphere, box = s.objects
+    assert isinstance(sphere.shape, S.Sphere) and float(sphere.shape.radius) == 2.0
+    np.testing.assert_allclose(rgbft(sphere), [1, 0, 0, 0, 0])
+    fin = sphere.texture.layers[0].finish
+    assert (float(fin.ambient[0]), float(fin.diffuse), float(fin.phong)) == pytest.approx((0.2, 0.8, 1))
+    assert box.texture.layers[0].finish.phong is None
+    np.testing.assert_allclose(box.shape.corner1, [-2, -0.2, -2])
+    # rotate <-20, 30, 0>: Ry(30) @ Rx(-20) (reference §4.3)
+    a, b = np.radians(-20), np.radians(30)
+    rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    np.testing.assert_allclose(box.transform.matrix[:3, :3], ry @ rx, atol=1e-6)
+    assert not box.texture.layers[0].pigment.transparent
+    (light,) = s.lights
+    np.testing.assert_allclose(light.position, [-10, 3, -20])
+    np.testing.assert_allclose(light.color, [1, 1, 1])
+    np.testing.assert_allclose(s.camera.location, [0, 0, -8])
+    np.testing.assert_allclose(s.camera.look_at, [0, 0, 0])
+    assert s.settings.output_transfer == "linear"
+
+
+@pytest.mark.parametrize("a, b", [
+    ("sphere { <0,0,0>, 1 pigment { color red 1 } }", "sphere { 0 1 pigment { rgb x } }"),
+    ("sphere { 0, 1 rotate <10, 20, 30> }", "sphere { 0, 1 rotate 10*x rotate 20*y rotate 30*z }"),
+    ("box { 0, 1 translate <1,2,3> scale 2 }",
+     "box { 0, 1 transform { translate <1,2,3> scale 2 } }"),
+    ("#declare T = transform { scale 2 translate x }\nbox { 0, 1 transform T }",
+     "box { 0, 1 scale 2 translate x }"),
+    ("box { 0, 1 transform { translate x inverse } }", "box { 0, 1 translate -x }"),
+    ("#declare B = box { 0, 1 }\nobject { B pigment { rgb 1 } }", "box { 0, 1 pigment { rgb 1 } }"),
+    ("sphere { 0, 1 matrix <1,0,0, 0,1,0, 0,0,1, 1,2,3> }", "sphere { 0, 1 translate <1,2,3> }"),
+    ("sphere { 0, 1 finish { phong 0.5 } }", "sphere { 0, 1 texture { finish { phong 0.5 } } }"),
+    ("plane { <0, 2, 0>, 1 }", "plane { y, 1 }"),
+    ("sphere { 0, 1 pigment { checker } }",
+     "sphere { 0, 1 pigment { checker color blue 1, color green 1 } }"),
+])
+def test_two_spellings_give_equal_pytrees(a, b):
+    assert same_pytree(load_scene(a), load_scene(b))
+
+
+def test_camera_records_modifiers_and_transform():
+    s = load_scene("camera { orthographic location <0,1,-5> look_at 0 angle 40 up y right 2*x "
+                   "sky <0,1,1> rotate 90*y }")
+    c = s.camera
+    assert c.projection == "orthographic" and c.up_or_right_given
+    assert float(c.angle_degrees) == 40.0
+    np.testing.assert_allclose(c.right, [2, 0, 0])
+    np.testing.assert_allclose(c.sky, [0, 1, 1])
+    np.testing.assert_allclose(np.asarray(c.transform.matrix)[:3, :3] @ np.array([1, 0, 0]), [0, 0, -1],
+                               atol=1e-6)
+
+
+def test_textures_before_a_transform_move_with_the_object():
+    before = only_object("sphere { 0, 1 pigment { checker } scale 2 }")
+    after = only_object("sphere { 0, 1 scale 2 pigment { checker } }")
+    np.testing.assert_allclose(np.diag(before.texture.layers[0].pigment.transform.matrix), [2, 2, 2, 1])
+    assert after.texture.layers[0].pigment.transform is None
+
+
+def test_csg_children_keep_their_textures_and_pigment_only_child_gets_default_finish():
+    u = only_object("""difference {
+        box { -1, 1 pigment { rgb <1,0,0> } }
+        sphere { 0, 1.2 }
+        pigment { rgb <0,0,1> } finish { ambient 1 } }""")
+    box, sphere = u.children
+    np.testing.assert_allclose(rgbft(box), [1, 0, 0, 0, 0])
+    assert float(box.texture.layers[0].finish.ambient[0]) == pytest.approx(0.1)
+    assert sphere.texture is None
+    assert float(u.texture.layers[0].finish.ambient[0]) == 1.0
+
+
+def test_csg_transform_moves_child_pattern_textures():
+    u = only_object("union { sphere { 0, 1 pigment { checker } } scale 3 }")
+    (child,) = u.children
+    assert child.transform is None
+    np.testing.assert_allclose(np.diag(child.texture.layers[0].pigment.transform.matrix), [3, 3, 3, 1])
+    np.testing.assert_allclose(np.diag(u.transform.matrix), [3, 3, 3, 1])
+
+
+def test_object_without_texture_gets_the_default():
+    o = only_object("sphere { 0, 1 }")
+    np.testing.assert_allclose(rgbft(o), [0, 0, 0, 0, 0])
+    assert float(o.texture.layers[0].finish.diffuse) == pytest.approx(0.6)
+
+
+@pytest.mark.parametrize("pigment, transparent", [
+    ("rgb 1", False), ("rgbf <1,1,1,0>", True), ("color 0.5", True), ("color red 1 filter 0", True),
+    ("rgbt 0.2", True),
+])
+def test_pigment_transparency_follows_the_colour_expression(pigment, transparent):
+    o = only_object(f"sphere {{ 0, 1 pigment {{ {pigment} }} }}")
+    assert o.texture.layers[0].pigment.transparent is transparent
+
+
+def test_finish_keywords():
+    f = only_object("""sphere { 0, 1 finish { ambient rgb <0.1,0.2,0.3> emission 0.5 diffuse 0.7
+        brilliance 2 phong 0 phong_size 20 specular 0.3 roughness 0.01 metallic
+        reflection { 0.1, 0.9 fresnel falloff 2 exponent 0.5 metallic 0.3 } conserve_energy } }"""
+                    ).texture.layers[0].finish
+    np.testing.assert_allclose(f.ambient, [0.1, 0.2, 0.3])
+    np.testing.assert_allclose(f.emission, [0.5, 0.5, 0.5])
+    assert float(f.phong) == 0.0 and float(f.phong_size) == 20
+    assert float(f.metallic) == 1.0 and f.conserve_energy
+    r = f.reflection
+    np.testing.assert_allclose(r.min, [0.1] * 3)
+    np.testing.assert_allclose(r.max, [0.9] * 3)
+    assert r.fresnel and float(r.falloff) == 2 and float(r.exponent) == 0.5
+
+
+def test_interior_and_legacy_finish_ior():
+    o = only_object("sphere { 0, 1 interior { ior 1.5 fade_distance 2 fade_power 1 fade_color rgb x } }")
+    assert float(o.interior.ior) == 1.5
+    np.testing.assert_allclose(o.interior.fade_color, [1, 0, 0])
+    legacy = only_object("sphere { 0, 1 finish { refraction 1 ior 1.33 } }")
+    assert float(legacy.interior.ior) == pytest.approx(1.33)
+
+
+def test_lights():
+    s = load_scene("""light_source { <0,10,0> rgb 2 spotlight point_at 0 radius 10 falloff 20
+                                     tightness 5 fade_distance 3 fade_power 2 }
+        light_source { 0, 1 parallel shadowless translate y*5 }
+        light_source { 0, 1 area_light x, z, 3, 4 circular orient translate x }""")
+    spot, par, area = s.lights
+    np.testing.assert_allclose(spot.color, [2, 2, 2])
+    assert float(spot.spot.radius_degrees) == 10 and float(spot.spot.tightness) == 5
+    assert float(spot.fade_power) == 2
+    assert par.parallel and par.shadowless
+    np.testing.assert_allclose(par.position, [0, 5, 0])
+    np.testing.assert_allclose(par.point_at, [0, 5, 1])
+    assert (area.area.size1, area.area.size2, area.area.circular) == (3, 4, True)
+    np.testing.assert_allclose(area.position, [1, 0, 0])
+
+
+def test_light_inside_a_union_moves_with_it():
+    s = load_scene("union { sphere { 0, 1 } light_source { <1,0,0> rgb 1 } translate y }")
+    np.testing.assert_allclose(s.lights[0].position, [1, 1, 0])
+
+
+def test_shapes():
+    s = load_scene("""cylinder { 0, y, 1 open } cone { 0, 1, y, 0.5 } torus { 2, 0.5 }
+        disc { 0, y, 2, 1 } quadric { <1,1,1>, <0,0,0>, <0,0,0>, -1 }
+        polygon { 4, <0,0>, <1,0>, <1,1>, <0,0> } triangle { 0, x, y }
+        smooth_triangle { 0, z, x, z, y, z }
+        mesh { triangle { 0, x, y } triangle { 0, y, z } }
+        mesh2 { vertex_vectors { 3, 0, x, y } face_indices { 1, <0, 1, 2> } }""")
+    kinds = [type(o.shape).__name__ for o in s.objects]
+    assert kinds == ["Cylinder", "Cone", "Torus", "Disc", "Quadric", "Polygon", "Triangle",
+                     "SmoothTriangle", "Mesh", "Mesh"]
+    assert s.objects[0].shape.open
+    assert s.objects[8].shape.triangles.shape == (2, 3, 3)
+    np.testing.assert_allclose(s.objects[9].shape.triangles[0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+
+
+def test_unsupported_objects_are_parsed_and_left_out():
+    s = load_scene("lathe { linear_spline 2, <0,0>, <1,1> } sphere { 0, 1 } "
+                   "union { blob { sphere { 0, 1, 1 } } box { 0, 1 } }")
+    assert [w.feature for w in s.warnings] == ["lathe", "blob"]
+    assert len(s.objects) == 2 and len(s.objects[1].children) == 1
+
+
+@pytest.mark.parametrize("header, transfer, gamma", [
+    ("#version 3.7; global_settings { assumed_gamma 1 }", "linear", 1.0),
+    ("#version 3.7;", "linear", 1.0),
+    ("#version 3.6;", "srgb_decode", 1.0),
+    ("#version 3.6; global_settings { assumed_gamma 2.2 }", "gamma", 2.2),
+])
+def test_gamma_and_version(header, transfer, gamma):
+    st = load_scene(header).settings
+    assert (st.output_transfer, st.assumed_gamma) == (transfer, pytest.approx(gamma))
+
+
+def test_background_is_premultiplied_by_one_minus_transmit():
+    np.testing.assert_allclose(load_scene("background { color 0.5 }").background, [0.25] * 3)
+    np.testing.assert_allclose(load_scene("background { rgb <1, 0.5, 0> }").background, [1, 0.5, 0])
+
+
+def test_global_settings():
+    st = load_scene("global_settings { max_trace_level 300 adc_bailout 0.01 ambient_light rgb 2 }"
+                    ).settings
+    assert st.max_trace_level == 256
+    assert float(st.adc_bailout) == pytest.approx(0.01)
+    np.testing.assert_allclose(st.ambient_light, [2, 2, 2])
+
+
+def test_pattern_pigment_fields():
+    pig = only_object("""sphere { 0, 1 pigment { marble turbulence 0.5 octaves 3 omega 0.4
+        lambda 3 frequency 2 phase 0.1 color_map { [0 rgb 0] [0.5 0.7 color rgb 1 color rgbt 0.5] } } }"""
+                      ).texture.layers[0].pigment
+    assert pig.pattern == "marble" and pig.wave == "triangle" and pig.octaves == 3
+    np.testing.assert_allclose(pig.turbulence, [0.5] * 3)
+    np.testing.assert_allclose(pig.values, [0, 0.5, 0.7])
+    assert pig.transparent
+    grad = only_object("sphere { 0, 1 pigment { gradient y sine_wave } }").texture.layers[0].pigment
+    assert grad.wave == "sine"
+    np.testing.assert_allclose(grad.vector, [0, 1, 0])
+    np.testing.assert_allclose(grad.colors[:, :3], [[0, 0, 0], [1, 1, 1]])
+
+
+def test_width_and_height_feed_image_size():
+    s = load_scene("camera { right x*image_width/image_height }", width=300, height=100)
+    np.testing.assert_allclose(s.camera.right, [3, 0, 0])
+
+
+@pytest.mark.slow
+def test_standard_include_files_load():
+    s = load_scene('\n'.join(f'#include "{n}.inc"' for n in
+                             ("colors", "textures", "shapes", "metals", "glass", "woods", "stones"))
+                   + "\nsphere { 0, 1 texture { T_Stone1 } }")
+    assert len(s.objects) == 1

@@ -1,0 +1,169 @@
+"""Directives: declarations, conditionals, loops, switch, macros, includes, messages."""
+
+import logging
+
+import pytest
+
+from raytracer.errors import SceneError
+
+from .conftest import run_sdl, value
+
+
+def test_if_elseif_else():
+    text = "#declare A = {}; #if (A = 1) #declare R = 10; #elseif (A = 2) #declare R = 20; " \
+           "#else #declare R = 30; #end"
+    assert [value(text.format(a)) for a in (1, 2, 3)] == [10.0, 20.0, 30.0]
+
+
+def test_nested_if_in_a_skipped_branch_is_skipped_whole():
+    text = "#if (0) #if (1) #declare R = 1; #else #declare R = 2; #end #else #declare R = 3; #end"
+    assert value(text) == 3.0
+
+
+def test_ifdef_ifndef_and_undef():
+    text = """#declare A = 1; #ifdef (A) #declare R = 1; #end #undef A
+              #ifndef (A) #declare R = R + 10; #end"""
+    assert value(text) == 11.0
+
+
+def test_while_loop():
+    assert value("#declare R = 0; #declare I = 0; #while (I < 5) #declare R = R + I; "
+                 "#declare I = I + 1; #end") == 10.0
+
+
+def test_for_loop_with_step():
+    assert value("#declare R = 0; #for (I, 10, 0, -2) #declare R = R + I; #end") == 30.0
+
+
+def test_break_leaves_the_innermost_loop():
+    assert value("#declare R = 0; #while (1) #declare R = R + 1; #if (R = 3) #break #end #end") == 3.0
+
+
+def test_switch_case_range_and_fall_through():
+    text = """#declare R = 0;
+    #switch ({})
+      #case (1) #declare R = 1; #break
+      #range (2, 4) #declare R = 2;
+      #case (3) #declare R = R + 10; #break
+      #else #declare R = 99;
+    #end"""
+    # manual 3.3.2.6.4: without #break, parsing falls through to the next clause, whose condition
+    # is evaluated (false for 2, so it skips on to #else, which matches anything)
+    assert [value(text.format(v)) for v in (1, 2, 3, 7)] == [1.0, 99.0, 12.0, 99.0]
+
+
+def test_missing_semicolon_does_not_run_the_next_directive_early():
+    assert value("#declare A = 1 #declare R = A + 1") == 2.0
+
+
+def test_macro_returns_a_value_and_recurses():
+    text = """#macro Fact(N) #if (N <= 1) 1 #else N * Fact(N - 1) #end #end
+              #declare R = Fact(5);"""
+    assert value(text) == 120.0
+
+
+def test_macro_locals_vanish_and_declare_reaches_global():
+    text = """#declare G = 0;
+    #macro M(A) #local L = A * 2; #declare G = L; #end
+    M(21)
+    #ifdef (L) #declare R = -1; #else #declare R = G; #end"""
+    assert value(text) == 42.0
+
+
+def test_macro_parameter_passed_by_reference_is_modified():
+    text = "#macro Inc(V) #declare V = V + 1; #end #declare R = 1; Inc(R) Inc(R)"
+    assert value(text) == 3.0
+
+
+def test_local_inside_macro_shadows_caller_variable():
+    text = "#declare R = 5; #macro M() #local R = 7; #end M()"
+    assert value(text) == 5.0
+
+
+def test_declare_updates_the_local_of_an_enclosing_include(tmp_path):
+    (tmp_path / "inc.inc").write_text(
+        "#local D = 1;\n#macro Bump() #declare D = D + 1; #end\nBump()\n#declare R = D;\n")
+    main = tmp_path / "main.pov"
+    main.write_text('#include "inc.inc"\n#ifdef (D) #declare R = -1; #end\n')
+    p = run_sdl(main.read_text(), include_paths=[tmp_path])
+    assert p.lookup("R") == 2.0  # the include's local D was incremented, then vanished
+
+
+def test_local_in_main_file_is_global():
+    assert value("#local R = 3;") == 3.0
+
+
+def test_macro_returning_an_object_builds_it():
+    p = run_sdl("#macro Ball(R) sphere { 0, R } #end object { Ball(2) } Ball(3)")
+    assert [rec.shape["radius"] for rec in p.items] == [2.0, 3.0]
+
+
+def test_version_directive_changes_version_mid_file():
+    text = ("#declare V0 = version; #version 3.5; #declare V1 = version; #version V0;"
+            "#declare R = <V1, version>;")
+    assert value(text) == pytest.approx((3.5, 3.7))
+
+
+def test_debug_and_warning_go_to_the_logger(caplog):
+    with caplog.at_level(logging.INFO, logger="raytracer.sdl"):
+        run_sdl('#debug "hello\\n" #warning "careful"')
+    records = [(r.getMessage(), r.levelno) for r in caplog.records]
+    assert any("hello" in m for m, _ in records)
+    assert any("careful" in m and level == logging.WARNING for m, level in records)
+
+
+def test_error_directive_raises_with_location():
+    with pytest.raises(SceneError) as e:
+        run_sdl('sphere { 0, 1 }\n  #error "stop here"')
+    assert str(e.value).startswith("t.pov:2:4: #error: stop here")
+
+
+@pytest.mark.parametrize("directive", ['#fopen F "x.txt" write', '#read (F, A)', '#write (F, "x")'])
+def test_file_io_is_refused(directive):
+    with pytest.raises(SceneError, match="refused"):
+        run_sdl(directive)
+
+
+def test_include_search_order(tmp_path, monkeypatch):
+    own, extra, env = (tmp_path / d for d in ("own", "extra", "env"))
+    for d in (own, extra, env):
+        d.mkdir()
+    (extra / "a.inc").write_text("#declare A = 2;")
+    (env / "a.inc").write_text("#declare A = 3;")
+    (env / "b.inc").write_text("#declare B = 3;")
+    main = own / "main.pov"
+    main.write_text('#include "a.inc"\n#include "b.inc"\n#include "colors.inc"\n')
+    monkeypatch.setenv("RAYTRACER_INCLUDE_PATH", str(env))
+    from raytracer.sdl._interpreter import Interpreter
+
+    def symbols():
+        p = Interpreter(include_paths=[extra])
+        p.push_main(p.file_tokens(str(main)), str(main))
+        p.run()
+        return p.lookup("A"), p.lookup("B"), p.lookup("Red") is not None
+
+    assert symbols() == (2.0, 3.0, True)  # include_paths before the env var, POV folder last
+    (own / "a.inc").write_text("#declare A = 1;")
+    assert symbols()[0] == 1.0  # the including file's folder comes first
+
+
+def test_missing_include_is_an_error_with_location():
+    with pytest.raises(SceneError) as e:
+        run_sdl('\n #include "no_such_file.inc"')
+    assert e.value.location.line == 2 and e.value.location.col == 3
+    assert "no_such_file.inc" in str(e.value)
+
+
+def test_default_texture_applies_to_later_objects():
+    from raytracer.sdl import load_scene
+
+    s = load_scene("#default { finish { ambient 0.5 } } sphere { 0, 1 }")
+    assert float(s.objects[0].texture.layers[0].finish.ambient[0]) == pytest.approx(0.5)
+
+
+def test_conditional_inside_a_declaration():
+    assert value("#declare R = #if (0) 1 #else 2 #end;") == 2.0
+
+
+def test_loop_end_after_a_declaration_without_semicolon_runs_after_it():
+    assert value("#declare R = 0; #while (R < 3) #declare R = R + 1 #end") == 3.0
