@@ -27,6 +27,8 @@ from .scene import (
 )
 from .scene._transform import compose
 
+STRAIGHT_PASSES = 4  # straight (ior 1) surfaces a ray path may cross beyond max_trace_level
+
 SUPPORTED_PATTERNS = frozenset({"solid", "checker", "gradient", "bozo", "spotted", "bumps", "granite",
                                 "marble", "wood", "agate", "radial", "onion", "leopard", "spherical",
                                 "cylindrical", "planar", "boxed", "ripples", "waves", "wrinkles",
@@ -128,8 +130,10 @@ class Effects:
         patterns:       pigment patterns present.
         csg:            some hit must pass CSG/clipping conditions.
         interior_fade:  some interior fades light travelling inside.
-        depth:          trace depth actually reachable: 1 without secondary rays, else
-                        ``max_trace_level``.
+        straight_passes: extra levels for straight (ior 1) transmission, which POV-Ray does not
+                        count against ``max_trace_level``.
+        depth:          levels the tracer unrolls: 1 without secondary rays, else
+                        ``max_trace_level + straight_passes``.
     """
 
     kinds: tuple[str, ...]
@@ -148,6 +152,7 @@ class Effects:
     patterns: tuple[str, ...]
     csg: bool
     interior_fade: bool
+    straight_passes: int
     depth: int
 
     @property
@@ -160,7 +165,8 @@ class Effects:
                                 "spotlights", "area_lights", "parallel_lights", "csg",
                                 "interior_fade") if getattr(self, name)]
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
-                f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}")
+                f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}"
+                + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -274,7 +280,12 @@ def make_plan(scene: Scene) -> Plan:
     transmission = any(pig.transparent for pig in pigments)
     refraction = transmission and any(p.interior is not None and p.interior.ior is not None
                                       for p in rendered)
-    depth = scene.settings.max_trace_level if (reflection or transmission) else 1
+    # POV-Ray lets rays pass ior-1 surfaces without using a level; allow a few such passes
+    straight = transmission and any(
+        layer.pigment.transparent and (p.interior is None or p.interior.ior is None)
+        for p in rendered for layer in p.texture.layers)
+    straight_passes = STRAIGHT_PASSES if straight else 0
+    depth = scene.settings.max_trace_level + straight_passes if (reflection or transmission) else 1
     casters = [p for p in prims if p.rendered and "no_shadow" not in p.flags]
     effects = Effects(
         kinds=tuple(sorted({p.kind for p in prims})),
@@ -294,6 +305,7 @@ def make_plan(scene: Scene) -> Plan:
         csg=any(p.conditions for p in prims),
         interior_fade=transmission and any(p.interior is not None and p.interior.fade_distance is not None
                                            and p.interior.fade_power is not None for p in rendered),
+        straight_passes=straight_passes,
         depth=depth,
     )
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)))

@@ -211,3 +211,19 @@ def test_huge_and_tiny_scales_render_without_acne(precision):
             # centre ray: N·L = 1 and no self-shadowing → exactly 1
             np.testing.assert_allclose(one_pixel(scene), 1.0, rtol=1e-4)
             _finite_value_and_grad(scene, 3, 3)
+
+
+@pytest.mark.parametrize("max_trace_level, expected", [(1, (0.0, 0.0, 0.0)), (2, (0.8, 0.6 / 16, 0.4 / 16))])
+def test_straight_transmission_does_not_use_trace_levels(max_trace_level, expected):
+    # two concentric ior-1 shells with rgbf <1, ½, ½, 1>: four crossings filter by (1, ½, ½) each.
+    # POV counts the camera ray as level 1 and spawns children only below max_trace_level, but a
+    # straight (ior 1) pass keeps its level: level 2 is enough for all four crossings, level 1
+    # shows nothing behind the first surface (both checked against povray 3.7.0.10).
+    shell = rt.Texture.of(rt.Pigment.solid((1, 0.5, 0.5), filter=1.0), rt.Finish(ambient=(0, 0, 0), diffuse=0.0))
+    scene = rt.Scene(camera=rt.Camera(location=(0, 0, -5), look_at=(0, 0, 0)),
+                     objects=(rt.Object(rt.Sphere((0, 0, 0), 1.0), texture=shell),
+                              rt.Object(rt.Sphere((0, 0, 0), 2.0), texture=shell)),
+                     background=(0.8, 0.6, 0.4),
+                     settings=rt.Settings(max_trace_level=max_trace_level, adc_bailout=0.0))
+    assert rt.plan(scene).effects.straight_passes > 0
+    np.testing.assert_allclose(one_pixel(scene), expected, rtol=1e-5, atol=1e-7)

@@ -16,7 +16,8 @@ Modelling shortcuts (stated, not hidden):
   * entering/leaving an object is decided from the geometric normal (the ray is assumed to come
     from air when entering, and to leave into air), rather than POV's per-ray interior list —
     identical for non-nested objects, including POV's quirk-free cases (§2.7);
-  * straight transmission (ior 1) uses one level like refraction does (POV does not count it).
+  * straight transmission (ior 1) does not use up a trace level (as in POV-Ray), but a ray path may
+    pass at most ``Effects.straight_passes`` straight surfaces beyond ``max_trace_level`` levels.
 """
 
 from __future__ import annotations
@@ -187,13 +188,16 @@ def _reflectivity(ctx: TraceContext, prim, cos_i, eta_rel, rgb):
     return reflec, weight
 
 
-def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray):
+def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray, level):
     """Shades one ray. Returns the local colour and up to two child rays with their coefficients.
 
-    Children (each a dict with origin, direction, weight, coef (3,), alive, power): slot "T" the
-    transmitted (or totally internally reflected) ray, slot "R" the mirror ray.
+    ``level`` is POV-Ray's trace level of the ray (1 for camera rays). Children (each a dict with
+    origin, direction, weight, coef (3,), alive, power, reflection, level): slot "T" the transmitted
+    (or totally internally reflected) ray, slot "R" the mirror ray. A ray spawns children only if
+    its level is below ``max_trace_level``; straight transmission (ior 1) keeps the level (§2.7).
     """
     eff = ctx.plan.effects
+    max_level = ctx.settings.max_trace_level
     vis = jnp.where(is_reflection_ray, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
     scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
     hit = closest_hit(ctx.geo, ctx.plan, o, d, scale, vis, ctx.inverse_sign)
@@ -248,18 +252,20 @@ def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray):
         # TIR is found by the refraction step, so it only replaces the mirror ray where that step
         # runs; a conserve_energy + fresnel surface under TIR has fil = 0 and reflects instead (§2.3)
         tir = tir & t_alive
+        straight = jnp.abs(eta_rel - 1.0) < 1e-10
+        t_level = jnp.where(straight & ~tir, level, level + 1)
         children["T"] = dict(
             origin=jnp.where(tir, p_out, p_in), direction=d_t,
             weight=jnp.where(tir, weight, t_weight),
             coef=jnp.where(tir, att_col, att_col * fil), power=jnp.ones((), ctx.dtype),
-            alive=t_alive, reflection=jnp.asarray(False))
+            alive=t_alive & (level < max_level), reflection=jnp.asarray(False), level=t_level)
     if eff.reflection:
         w = weight * r_weight
         r_alive = found & jnp.any(reflec != 0) & ~tir & (w >= ctx.settings.adc_bailout)
         expo = fin["refl_exponent"][prim]
         children["R"] = dict(
-            origin=p_out, direction=lt.reflect(d, n), weight=w, coef=reflec,
-            power=1.0 / expo, alive=r_alive, reflection=jnp.asarray(True))
+            origin=p_out, direction=lt.reflect(d, n), weight=w, coef=reflec, power=1.0 / expo,
+            alive=r_alive & (level < max_level), reflection=jnp.asarray(True), level=level + 1)
     local = jnp.where(found, local, jnp.where(alive & ~hit.found, ctx.background, 0.0))
     return local, children
 
@@ -274,24 +280,24 @@ def _partition(alive):
     return order, pos
 
 
-def _shade_batch(ctx: TraceContext, o, d, weight, alive, is_reflection, chunk: int):
+def _shade_batch(ctx: TraceContext, o, d, weight, alive, is_reflection, level, chunk: int):
     """``shade`` over a batch, in chunks of ``chunk`` rays with the live rays moved to the front;
     chunks with no live ray are skipped (``lax.cond`` runs only the taken branch and differentiates
     like any branch), so the empty slots of the Whitted tree cost almost nothing."""
 
-    def shade_all(o, d, weight, alive, is_reflection):
-        return jax.vmap(lambda *a: shade(ctx, *a))(o, d, weight, alive, is_reflection)
+    def shade_all(o, d, weight, alive, is_reflection, level):
+        return jax.vmap(lambda *a: shade(ctx, *a))(o, d, weight, alive, is_reflection, level)
 
     n = o.shape[0]
     if chunk >= n:
-        return shade_all(o, d, weight, alive, is_reflection)
+        return shade_all(o, d, weight, alive, is_reflection, level)
     order, inverse = _partition(alive)
     n_chunks = n // chunk
     # two levels of skipping: blocks of chunks, then chunks, so a sparse level costs
     # O(blocks + chunks of one block) loop steps rather than O(chunks)
     per_block = _divisor_near(n_chunks, int(n_chunks ** 0.5))
     args = tuple(a[order].reshape((n_chunks // per_block, per_block, chunk) + a.shape[1:])
-                 for a in (o, d, weight, alive, is_reflection))
+                 for a in (o, d, weight, alive, is_reflection, level))
     shapes = jax.eval_shape(shade_all, *(a[0, 0] for a in args))
 
     def zeros(lead=()):
@@ -340,10 +346,11 @@ def trace(ctx: TraceContext, o, d, chunk: int):
         d=jnp.concatenate([d, jnp.broadcast_to(jnp.asarray([0.0, 0.0, 1.0], dtype), (pad, 3))]),
         weight=jnp.concatenate([jnp.ones(n, dtype), jnp.zeros(pad, dtype)]),
         alive=jnp.arange(p) < n,
-        reflection=jnp.zeros(p, bool))
+        reflection=jnp.zeros(p, bool),
+        level=jnp.ones(p, jnp.int32))  # POV counts the camera ray as level 1
     if depth == 1:
         local, _ = _shade_batch(ctx, pool["o"], pool["d"], pool["weight"], pool["alive"],
-                                pool["reflection"], chunk)
+                                pool["reflection"], pool["level"], chunk)
         return local[:n]
     slots = None
     index = jnp.arange(p)
@@ -351,14 +358,14 @@ def trace(ctx: TraceContext, o, d, chunk: int):
     def level(pool, k):
         nonlocal slots
         local, children = _shade_batch(ctx, pool["o"], pool["d"], pool["weight"], pool["alive"],
-                                       pool["reflection"], chunk)
+                                       pool["reflection"], pool["level"], chunk)
         slots = sorted(children)
         width = n * jnp.power(len(slots), k)  # live slots of this level: [0, width)
         has_next = k + 1 < depth
         if len(slots) == 1:
             ch = children[slots[0]]
             nxt = {"o": ch["origin"], "d": ch["direction"], "weight": ch["weight"],
-                   "alive": ch["alive"] & has_next, "reflection": ch["reflection"]}
+                   "alive": ch["alive"] & has_next, "reflection": ch["reflection"], "level": ch["level"]}
         else:
             second = index >= width
             src = jnp.where(second, index - width, index)
@@ -369,7 +376,7 @@ def trace(ctx: TraceContext, o, d, chunk: int):
 
             nxt = {"o": pick("origin"), "d": pick("direction"), "weight": pick("weight"),
                    "alive": pick("alive") & (index < 2 * width) & has_next,
-                   "reflection": pick("reflection")}
+                   "reflection": pick("reflection"), "level": pick("level")}
         record = {"local": local}
         for s in slots:
             record[s] = {"coef": children[s]["coef"], "alive": children[s]["alive"] & has_next,
