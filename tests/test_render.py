@@ -219,7 +219,8 @@ def test_straight_transmission_does_not_use_trace_levels(max_trace_level, expect
     # POV counts the camera ray as level 1 and spawns children only below max_trace_level, but a
     # straight (ior 1) pass keeps its level: level 2 is enough for all four crossings, level 1
     # shows nothing behind the first surface (both checked against povray 3.7.0.10).
-    shell = rt.Texture.of(rt.Pigment.solid((1, 0.5, 0.5), filter=1.0), rt.Finish(ambient=(0, 0, 0), diffuse=0.0))
+    shell = rt.Texture.of(rt.Pigment.solid((1, 0.5, 0.5), filter=1.0),
+                          rt.Finish(ambient=(0, 0, 0), diffuse=0.0))
     scene = rt.Scene(camera=rt.Camera(location=(0, 0, -5), look_at=(0, 0, 0)),
                      objects=(rt.Object(rt.Sphere((0, 0, 0), 1.0), texture=shell),
                               rt.Object(rt.Sphere((0, 0, 0), 2.0), texture=shell)),
