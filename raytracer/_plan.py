@@ -27,7 +27,8 @@ from .scene import (
 )
 from .scene._transform import compose
 
-STRAIGHT_PASSES = 4  # straight (ior 1) surfaces a ray path may cross beyond max_trace_level
+STRAIGHT_PASSES = 8  # straight (ior 1) surfaces a ray path may cross beyond max_trace_level
+MAX_BRANCHING_DEPTH = 12  # with both reflection and transmission, extra levels stop here
 
 SUPPORTED_PATTERNS = frozenset({"solid", "checker", "gradient", "bozo", "spotted", "bumps", "granite",
                                 "marble", "wood", "agate", "radial", "onion", "leopard", "spherical",
@@ -255,6 +256,12 @@ class _Flattener:
         return tuple(conds)
 
 
+def _max_crossings(prim: Prim) -> int:
+    """Surfaces a straight line can cross on this primitive (for the straight-pass bound)."""
+    return {"plane": 1, "disc": 1, "triangle": 1, "smooth_triangle": 1, "polygon": 1, "torus": 4,
+            "mesh": 4}.get(prim.kind, 2)
+
+
 def make_plan(scene: Scene) -> Plan:
     """Flattens ``scene`` and derives its :class:`Effects` (structure only; safe under jit)."""
     fl = _Flattener()
@@ -268,9 +275,9 @@ def make_plan(scene: Scene) -> Plan:
     layers = [layer for p in rendered for layer in p.texture.layers]
     finishes = [layer.finish for layer in layers]
     pigments = [layer.pigment for layer in layers]
-    if any(len(p.texture.layers) > 1 for p in rendered):
-        warnings.append(SceneWarning("layered texture",
-                                     "layered textures: only the top layer is rendered"))
+    if any(sum(layer.finish.reflection is not None for layer in p.texture.layers) > 1 for p in rendered):
+        warnings.append(SceneWarning("layered texture", "layered textures: lower layers' reflections "
+                                     "are traced along the top layer's mirror ray with its exponent"))
     for pig in pigments:
         if pig.pattern not in SUPPORTED_PATTERNS:
             warnings.append(SceneWarning(pig.pattern, f"pattern {pig.pattern!r} is not rendered"))
@@ -281,10 +288,13 @@ def make_plan(scene: Scene) -> Plan:
     refraction = transmission and any(p.interior is not None and p.interior.ior is not None
                                       for p in rendered)
     # POV-Ray lets rays pass ior-1 surfaces without using a level; allow a few such passes
-    straight = transmission and any(
-        layer.pigment.transparent and (p.interior is None or p.interior.ior is None)
-        for p in rendered for layer in p.texture.layers)
-    straight_passes = STRAIGHT_PASSES if straight else 0
+    # (bounded by the crossings the straight-transmitting primitives can make)
+    straight_prims = [p for p in rendered if transmission
+                      and all(layer.pigment.transparent for layer in p.texture.layers)
+                      and (p.interior is None or p.interior.ior is None)]
+    straight_passes = min(STRAIGHT_PASSES, sum(_max_crossings(p) for p in straight_prims))
+    if reflection and transmission:  # the tree branches: keep its width (2^(depth-1)) bounded
+        straight_passes = min(straight_passes, max(0, MAX_BRANCHING_DEPTH - scene.settings.max_trace_level))
     depth = scene.settings.max_trace_level + straight_passes if (reflection or transmission) else 1
     casters = [p for p in prims if p.rendered and "no_shadow" not in p.flags]
     effects = Effects(

@@ -134,6 +134,8 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("ambient_background", povray=POV_BAR),
     _example("spotlight", povray=POV_BAR),
     _example("area_light", povray=POV_BAR),
+    _example("layered_texture", povray=POV_BAR),
+    _example("straight_transmission", povray=POV_BAR),
 )
 
 

@@ -16,13 +16,18 @@ from ..scene._transform import inverse_affine
 
 @dataclasses.dataclass
 class PackedMaterials:
-    """Struct-of-arrays over primitives (index = plan prim index).
+    """Struct-of-arrays over texture layers and primitives.
 
-    Pigments of different patterns are evaluated pattern by pattern (only patterns present in the
-    scene are traced) and selected by ``pattern_id``. Colour maps are padded to a common length by
-    repeating their last entry, which leaves the lookup unchanged.
+    Pigment and finish arrays are indexed by *row* ``prim * n_layers + layer`` (layer 0 on top);
+    rows of absent layers repeat the top layer and are masked by ``layer_present``. Interior
+    arrays and ``transparent`` are indexed by primitive. Pigments of different patterns are
+    evaluated pattern by pattern (only patterns present in the scene are traced) and selected by
+    ``pattern_id``. Colour maps are padded to a common length by repeating their last entry, which
+    leaves the lookup unchanged.
     """
 
+    n_layers: int  # static: the most layers any primitive's texture has
+    layer_present: np.ndarray  # (N, n_layers) bool, static
     pattern_names: tuple[str, ...]
     pattern_id: np.ndarray  # (N,) int, static
     turbulent: tuple[bool, ...]  # per pattern name: any pigment of it has turbulence
@@ -44,7 +49,7 @@ class PackedMaterials:
     fade_distance: jax.Array  # (N,) (0 where absent: no fading)
     fade_power: jax.Array
     fade_color: jax.Array  # (N, 3)
-    transparent: np.ndarray  # (N,) static: pigment can carry filter/transmit
+    transparent: np.ndarray  # (N,) static: every layer's pigment can carry filter/transmit
 
 
 def _f(x, dtype):
@@ -67,8 +72,12 @@ def _finish_arrays(f: Finish, dtype) -> dict:
 
 
 def pack_materials(plan: Plan, dtype) -> PackedMaterials:
-    pigments: list[Pigment] = [p.texture.layers[0].pigment for p in plan.prims]
-    finishes: list[Finish] = [p.texture.layers[0].finish for p in plan.prims]
+    n_layers = max(len(p.texture.layers) for p in plan.prims)
+    present = np.array([[k < len(p.texture.layers) for k in range(n_layers)] for p in plan.prims])
+    layers = [p.texture.layers[k if k < len(p.texture.layers) else 0]
+              for p in plan.prims for k in range(n_layers)]
+    pigments: list[Pigment] = [layer.pigment for layer in layers]
+    finishes: list[Finish] = [layer.finish for layer in layers]
     interiors = [p.interior if p.interior is not None else Interior() for p in plan.prims]
     names = tuple(sorted({pg.pattern for pg in pigments}))
     m = max(pg.values.shape[0] for pg in pigments)
@@ -86,6 +95,8 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
     zero3 = jnp.zeros(3, dtype)
     fin = [_finish_arrays(f, dtype) for f in finishes]
     return PackedMaterials(
+        n_layers=n_layers,
+        layer_present=present,
         pattern_names=names,
         pattern_id=np.array([names.index(pg.pattern) for pg in pigments], dtype=np.int32),
         turbulent=tuple(any(pg.turbulence is not None for pg in pigments if pg.pattern == nm)
@@ -111,7 +122,8 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         fade_power=jnp.stack([_f(0.0 if it.fade_power is None else it.fade_power, dtype)
                               for it in interiors]),
         fade_color=jnp.stack([it.fade_color.astype(dtype) for it in interiors]),
-        transparent=np.array([pg.transparent for pg in pigments]),
+        transparent=np.array([all(layer.pigment.transparent for layer in p.texture.layers)
+                              for p in plan.prims]),
     )
 
 
@@ -136,7 +148,8 @@ def _color_map(v, values, colors):
 
 
 def pigment_at(mats: PackedMaterials, prim, p):
-    """RGBFT (5,) pigment of primitive ``prim`` (traced int) at world point ``p`` (3,)."""
+    """RGBFT (5,) pigment of material row ``prim`` (traced int; see ``PackedMaterials``) at world
+    point ``p`` (3,)."""
     if len(mats.pattern_names) == 1 and mats.pattern_names[0] == "solid":
         return mats.colors[prim, 0]
     from . import patterns as pat  # noqa: PLC0415 - only scenes with patterns need it

@@ -84,11 +84,13 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     opaque = ok & ~jnp.asarray(ctx.transparent_cands)
     filt = one
     safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
+    n_layers = ctx.mats.n_layers
     for c in np.flatnonzero(ctx.transparent_cands):
         prim = int(ctx.geo.cand_prim[c])
-        pig = pigment_at(ctx.mats, prim, o + safe_t[c] * l)
-        f = pig[3] * pig[:3] + pig[4]
-        filt = filt * jnp.where(ok[c], f, 1.0)
+        for k in np.flatnonzero(ctx.mats.layer_present[prim]):  # every layer filters (§2.5)
+            pig = pigment_at(ctx.mats, prim * n_layers + int(k), o + safe_t[c] * l)
+            f = pig[3] * pig[:3] + pig[4]
+            filt = filt * jnp.where(ok[c], f, 1.0)
     return jnp.where(jnp.any(opaque), 0.0, 1.0) * filt
 
 
@@ -147,7 +149,9 @@ def _light_visibility(ctx: TraceContext, light: Light, p_spawn, l, shadow_len):
 
 
 # ---------------------------------------------------------------- local shading
-def _local_light(ctx: TraceContext, light: Light, fin, rgb, att, p, p_spawn, d, n, prim):
+def _light_arrival(ctx: TraceContext, light: Light, p, p_spawn, n):
+    """Direction to the light, the colour arriving (fade, spot cone, shadow filter) and whether the
+    light is on the viewer's side of the surface (``n·l > 1e-10``, §2.4)."""
     l, dist, shadow_len = _light_geometry(light, p)
     c = light.color.astype(ctx.dtype)
     if light.fade_distance is not None and light.fade_power is not None:
@@ -157,34 +161,39 @@ def _local_light(ctx: TraceContext, light: Light, fin, rgb, att, p, p_spawn, d, 
         c = c * lt.spot(jnp.dot(-l, axis), light.spot.radius_degrees, light.spot.falloff_degrees,
                         light.spot.tightness)
     cos_nl = jnp.dot(n, l)
-    lit = cos_nl > lt.NL_EPSILON
     c = c * _light_visibility(ctx, light, p_spawn, l, shadow_len)
-    out = lt.diffuse(att, fin["diffuse"][prim], fin["brilliance"][prim], cos_nl, rgb) * c
+    return l, c, cos_nl, cos_nl > lt.NL_EPSILON
+
+
+def _layer_light(ctx: TraceContext, light: Light, arrival, row, rgb, att, d, n):
+    """Diffuse and highlight terms of one texture layer (material ``row``) for one light."""
+    l, c, cos_nl, lit = arrival
+    fin = ctx.mats.finish
+    out = lt.diffuse(att, fin["diffuse"][row], fin["brilliance"][row], cos_nl, rgb) * c
     eff = ctx.plan.effects
     if eff.highlights and not light.shadowless:
-        h = jnp.zeros((), ctx.dtype)
-        h = h + lt.phong(fin["phong"][prim], fin["phong_size"][prim], d, n, l)
-        h = h + lt.specular(fin["specular"][prim], fin["roughness"][prim], d, n, l)
-        tint = lt.metallic_tint(fin["metallic"][prim], cos_nl, rgb) if eff.metallic else 1.0
+        h = lt.phong(fin["phong"][row], fin["phong_size"][row], d, n, l)
+        h = h + lt.specular(fin["specular"][row], fin["roughness"][row], d, n, l)
+        tint = lt.metallic_tint(fin["metallic"][row], cos_nl, rgb) if eff.metallic else 1.0
         out = out + h * c * tint
     return jnp.where(lit, out, 0.0)
 
 
-def _reflectivity(ctx: TraceContext, prim, cos_i, eta_rel, rgb):
+def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
     """Reflection colour (§2.6) and its ray weight."""
     fin, mats = ctx.mats.finish, ctx.mats
-    rmin, rmax = fin["refl_min"][prim], fin["refl_max"][prim]
-    frac = safe_pow(1.0 - cos_i, fin["refl_falloff"][prim])
+    rmin, rmax = fin["refl_min"][row], fin["refl_max"][row]
+    frac = safe_pow(1.0 - cos_i, fin["refl_falloff"][row])
     reflec = frac * rmax + (1 - frac) * rmin
     weight = jnp.maximum(jnp.max(rmax), jnp.max(rmin))
     if ctx.plan.effects.fresnel:
         f, total = lt.fresnel(cos_i, eta_rel)
         fres = jnp.where(total, rmax, f * rmax + (1 - f) * rmin)
-        is_f = jnp.asarray(mats.fresnel)[prim]
+        is_f = jnp.asarray(mats.fresnel)[row]
         reflec = jnp.where(is_f, fres, reflec)
         weight = jnp.where(is_f, jnp.max(reflec), weight)
     if ctx.plan.effects.metallic:
-        reflec = reflec * lt.metallic_tint(fin["refl_metallic"][prim], cos_i, rgb)
+        reflec = reflec * lt.metallic_tint(fin["refl_metallic"][row], cos_i, rgb)
     return reflec, weight
 
 
@@ -212,27 +221,41 @@ def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray, level):
     p_in = p - offset * n
 
     mats, fin = ctx.mats, ctx.mats.finish
-    pig = pigment_at(mats, prim, p)
-    rgb, f, t = pig[:3], pig[3], pig[4]
-    att = 1.0 - f - t
-    local = att * rgb * (fin["ambient"][prim] * ctx.settings.ambient_light + fin["emission"][prim])
-    for light in ctx.lights:
-        local = local + _local_light(ctx, light, fin, rgb, att, p, p_out, d, n, prim)
-
     cos_i = -jnp.dot(d, n)
     ior = mats.ior[prim]
     eta_rel = jnp.where(entering, ior, 1.0 / ior)  # n_t / n_i
+    arrivals = [_light_arrival(ctx, light, p, p_out, n) for light in ctx.lights]
+    # texture layers, top first (§2.3): each adds its local colour filtered by the layers above;
+    # the loop stops once the layers above let less than adc_bailout through
+    fil = jnp.ones(3, ctx.dtype)
+    trans = jnp.ones((), ctx.dtype)
+    local = jnp.zeros(3, ctx.dtype)
+    reflec = jnp.zeros(3, ctx.dtype)
+    r_weight = jnp.zeros((), ctx.dtype)
+    n_layers = mats.n_layers
+    for k in range(n_layers):
+        row = prim * n_layers + k
+        active = jnp.asarray(mats.layer_present)[prim, k] & ((trans > ctx.settings.adc_bailout) | (k == 0))
+        pig = pigment_at(mats, row, p)
+        rgb, f, t = pig[:3], pig[3], pig[4]
+        att = 1.0 - f - t
+        tmp = att * rgb * (fin["ambient"][row] * ctx.settings.ambient_light + fin["emission"][row])
+        for light, arrival in zip(ctx.lights, arrivals, strict=True):
+            tmp = tmp + _layer_light(ctx, light, arrival, row, rgb, att, d, n)
+        local = local + jnp.where(active, fil * tmp, 0.0)
+        layer_fil = f * rgb + t
+        if eff.reflection:
+            reflec_k, w_k = _reflectivity(ctx, row, cos_i, eta_rel, rgb)
+            reflec = reflec + jnp.where(active, reflec_k, 0.0)  # layers' reflections add up
+            r_weight = jnp.maximum(r_weight, jnp.where(active, trans * w_k, 0.0))
+            conserve = jnp.asarray(mats.conserve_energy)[row]
+            layer_fil = jnp.where(conserve, layer_fil * jnp.minimum(1.0, 1.0 - reflec_k), layer_fil)
+        fil = jnp.where(active, fil * layer_fil, fil)
+        trans = jnp.minimum(1.0, jnp.abs(lt.grey(fil)))
+    top = prim * n_layers
     children = {}
-    if eff.reflection:
-        reflec, r_weight = _reflectivity(ctx, prim, cos_i, eta_rel, rgb)
-    else:
-        reflec, r_weight = jnp.zeros(3, ctx.dtype), jnp.zeros((), ctx.dtype)
     tir = jnp.asarray(False)
     if eff.transmission:
-        fil = f * rgb + t
-        conserve = jnp.asarray(mats.conserve_energy)[prim]
-        fil = jnp.where(conserve, fil * jnp.minimum(1.0, 1.0 - reflec), fil)
-        trans = jnp.minimum(1.0, jnp.abs(lt.grey(fil)))
         if eff.refraction:
             d_t, tir = lt.refract(d, n, 1.0 / eta_rel)
         else:
@@ -262,7 +285,7 @@ def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray, level):
     if eff.reflection:
         w = weight * r_weight
         r_alive = found & jnp.any(reflec != 0) & ~tir & (w >= ctx.settings.adc_bailout)
-        expo = fin["refl_exponent"][prim]
+        expo = fin["refl_exponent"][top]  # the top layer's exponent for the summed reflection
         children["R"] = dict(
             origin=p_out, direction=lt.reflect(d, n), weight=w, coef=reflec, power=1.0 / expo,
             alive=r_alive & (level < max_level), reflection=jnp.asarray(True), level=level + 1)
