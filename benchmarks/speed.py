@@ -74,7 +74,11 @@ def measure(name: str, width: int, height: int, repeats: int, work: Path) -> dic
         "ours": ours,
         "povray": pov,
         "ratio_warm_to_trace": ours["time_s"] / pov["time_s"] if pov["time_s"] else None,
-        "ratio_cpu": float(np.median(ours["cpu_s"]) / np.median(pov["cpu_s"])) if pov["cpu_s"] else None,
+        "ratio_cpu": (
+            float(np.median(ours["cpu_s"]) / np.median(pov["cpu_s"]))
+            if pov["cpu_s"] and np.median(pov["cpu_s"]) > 0
+            else None
+        ),
         "rmse_vs_povray": rmse,
         "psnr_vs_povray": math.inf if rmse == 0 else -20 * math.log10(rmse),
     }
@@ -99,6 +103,7 @@ def table(results: list[dict]) -> str:
                 p["wall_s"],
                 p["peak_mb"],
                 f"{r['ratio_warm_to_trace']:.1f}×" if r["ratio_warm_to_trace"] else "–",
+                f"{r['ratio_cpu']:.1f}×" if r.get("ratio_cpu") else "–",
                 r["psnr_vs_povray"],
             ]
         )
@@ -117,6 +122,7 @@ def table(results: list[dict]) -> str:
             "POV process wall s",
             "POV peak MB",
             "ours warm / POV trace",
+            "ours CPU / POV CPU",
             "PSNR vs POV dB",
         ],
         rows,
