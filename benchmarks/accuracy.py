@@ -435,7 +435,7 @@ def plot(rows: list[dict], path: Path) -> None:
                 continue
             pts.sort(key=lambda r: r["time_s"])
             x = [max(r["time_s"], TIME_FLOOR) for r in pts]
-            y = [max(r["rmse"], FLOOR) for r in pts]
+            y = [max(r["errors"]["converged"]["rmse"], FLOOR) for r in pts]  # one reference per panel
             ax.plot(x, y, style, color=colour, label=LABELS[renderer], ms=5)
             for r, xi, yi in zip(pts, x, y, strict=True):
                 label = (
