@@ -302,6 +302,7 @@ class Directives:
         start = f.pos
         skip_block(self)
         stop = f.pos - 2  # the '#' of the closing #end
+        self.macro_names.add(name)
         self.declare(name, MacroDef(name, params, f.tokens, start, stop, tok.loc))
 
     def invoke_macro(self, tok, m: MacroDef):

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import SceneError, SceneWarning, SourceLoc
 from ._lexer import EOF, ID, OP, Token, tokenize
-from ._values import Alias
+from ._values import Alias, MacroDef
 
 logger = logging.getLogger("raytracer.sdl")
 
@@ -70,6 +70,7 @@ class Stream:
         # (frame index, open conditionals) where each #declare being read started: see peek_op
         self.stop_marks: list[tuple[int, int]] = []
         self.macro_depth = 0
+        self.macro_names: set[str] = set()
         self.tokens_read = 0
         self.directives = None  # set by the interpreter: name -> handler(hash_token)
         self.macro_call = None  # set by the interpreter: handler(ident token, MacroDef)
@@ -345,8 +346,8 @@ class Stream:
         return self.find(name)[1]
 
     def lookup_macro(self, name: str):
-        from ._values import MacroDef
-
+        if name not in self.macro_names:  # fast path: most identifiers never named a macro
+            return None
         for table in reversed(self.scopes):
             if name in table:
                 v = table[name]
