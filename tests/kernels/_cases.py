@@ -243,3 +243,27 @@ def random_rays(case: Case, seed: int, count: int) -> tuple[np.ndarray, np.ndarr
     target = case.aim + rng.uniform(-1.0, 1.0, size=(count, 3)) * case.size
     d = (target - o) * rng.uniform(0.3, 3.0, size=(count, 1))
     return o, d
+
+
+@functools.cache
+def _jit(fn):
+    import inspect
+
+    import jax
+
+    static = [name for name in ("open", "edges") if name in inspect.signature(fn).parameters]
+    return jax.jit(fn, static_argnames=static)
+
+
+class _JittedKernels:
+    """``raytracer.kernels`` with every function jit-compiled (static ``open`` / ``edges``).
+
+    Eager dispatch compiles each primitive op separately, which costs far more than one jit of a kernel.
+    """
+
+    def __getattr__(self, name):
+        attr = getattr(k, name)
+        return _jit(attr) if callable(attr) else attr
+
+
+jitted_kernels = _JittedKernels()

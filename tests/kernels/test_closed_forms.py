@@ -4,7 +4,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from raytracer import kernels as k
+from ._cases import jitted_kernels as k
 
 O_MINUS_Z = jnp.array([0.0, 0.0, -5.0])
 PLUS_Z = jnp.array([0.0, 0.0, 1.0])

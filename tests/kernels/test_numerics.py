@@ -89,9 +89,12 @@ def test_quadratic_cases(a, b, c, expected):
     ("a", "b", "c"), [(1.0, -2.0, 1.0), (0.0, 0.0, 1.0), (0.0, 2.0, -4.0), (1e-30, 1.0, -1.0)]
 )
 def test_quadratic_gradients_are_finite_at_degenerate_coefficients(a, b, c):
-    grads = jax.grad(lambda a, b, c: jnp.sum(jnp.where(jnp.isfinite(jnp.stack(solve_quadratic(a, b, c)[:2])),
-                                                       jnp.stack(solve_quadratic(a, b, c)[:2]), 0.0)),
-                     argnums=(0, 1, 2))(a, b, c)  # fmt: skip
+    def finite_roots_sum(a, b, c):
+        t0, t1, _ = solve_quadratic(a, b, c)
+        roots = jnp.stack([t0, t1])
+        return jnp.sum(jnp.where(jnp.isfinite(roots), roots, 0.0))
+
+    grads = jax.jit(jax.grad(finite_roots_sum, argnums=(0, 1, 2)))(a, b, c)
     assert _all_finite(*grads)
 
 

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from raytracer import kernels as k
+from ._cases import jitted_kernels as k
 
 # A 4x4 square with a 2x2 square hole, both in z = 0, loops closed by their edge lists.
 SQUARE_WITH_HOLE = jnp.array(

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from raytracer import kernels as k
+from ._cases import jitted_kernels as k
 
 
 def numpy_torus_roots(major, minor, o, d):
