@@ -1,0 +1,306 @@
+"""Gradients of ``raytracer.render``: finite everywhere, equal to finite differences, and where they
+are not (visibility edges) the disagreement is measured and confined to edge pixels.
+
+Stance (docs/gradients.md): AD gives the derivative of each pixel's colour with the pixel's hit
+object (and every secondary ray's hit object, shadow and TIR decision) held fixed. Finite
+differences jump where an edge crosses a pixel centre within ±h. So for parameters that never move
+edges (colours, finish, light colour) JVP = FD on all pixels; for geometric ones the two differ only
+at pixels that are not differentiable at the current parameters, which a test detects independently
+from the one-sided differences (forward and backward differences disagree there).
+
+Everything is float64 (``jax.enable_x64``) with scenes built inside that context. Each distinct
+scene structure costs one XLA compile (10–60 s), so each test module fixture compiles ONE
+``jit(jvp)`` program and checks many parameters at once along random directions
+(:func:`raytracer.params.random_tangent`); the JVP program also gives the primal image for the
+finite differences (zero tangent), so no separate forward program is compiled.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+import raytracer as rt
+from raytracer import params
+
+ROOT = Path(__file__).resolve().parent.parent
+W, H = 32, 24
+H_FD = 1e-6  # central-difference step (float64): truncation ~h², rounding ~1e-16/h ≈ 1e-10
+
+
+@pytest.fixture(autouse=True)
+def _float64():
+    with jax.enable_x64(True):
+        yield
+
+
+def demo_scene(width: int = W, height: int = H, *, depth: int = 3) -> rt.Scene:
+    """A smooth gradient wall; a phong, reflective sphere; a glass sphere (ior 1.33) and a glass
+    cube turned 45° (ior 1.6: rays entering its front faces are totally internally reflected at the
+    side faces, 63.8° > the 38.7° critical angle); one point light; shadows."""
+    cam = rt.Camera(location=(0, 1.0, -5.0), look_at=(0, 0.8, 0), right=(width / height, 0, 0),
+                    angle_degrees=45.0)
+    wall = rt.Pigment.mapped("gradient", [(0.0, (0.9, 0.3, 0.1)), (0.5, (0.9, 0.85, 0.2)),
+                                          (1.0, (0.1, 0.3, 0.9))], vector=(1.0, 0.6, 0.0),
+                             transform=rt.Transform.scale(16.0).then(rt.Transform.translate((-8, -2, 0))))
+    glass = rt.Texture.of(rt.Pigment.solid((1, 1, 1), filter=0.0, transmit=1.0),
+                          rt.Finish(ambient=(0, 0, 0), diffuse=0.0, conserve_energy=True,
+                                    reflection=rt.Reflection(min=(0, 0, 0), max=(1, 1, 1), fresnel=True)))
+    objects = (
+        rt.Object(rt.Plane((0, 0, -1), -4.0), texture=rt.Texture.of(wall, rt.Finish(ambient=(0.2,) * 3,
+                                                                                     diffuse=0.7))),
+        rt.Object(rt.Sphere((1.0, 0.8, 0.5), 0.8), texture=rt.Texture.of(
+            rt.Pigment.solid((0.8, 0.35, 0.2)),
+            rt.Finish(ambient=(0.1,) * 3, diffuse=0.6, phong=0.5, phong_size=30.0,
+                      reflection=rt.Reflection(min=(0.2,) * 3, max=(0.2,) * 3)))),
+        rt.Object(rt.Sphere((-1.2, 1.4, -0.8), 0.55), texture=glass, interior=rt.Interior(ior=1.33)),
+        rt.Object(rt.Box((-0.45, -0.45, -0.45), (0.45, 0.45, 0.45)),
+                  transform=rt.Transform.rotate((0, 45, 0)).then(rt.Transform.translate((-0.6, 0.2, -1.5))),
+                  texture=glass, interior=rt.Interior(ior=1.6)),
+    )
+    light = rt.Light(position=(-10, 15, -12), color=(1.0, 0.95, 0.9))
+    return rt.Scene(camera=cam, objects=objects, lights=(light,),
+                    settings=rt.Settings(max_trace_level=depth, adc_bailout=0.0))
+
+
+def is_material(name: str) -> bool:
+    return not params.moves_edges(name)
+
+
+def is_ior(name: str) -> bool:
+    return name.endswith(".ior")
+
+
+def is_geometric(name: str) -> bool:
+    # pattern parameters (values, vector, frequency…) move colour edges too, but of a smooth
+    # gradient pattern only where it wraps; adc_bailout is a threshold (zero derivative a.e.)
+    return params.moves_edges(name) and ".pigment." not in name and "adc_bailout" not in name
+
+
+class Probe:
+    """One compiled ``jit(jvp(render))`` program for a scene structure, and finite differences."""
+
+    def __init__(self, scene: rt.Scene, width: int, height: int):
+        self.p, rest = eqx.partition(scene, eqx.is_inexact_array)
+        self.width, self.height = width, height
+
+        def image(p):
+            return rt.render(eqx.combine(p, rest), width=width, height=height)
+
+        self._jvp = jax.jit(lambda p, t: jax.jvp(image, (p,), (t,)))
+        self._zero = params.random_tangent(self.p, jax.random.PRNGKey(0), [])
+
+    def image(self, p=None) -> np.ndarray:
+        return np.asarray(self._jvp(self.p if p is None else p, self._zero)[0])
+
+    def jvp(self, tangent) -> np.ndarray:
+        return np.asarray(self._jvp(self.p, tangent)[1])
+
+    def shifted(self, tangent, h: float):
+        return jax.tree_util.tree_map(lambda a, b: a + h * b, self.p, tangent)
+
+    def differences(self, tangent, h: float = H_FD):
+        """(central, forward, backward) differences along ``tangent``, each (H, W, 3)."""
+        plus, minus = self.image(self.shifted(tangent, h)), self.image(self.shifted(tangent, -h))
+        mid = self.image()
+        return (plus - minus) / (2 * h), (plus - mid) / h, (mid - minus) / h
+
+    def tangent(self, seed: int, names) -> object:
+        return params.random_tangent(self.p, jax.random.PRNGKey(seed), names)
+
+
+@pytest.fixture(scope="module")
+def demo():
+    with jax.enable_x64(True):
+        return Probe(demo_scene(), W, H)
+
+
+def _pixel_error(a, b) -> np.ndarray:
+    return np.abs(a - b).max(axis=-1)
+
+
+# --------------------------------------------------------------------------------------------------
+# (a) parameters that never move edges: JVP = FD on (almost) every pixel
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0, 1])
+def test_jvp_matches_central_differences_for_material_parameters(demo, seed):
+    """Random direction over every colour, finish coefficient, reflection amount, light colour,
+    ambient light and background of the demo scene."""
+    t = demo.tangent(seed, is_material)
+    jvp = demo.jvp(t)
+    fd, _, _ = demo.differences(t)
+    assert np.isfinite(jvp).all()
+    err = _pixel_error(jvp, fd)
+    assert np.abs(jvp).max() > 0.1  # the direction does change the image
+    assert (err <= 1e-4).mean() >= 0.99, np.sort(err.ravel())[-10:]
+    assert np.median(err) <= 1e-7
+
+
+@pytest.mark.slow
+def test_jvp_matches_central_differences_for_ior_through_refraction_and_tir(demo):
+    """ior of the glass sphere and the glass cube (whose side faces totally reflect): the outline
+    seen through the glass and the TIR boundary move with ior, so a few pixels may be edge pixels;
+    the rest match."""
+    t = demo.tangent(2, is_ior)
+    jvp = demo.jvp(t)
+    fd, fwd, bwd = demo.differences(t)
+    assert np.isfinite(jvp).all()
+    changed = np.abs(jvp).max(axis=-1) > 1e-3
+    assert changed.sum() >= 20  # pixels seen through the glass sphere and cube respond to ior
+    err = _pixel_error(jvp, fd)
+    assert (err <= 1e-4).mean() >= 0.99, np.sort(err.ravel())[-10:]
+
+
+# --------------------------------------------------------------------------------------------------
+# (b) geometric parameters: JVP = FD except at edge pixels, measured
+
+
+@pytest.mark.slow
+def test_geometric_jvp_disagrees_with_differences_only_at_edge_pixels(demo):
+    """Random direction over shape parameters, object transforms, camera, light position.
+
+    An edge pixel is one where the image is not differentiable at the current parameters along
+    the direction: its one-sided differences disagree (a jump gives |FD| ~ jump/h, a kink a
+    difference of slopes). That is detected from finite differences alone, independently of AD.
+    With h = 1e-6 almost no edge crosses a pixel centre, so JVP = FD on ≥ 99 % of pixels; with a
+    large step (h = 1e-2) many edges do, and every pixel where AD and FD then disagree is an edge
+    pixel of that step.
+    """
+    t = demo.tangent(3, is_geometric)
+    jvp = demo.jvp(t)
+    assert np.isfinite(jvp).all()
+    fd, fwd, bwd = demo.differences(t, H_FD)
+    err = _pixel_error(jvp, fd)
+    assert (err <= 1e-4).mean() >= 0.99, np.sort(err.ravel())[-10:]
+
+    h = 1e-2
+    fd, fwd, bwd = demo.differences(t, h)
+    scale = np.abs(jvp).max(axis=-1) + 1.0
+    # smooth pixels: |fwd − bwd| ≈ h·|f''| and |fd − jvp| ≈ h²·|f'''|/6; edge pixels: O(jump/h)
+    edge = _pixel_error(fwd, bwd) > 0.5 * scale
+    wrong = _pixel_error(fd, jvp) > 0.05 * scale
+    edge_fraction, wrong_fraction = edge.mean(), wrong.mean()
+    assert 0 < edge_fraction < 0.2  # the step crosses some silhouettes, shadow and TIR edges
+    assert not (wrong & ~edge).any(), np.argwhere(wrong & ~edge)
+    assert wrong_fraction <= edge_fraction
+
+
+# --------------------------------------------------------------------------------------------------
+# closed-form geometric derivatives
+
+
+def fade_sphere_scene(radius: float, fade_distance: float):
+    """A white sphere of ``radius`` centred at z = 5 seen head-on from the origin through a 3×3 image
+    (the centre pixel's ray is the +z axis), lit by a point light AT the camera with
+    ``fade_power 2``: the centre hit is p = (0, 0, 5 − r), n·l = 1, light distance 5 − r."""
+    cam = rt.Camera(location=(0, 0, 0), direction=(0, 0, 1), right=(1, 0, 0), up=(0, 1, 0),
+                    angle_degrees=30.0, up_or_right_given=True)
+    tex = rt.Texture.of(rt.Pigment.solid((0.9, 0.6, 0.3)), rt.Finish(ambient=(0.2, 0.2, 0.2), diffuse=0.7))
+    light = rt.Light(position=(0, 0, 0), color=(1.0, 0.8, 0.6), fade_distance=fade_distance, fade_power=2.0)
+    return rt.Scene(camera=cam, objects=(rt.Object(rt.Sphere((0, 0, 5), radius), texture=tex),),
+                    lights=(light,), settings=rt.Settings(max_trace_level=1, adc_bailout=0.0))
+
+
+def centre_colour(scene):
+    return rt.render(scene, width=3, height=3)[1, 1]
+
+
+def test_inflating_sphere_moves_the_centre_hit_back_along_the_ray():
+    """dt/dr = −1: inflating the sphere brings the centre hit towards the camera (and the light at
+    the camera). The ambient term does not depend on the hit distance, so its derivative is zero;
+    the faded diffuse term ``d·P·C·2/(1 + (dist/D)²)`` with dist = 5 − r has
+    d/dr = d·P·C·4·dist/D² / (1 + (dist/D)²)²."""
+    r, fade_d = 1.3, 2.5
+    scene = fade_sphere_scene(r, fade_d)
+    p_rgb, c_rgb = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.6])
+    dist = 5.0 - r
+    q = 1.0 + (dist / fade_d) ** 2
+    expected_colour = 0.2 * p_rgb + 0.7 * p_rgb * c_rgb * 2.0 / q
+    expected_derivative = 0.7 * p_rgb * c_rgb * 4.0 * dist / fade_d**2 / q**2
+
+    def colour_of_radius(radius):
+        return centre_colour(eqx.tree_at(lambda s: s.objects[0].shape.radius, scene, radius))
+
+    colour, d_colour = jax.jit(lambda x: jax.jvp(colour_of_radius, (x,), (jnp.ones_like(x),)))(
+        scene.objects[0].shape.radius)
+    np.testing.assert_allclose(colour, expected_colour, rtol=1e-12)
+    np.testing.assert_allclose(d_colour, expected_derivative, rtol=1e-9)
+
+
+@pytest.mark.slow  # three compiled programs (~30 s each on 2 cores)
+def test_grad_vjp_and_jvp_under_jit_agree_with_each_other():
+    """``jax.grad``, ``jax.vjp`` and ``jax.jvp`` of a render, each inside ``jax.jit``, give the same
+    linear map (⟨u, J v⟩ = ⟨Jᵀu, v⟩) and finite values."""
+    scene = fade_sphere_scene(1.3, 2.5)
+    p, rest = eqx.partition(scene, eqx.is_inexact_array)
+
+    def image(p):
+        return rt.render(eqx.combine(p, rest), width=3, height=3)
+
+    u = jax.random.normal(jax.random.PRNGKey(1), (3, 3, 3), jnp.float64)
+    v = params.random_tangent(p, jax.random.PRNGKey(2))
+    g = jax.jit(jax.grad(lambda p: jnp.sum(u * image(p))))(p)
+    _, pullback = jax.jit(lambda p: jax.vjp(image, p))(p)
+    (g_vjp,) = jax.jit(pullback)(u)
+    _, jv = jax.jit(lambda p, v: jax.jvp(image, (p,), (v,)))(p, v)
+
+    def dot(a, b):
+        return sum(jnp.vdot(x, y) for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b),
+                                                   strict=True))
+
+    for tree in (g, g_vjp):
+        assert all(bool(jnp.isfinite(x).all()) for x in jax.tree_util.tree_leaves(tree))
+    np.testing.assert_allclose(dot(g, v), jnp.vdot(u, jv), rtol=1e-10)
+    np.testing.assert_allclose(dot(g_vjp, v), jnp.vdot(u, jv), rtol=1e-10)
+
+
+@pytest.mark.slow  # a JVP and a VJP program per parameter
+@pytest.mark.parametrize("name", ["lights[0].color", "objects[0].shape.radius"])
+def test_check_grads_on_a_tiny_render(name):
+    scene = fade_sphere_scene(1.3, 2.5)
+
+    def image(x):
+        return rt.render(params.replace(scene, {name: x}), width=3, height=3)
+
+    check_grads(image, (params.get(scene, name),), order=1, modes=("fwd", "rev"), eps=1e-6)
+
+
+# --------------------------------------------------------------------------------------------------
+# every example scene: finite reverse-mode gradients
+
+
+EXAMPLE_SCENES = sorted(glob.glob(str(ROOT / "examples" / "scenes" / "*.pov")))
+GROUPS = 3  # scenes per compiled program: several per program, a few programs for pytest-xdist
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("group", range(GROUPS))
+def test_grad_is_finite_for_every_example_scene(group):
+    paths = EXAMPLE_SCENES[group::GROUPS]
+    assert paths
+    w, h = 8, 6
+    # depth capped at 3 (compile time is linear in depth; deeper levels repeat the same code)
+    scenes = [rt.load_scene(p, width=w, height=h) for p in paths]
+    scenes = [eqx.tree_at(lambda s: s.settings, s, dataclasses.replace(
+        s.settings, max_trace_level=min(s.settings.max_trace_level, 3))) for s in scenes]
+    parts = [eqx.partition(s, eqx.is_inexact_array) for s in scenes]
+    ps = [p for p, _ in parts]
+
+    def losses(ps):
+        return [jnp.mean(rt.render(eqx.combine(p, rest), width=w, height=h) ** 2)
+                for p, (_, rest) in zip(ps, parts, strict=True)]
+
+    grads = jax.jit(jax.grad(lambda ps: sum(losses(ps))))(ps)
+    for path, g in zip(paths, grads, strict=True):
+        bad = [n for n, x in params.parameters(g).items() if not bool(jnp.isfinite(x).all())]
+        assert not bad, f"{Path(path).name}: non-finite gradient for {bad}"
