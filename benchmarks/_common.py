@@ -102,7 +102,15 @@ def machine() -> dict:
         versions["povray"] = next(x.strip() for x in (pov.stdout + pov.stderr).splitlines() if "POV-Ray" in x)
     except (OSError, StopIteration, subprocess.SubprocessError):
         versions["povray"] = None
+    try:
+        git = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT, timeout=30
+        )
+        commit = git.stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
     return {
+        "commit": commit,
         "cpu": model,
         "cores": os.cpu_count(),
         "python": platform.python_version(),

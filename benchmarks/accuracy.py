@@ -283,7 +283,7 @@ def measure_scene(sw: SceneSweep, r: Runner) -> list[dict]:
             "cpu_s": float(np.median(res["cpu_s"])) if res.get("cpu_s") else None,
             "runs": len(res.get("times_s") or res.get("trace_times_s") or [1]),
         }
-        for k in ("first_s", "wall_s", "parse_s", "base_mb", "first_cpu_s"):
+        for k in ("first_s", "wall_s", "parse_s", "base_mb", "first_cpu_s", "compile_cpu_s"):
             if k in res:
                 row[k] = res[k]
         rows.append(row)
