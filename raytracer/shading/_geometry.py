@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import kernels as K
-from .._plan import Condition, InAll, InAny, InDiff, InPrim, InsideTree, Plan
+from .._plan import InAll, InDiff, InPrim, InsideTree, Plan
 from ..scene._transform import inverse_affine
 
 
@@ -109,6 +109,7 @@ class PackedGeometry:
     offsets: tuple[int, ...]  # candidate offset of each group in the flat candidate list
     cand_prim: np.ndarray  # (C,) prim index of every flat candidate
     n_candidates: int
+    circuit: CSGCircuit | None = None  # None when no hit has CSG / clipping conditions
 
 
 def _stack(trees):
@@ -138,8 +139,11 @@ def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
             cand_prim.extend([i] * k)
         offsets.append(offset)
         offset += len(ids) * k
-    return PackedGeometry(tuple(groups), tuple(params), tuple(ofw), tuple(wfo), where,
-                          tuple(offsets), np.asarray(cand_prim, dtype=np.int32), offset)
+    geo = PackedGeometry(tuple(groups), tuple(params), tuple(ofw), tuple(wfo), where,
+                         tuple(offsets), np.asarray(cand_prim, dtype=np.int32), offset)
+    if plan.effects.csg:
+        geo = dataclasses.replace(geo, circuit=build_csg_circuit(geo, plan))
+    return geo
 
 
 def _candidates_per_instance(kind: str, shape) -> int:
@@ -177,54 +181,119 @@ def all_crossings(geo: PackedGeometry, o, d):
     return jnp.concatenate(ts), jnp.concatenate(ns)
 
 
-def inside_prim(geo: PackedGeometry, prim: int, p):
-    """Whether world point ``p`` is strictly inside primitive ``prim`` (its own inverse ignored)."""
-    gi, j = geo.where[prim]
-    g = geo.groups[gi]
-    fn = _inside_fn(g.kind, g.static)
-    if fn is None:  # triangles, polygons, meshes have no inside
-        return jnp.asarray(False)
-    prm = jax.tree_util.tree_map(lambda a: a[j], geo.params[gi])
-    m = geo.object_from_world[gi][j]
-    return fn(*prm, m[:3, :3] @ p + m[:3, 3])
+@dataclasses.dataclass(frozen=True)
+class CSGCircuit:
+    """The CSG / clipping conditions of every candidate slot as one flat boolean circuit.
+
+    Every condition tree is instantiated at the candidate point it tests. Node values live in one
+    array: two constants (False, True), then the leaves (an inside test of primitive ``prim`` at
+    candidate ``cand``'s point), then internal nodes, grouped by height so each height is one
+    gather-and-reduce. ``difference`` is rewritten as ``all(first, not rest…)``. The trace size
+    grows with the circuit's height, not with the number of conditions.
+    """
+
+    leaf_cand: np.ndarray  # (L,) candidate slot of each leaf
+    leaf_prim: np.ndarray  # (L,) primitive of each leaf
+    levels: tuple  # per height: (is_all (n,), children (n, A), negate (n, A), inverse (n,))
+    cond_cand: np.ndarray  # (Q,) candidate slot of each condition
+    cond_root: np.ndarray  # (Q,) node id of the condition's tree
+    cond_want: np.ndarray  # (Q,) bool: inside wanted
 
 
-def inside_tree(geo: PackedGeometry, tree: InsideTree, p):
-    if isinstance(tree, InPrim):
-        v = inside_prim(geo, tree.prim, p)
-    elif isinstance(tree, InAll):
-        v = jnp.all(jnp.stack([inside_tree(geo, t, p) for t in tree.terms]))
-    elif isinstance(tree, InAny):
-        v = jnp.any(jnp.stack([inside_tree(geo, t, p) for t in tree.terms]))
-    elif isinstance(tree, InDiff):
-        first = inside_tree(geo, tree.terms[0], p)
-        rest = [inside_tree(geo, t, p) for t in tree.terms[1:]]
-        v = first & ~jnp.any(jnp.stack(rest)) if rest else first
-    else:  # pragma: no cover - exhaustive
-        raise TypeError(tree)
-    return v != tree.inverse
+def build_csg_circuit(geo: PackedGeometry, plan: Plan) -> CSGCircuit:
+    leaves: list[tuple[int, int]] = []
+    internal: list[tuple[int, bool, list[tuple[int, bool]], bool]] = []  # (height, all, kids, inv)
+    def instantiate(tree: InsideTree, cand: int) -> tuple[int, int]:
+        """(node ref, height); refs < 0 are leaves (-1 - leaf index), refs >= 0 internal."""
+        if isinstance(tree, InPrim):
+            leaves.append((cand, tree.prim))
+            ref = -len(leaves)
+            if not tree.inverse:
+                return ref, 0
+            internal.append((1, True, [(ref, False)], True))
+            return len(internal) - 1, 1
+        kids = [instantiate(t, cand) for t in tree.terms]
+        height = 1 + max(h for _, h in kids)
+        if isinstance(tree, InDiff):
+            children = [(kids[0][0], False)] + [(r, True) for r, _ in kids[1:]]
+            is_all = True
+        else:
+            children = [(r, False) for r, _ in kids]
+            is_all = isinstance(tree, InAll)
+        internal.append((height, is_all, children, tree.inverse))
+        return len(internal) - 1, height
+
+    roots = []
+    for c in range(geo.n_candidates):
+        for cond in plan.prims[int(geo.cand_prim[c])].conditions:
+            roots.append((c, instantiate(cond.tree, c)[0], cond.want))
+    # node ids: 0 False, 1 True, 2.. leaves, then internal nodes by height
+    n_leaves = len(leaves)
+    order = sorted(range(len(internal)), key=lambda i: internal[i][0])
+    node_id = {}
+    next_id = 2 + n_leaves
+    for i in order:
+        node_id[i] = next_id
+        next_id += 1
+
+    def ref_id(ref: int) -> int:
+        return 2 + (-ref - 1) if ref < 0 else node_id[ref]
+
+    levels = []
+    heights = sorted({internal[i][0] for i in order})
+    for h in heights:
+        nodes = [i for i in order if internal[i][0] == h]
+        arity = max(len(internal[i][2]) for i in nodes)
+        is_all = np.array([internal[i][1] for i in nodes])
+        children = np.zeros((len(nodes), arity), np.int32)
+        negate = np.zeros((len(nodes), arity), bool)
+        for row, i in enumerate(nodes):
+            kids = internal[i][2]
+            pad = 1 if internal[i][1] else 0  # True pads an "all", False pads an "any"
+            children[row] = [ref_id(r) for r, _ in kids] + [pad] * (arity - len(kids))
+            negate[row] = [neg for _, neg in kids] + [False] * (arity - len(kids))
+        levels.append((is_all, children, negate, np.array([internal[i][3] for i in nodes])))
+    return CSGCircuit(
+        leaf_cand=np.array([c for c, _ in leaves], np.int32),
+        leaf_prim=np.array([q for _, q in leaves], np.int32),
+        levels=tuple(levels),
+        cond_cand=np.array([c for c, _, _ in roots], np.int32),
+        cond_root=np.array([ref_id(r) for _, r, _ in roots], np.int32),
+        cond_want=np.array([w for _, _, w in roots], bool))
 
 
-def _conditions_hold(geo: PackedGeometry, conds: tuple[Condition, ...], p):
-    ok = jnp.asarray(True)
-    for c in conds:
-        ok = ok & (inside_tree(geo, c.tree, p) == c.want)
-    return ok
+def _leaf_values(geo: PackedGeometry, circuit: CSGCircuit, points):
+    """Inside tests of every leaf (primitive's own ``inverse`` excluded), vectorised per group."""
+    values = jnp.zeros(circuit.leaf_prim.shape[0], bool)
+    for gi, g in enumerate(geo.groups):
+        fn = _inside_fn(g.kind, g.static)
+        rows = np.flatnonzero(np.isin(circuit.leaf_prim, np.asarray(g.prims)))
+        if fn is None or rows.size == 0:
+            continue  # triangles, polygons, meshes have no inside: False
+        local = np.array([geo.where[int(q)][1] for q in circuit.leaf_prim[rows]], np.int32)
+        prm = jax.tree_util.tree_map(lambda a, local=local: a[local], geo.params[gi])
+        m = geo.object_from_world[gi][local]
+        pts = points[circuit.leaf_cand[rows]]
+        obj_pts = jnp.einsum("nij,nj->ni", m[:, :3, :3], pts) + m[:, :3, 3]
+        values = values.at[rows].set(jax.vmap(fn)(*prm, obj_pts))
+    return values
 
 
 def csg_mask(geo: PackedGeometry, plan: Plan, o, d, t):
     """(C,) bool: crossings that satisfy their primitive's CSG / clipping conditions."""
-    if not plan.effects.csg:
+    circuit = geo.circuit
+    if circuit is None:
         return jnp.ones(t.shape, bool)
     safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
-    masks = []
-    for c in range(geo.n_candidates):
-        conds = plan.prims[int(geo.cand_prim[c])].conditions
-        if conds:
-            masks.append(_conditions_hold(geo, conds, o + safe_t[c] * d))
-        else:
-            masks.append(jnp.asarray(True))
-    return jnp.stack(masks)
+    points = o[None, :] + safe_t[:, None] * d[None, :]
+    values = jnp.concatenate([jnp.array([False, True]), _leaf_values(geo, circuit, points)])
+    for is_all, children, negate, inverse in circuit.levels:
+        kid = values[children] != jnp.asarray(negate)
+        v = jnp.where(jnp.asarray(is_all), jnp.all(kid, axis=1), jnp.any(kid, axis=1))
+        values = jnp.concatenate([values, v != jnp.asarray(inverse)])
+    failed = values[circuit.cond_root] != jnp.asarray(circuit.cond_want)
+    bad = jnp.zeros(t.shape, bool).at[circuit.cond_cand].max(failed)
+    return ~bad
 
 
 def static_prim_mask(geo: PackedGeometry, predicate) -> np.ndarray:
