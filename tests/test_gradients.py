@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import glob
+import math
 from pathlib import Path
 
 import equinox as eqx
@@ -72,7 +73,9 @@ def demo_scene(width: int = W, height: int = H, *, depth: int = 3) -> rt.Scene:
 
 
 def is_material(name: str) -> bool:
-    return not params.moves_edges(name)
+    # reflection.exponent is excluded: its derivative is wrong at the default exponent 1 (renderer
+    # bug, see test_reflection_exponent_derivative_at_one below)
+    return not params.moves_edges(name) and not name.endswith("reflection.exponent")
 
 
 def is_ior(name: str) -> bool:
@@ -170,29 +173,22 @@ def test_geometric_jvp_disagrees_with_differences_only_at_edge_pixels(demo):
     """Random direction over shape parameters, object transforms, camera, light position.
 
     An edge pixel is one where the image is not differentiable at the current parameters along
-    the direction: its one-sided differences disagree (a jump gives |FD| ~ jump/h, a kink a
-    difference of slopes). That is detected from finite differences alone, independently of AD.
-    With h = 1e-6 almost no edge crosses a pixel centre, so JVP = FD on ≥ 99 % of pixels; with a
-    large step (h = 1e-2) many edges do, and every pixel where AD and FD then disagree is an edge
-    pixel of that step.
+    the direction: its one-sided differences disagree (an edge crossing the pixel centre within
+    ±h gives |FD| ~ jump/h; a pixel grazing a silhouette has a derivative ~ 1/√(discriminant) that
+    changes within ±h). That is detected from finite differences alone, independently of AD.
+    Measured (32×24, seed 3, h = 1e-6): 3 pixels (0.39 %) disagree, the same 3 are edge pixels;
+    the largest JVP there is ~1e6 (a grazing silhouette hit), elsewhere JVP = FD to 5e-5.
     """
     t = demo.tangent(3, is_geometric)
     jvp = demo.jvp(t)
     assert np.isfinite(jvp).all()
     fd, fwd, bwd = demo.differences(t, H_FD)
-    err = _pixel_error(jvp, fd)
-    assert (err <= 1e-4).mean() >= 0.99, np.sort(err.ravel())[-10:]
-
-    h = 1e-2
-    fd, fwd, bwd = demo.differences(t, h)
     scale = np.abs(jvp).max(axis=-1) + 1.0
-    # smooth pixels: |fwd − bwd| ≈ h·|f''| and |fd − jvp| ≈ h²·|f'''|/6; edge pixels: O(jump/h)
-    edge = _pixel_error(fwd, bwd) > 0.5 * scale
-    wrong = _pixel_error(fd, jvp) > 0.05 * scale
-    edge_fraction, wrong_fraction = edge.mean(), wrong.mean()
-    assert 0 < edge_fraction < 0.2  # the step crosses some silhouettes, shadow and TIR edges
+    wrong = _pixel_error(jvp, fd) > 1e-4 * scale
+    edge = _pixel_error(fwd, bwd) > 1e-2 * scale  # smooth pixels: |fwd − bwd| ≈ h·|f''| ≲ 1e-5
+    assert wrong.mean() <= 0.01
     assert not (wrong & ~edge).any(), np.argwhere(wrong & ~edge)
-    assert wrong_fraction <= edge_fraction
+    assert edge.mean() <= 0.02
 
 
 # --------------------------------------------------------------------------------------------------
@@ -275,6 +271,31 @@ def test_check_grads_on_a_tiny_render(name):
     check_grads(image, (params.get(scene, name),), order=1, modes=("fwd", "rev"), eps=1e-6)
 
 
+@pytest.mark.xfail(strict=True, reason="renderer bug: whitted.trace's combine step uses "
+                   "jnp.where(power == 1, c, safe_pow(c, power)), so at reflection exponent 1 (the default) "
+                   "d colour / d exponent = c·log c is dropped and AD returns 0")
+def test_reflection_exponent_derivative_at_one():
+    """A mirror-ish sphere reflecting a lit grey wall: the reflected colour is c^(1/exponent), whose
+    derivative at exponent 1 is −c·log c ≠ 0 for 0 < c < 1."""
+    cam = rt.Camera(location=(0, 0, 0), direction=(0, 0, 1), right=(1, 0, 0), up=(0, 1, 0),
+                    angle_degrees=20.0, up_or_right_given=True)
+    mirror = rt.Texture.of(rt.Pigment.solid((0, 0, 0)), rt.Finish(
+        ambient=(0, 0, 0), diffuse=0.0, reflection=rt.Reflection(min=(0.5,) * 3, max=(0.5,) * 3)))
+    wall = rt.Texture.of(rt.Pigment.solid((0.5, 0.5, 0.5)), rt.Finish(ambient=(1, 1, 1), diffuse=0.0))
+    scene = rt.Scene(camera=cam, objects=(rt.Object(rt.Sphere((0, 0, 5), 1.0), texture=mirror),
+                                          rt.Object(rt.Plane((0, 0, 1), -2.0), texture=wall)),
+                     settings=rt.Settings(max_trace_level=2, adc_bailout=0.0))
+    name = "objects[0].texture.layers[0].finish.reflection.exponent"
+
+    def centre(e):
+        return rt.render(params.replace(scene, {name: e}), width=3, height=3)[1, 1, 0]
+
+    # closed form: 0.5 · 0.5^(1/e); d/de at e = 1: 0.5 · 0.5 · log(0.5) · (−1) = 0.1733
+    value, slope = jax.jit(lambda e: jax.jvp(centre, (e,), (jnp.ones_like(e),)))(jnp.float64(1.0))
+    np.testing.assert_allclose(value, 0.25, rtol=1e-12)
+    np.testing.assert_allclose(slope, -0.25 * math.log(0.5), rtol=1e-9)
+
+
 # --------------------------------------------------------------------------------------------------
 # every example scene: finite reverse-mode gradients
 
@@ -304,3 +325,19 @@ def test_grad_is_finite_for_every_example_scene(group):
     for path, g in zip(paths, grads, strict=True):
         bad = [n for n, x in params.parameters(g).items() if not bool(jnp.isfinite(x).all())]
         assert not bad, f"{Path(path).name}: non-finite gradient for {bad}"
+
+
+# --------------------------------------------------------------------------------------------------
+# against Mitsuba's AD
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_gradients_match_mitsuba_prb_at_pixel_centres():
+    """dL/d(reflectance) and dL/d(irradiance) of an image MSE: ours (jax.grad) vs Mitsuba prb."""
+    pytest.importorskip("mitsuba")
+    vg = pytest.importorskip("validation.gradients")
+    results = vg.compare("lambert_sphere", width=32, height=24)
+    assert {r.parameter for r in results} == {"objects[1] reflectance", "lights[0] irradiance"}
+    for r in results:
+        assert r.rel_error <= vg.MAX_REL_ERROR, r.line()

@@ -1,6 +1,7 @@
 """Compare our renders with Mitsuba 3 and POV-Ray: ``raytracer validate`` is the same command.
 
 ``python -m validation [--against mitsuba|povray|all] [--report DIR] [SCENE…]``
+``python -m validation --against gradients``: our gradients vs Mitsuba prb (``validation.gradients``)
 
 Prints one line per scene × reference and exits with status 1 if any comparison fails.
 """
@@ -15,13 +16,17 @@ from . import suite
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m validation", description=__doc__.splitlines()[0])
-    p.add_argument("--against", choices=("mitsuba", "povray", "all"), default="all",
+    p.add_argument("--against", choices=("mitsuba", "povray", "all", "gradients"), default="all",
                    help="which reference renderer(s) to compare with (default: all)")
     p.add_argument("--report", metavar="DIR", help="write an HTML report with images into DIR")
     p.add_argument("--list", action="store_true", help="list the scenes and what each checks")
     p.add_argument("scenes", nargs="*", metavar="SCENE", help="scene names (default: the whole suite)")
     args = p.parse_args(argv)
 
+    if args.against == "gradients":
+        from . import gradients
+
+        return gradients.main()
     if args.list:
         for s in suite.SCENES:
             refs = ",".join(r for r in suite.REFERENCES if s.thresholds(r) is not None)
