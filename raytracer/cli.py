@@ -54,6 +54,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--strict", action="store_true",
                    help="treat unsupported features as errors instead of warnings")
     p.add_argument("--x64", action="store_true", help="render in float64 (jax_enable_x64)")
+    p.add_argument("--cpu-devices", type=int, default=None, metavar="N",
+                   help="split the CPU into N JAX devices and shard tiles over them "
+                        "(sets --xla_force_host_platform_device_count; default: JAX's default, 1)")
 
 
 def _load(args):
@@ -174,6 +177,9 @@ def _info(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
+    if getattr(args, "cpu_devices", None):  # must precede the first import of jax
+        flag = f"--xla_force_host_platform_device_count={args.cpu_devices}"
+        os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + flag).strip()
     try:
         if args.command == "render":
             return _render(args)

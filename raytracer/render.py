@@ -51,6 +51,29 @@ def _output_transfer(img, settings):
     return jnp.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
+def _context(scene: Scene):
+    p = make_plan(scene)
+    dtype = scene.camera.location.dtype
+    geo = pack_geometry(p, dtype)
+    mats = pack_materials(p, dtype)
+    return make_context(p, geo, mats, scene.lights, scene.settings, scene.background, dtype)
+
+
+def _trace_tiles(scene: Scene, origins, dirs, index, tile: int, n_tiles: int, progress: bool):
+    """Colours of a stack of tiles (T, tile, 3), one tile at a time."""
+    ctx = _context(scene)
+
+    @jax.checkpoint
+    def one_tile(args):
+        o, d, i = args
+        colour = trace(ctx, o, d, chunk=tile // CHUNKS_PER_TILE)
+        if progress:
+            jax.debug.callback(_report_progress, i, n_tiles)
+        return colour
+
+    return jax.lax.map(one_tile, (origins, dirs, index))
+
+
 @functools.partial(eqx.filter_jit)
 def _render(scene: Scene, width: int, height: int, k: int, progress: bool):
     p = make_plan(scene)
@@ -58,28 +81,29 @@ def _render(scene: Scene, width: int, height: int, k: int, progress: bool):
     if not any(prim.rendered for prim in p.prims):  # nothing to hit: every ray sees the background
         img = jnp.broadcast_to(scene.background.astype(dtype), (height, width, 3))
         return _output_transfer(img, scene.settings)
-    geo = pack_geometry(p, dtype)
-    mats = pack_materials(p, dtype)
-    ctx = make_context(p, geo, mats, scene.lights, scene.settings, scene.background, dtype)
     x0, y0 = image_coords(width, height, k, dtype)
     origins, dirs = camera_rays(scene.camera, x0, y0)
     n = width * height * k * k
     origins, dirs = origins.reshape(n, 3), dirs.reshape(n, 3)
     tile = _tile_size(p, n)
-    n_tiles = math.ceil(n / tile)
+    devices = jax.devices()
+    n_dev = len(devices) if math.ceil(n / tile) >= len(devices) else 1
+    n_tiles = -(-math.ceil(n / tile) // n_dev) * n_dev
     pad = n_tiles * tile - n
     origins = jnp.concatenate([origins, jnp.broadcast_to(origins[:1], (pad, 3))]).reshape(n_tiles, tile, 3)
     dirs = jnp.concatenate([dirs, jnp.broadcast_to(dirs[:1], (pad, 3))]).reshape(n_tiles, tile, 3)
-
-    @jax.checkpoint
-    def one_tile(args):
-        o, d, index = args
-        colour = trace(ctx, o, d, chunk=tile // CHUNKS_PER_TILE)
-        if progress:
-            jax.debug.callback(_report_progress, index, n_tiles)
-        return colour
-
-    colours = jax.lax.map(one_tile, (origins, dirs, jnp.arange(n_tiles)))
+    index = jnp.arange(n_tiles)
+    trace_tiles = functools.partial(_trace_tiles, tile=tile, n_tiles=n_tiles, progress=progress)
+    if n_dev > 1:
+        # tiles are independent: shard them over the devices (CPU devices with
+        # --xla_force_host_platform_device_count, or GPUs); the scene is replicated
+        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=devices,
+                             axis_types=(jax.sharding.AxisType.Auto,))
+        spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
+        colours = jax.shard_map(trace_tiles, mesh=mesh, in_specs=(replicated, spec, spec, spec),
+                                out_specs=spec, check_vma=False)(scene, origins, dirs, index)
+    else:
+        colours = trace_tiles(scene, origins, dirs, index)
     img = colours.reshape(-1, 3)[:n].reshape(height, width, k * k, 3).mean(axis=2)
     return _output_transfer(img, scene.settings)
 
