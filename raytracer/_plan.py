@@ -278,6 +278,8 @@ def make_plan(scene: Scene) -> Plan:
     if any(sum(layer.finish.reflection is not None for layer in p.texture.layers) > 1 for p in rendered):
         warnings.append(SceneWarning("layered texture", "layered textures: lower layers' reflections "
                                      "are traced along the top layer's mirror ray with its exponent"))
+    if any("double_illuminate" in p.flags for p in rendered):
+        warnings.append(SceneWarning("double_illuminate", "double_illuminate is not rendered"))
     for pig in pigments:
         if pig.pattern not in SUPPORTED_PATTERNS:
             warnings.append(SceneWarning(pig.pattern, f"pattern {pig.pattern!r} is not rendered"))
