@@ -228,3 +228,25 @@ def test_straight_transmission_does_not_use_trace_levels(max_trace_level, expect
                      settings=rt.Settings(max_trace_level=max_trace_level, adc_bailout=0.0))
     assert rt.plan(scene).effects.straight_passes > 0
     np.testing.assert_allclose(one_pixel(scene), expected, rtol=1e-5, atol=1e-7)
+
+
+def test_look_at_parallel_to_sky_is_a_clear_error():
+    with pytest.raises(ValueError, match="parallel to sky"):
+        rt.Camera(location=(0, 0, 0), look_at=(0, 5, 0))
+    with pytest.raises(ValueError, match="equals its location"):
+        rt.Camera(location=(1, 2, 3), look_at=(1, 2, 3))
+    rt.Camera(location=(0, 0, 0), look_at=(0, 5, 0), sky=(0, 0, 1))  # a different sky is fine
+
+
+def test_camera_frame_follows_povs_look_at_rules():
+    # reference §1.1: |D|, |R|, |U| kept; D̂ = normalize(look_at − location); R̂ = normalize(sky × D̂);
+    # Û = D̂ × R̂; angle α sets |D| = |R| / (2 tan(α/2)) before look_at
+    cam = rt.Camera(location=(1, 2, -3), look_at=(0, 0, 0), right=(1.5, 0, 0), angle_degrees=60.0)
+    loc, d, r, u = (np.asarray(v, np.float64) for v in cam.frame())
+    d_hat = -np.array([1, 2, -3]) / np.linalg.norm([1, 2, -3])
+    r_hat = np.cross([0, 1, 0], d_hat)
+    r_hat /= np.linalg.norm(r_hat)
+    np.testing.assert_allclose(d, d_hat * 1.5 / (2 * np.tan(np.radians(30))), rtol=1e-5)
+    np.testing.assert_allclose(r, 1.5 * r_hat, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(u, np.cross(d_hat, r_hat), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(loc, [1, 2, -3])

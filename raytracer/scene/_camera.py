@@ -8,7 +8,9 @@ POV-Ray 3.5+'s fixed modifier order (reference §1.1), so every modifier is diff
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .._dtype import as_float, as_float_or_none
@@ -57,6 +59,16 @@ class Camera(eqx.Module):
     def __check_init__(self):
         if self.projection not in ("perspective", "orthographic"):
             raise ValueError(f"unknown camera projection {self.projection!r}")
+        if self.look_at is None or any(isinstance(v, jax.core.Tracer)
+                                       for v in (self.look_at, self.location, self.sky)):
+            return  # values under a transformation cannot be checked here
+        view = np.asarray(self.look_at, np.float64) - np.asarray(self.location, np.float64)
+        sky = np.asarray(self.sky, np.float64)
+        if not np.any(view):
+            raise ValueError("camera look_at equals its location: no viewing direction")
+        if np.linalg.norm(np.cross(sky, view)) <= 1e-12 * np.linalg.norm(sky) * np.linalg.norm(view):
+            raise ValueError("camera look_at direction is parallel to sky: the image's roll is undefined "
+                             "(give a different sky vector)")
 
     def frame(self):
         """Final ``(origin, D, R, U)`` (each (3,)) as POV-Ray computes them (reference §1.1–1.2).
