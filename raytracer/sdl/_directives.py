@@ -373,7 +373,13 @@ class Directives:
 
     # ---- files and messages --------------------------------------------------------------
     def d_include(self, tok):
-        v = directive_expr(self)
+        nxt = self.raw_peek() if self.la is None else None
+        if nxt is not None and nxt.kind == STR:
+            # read the name raw: looking past it could end (and pop) this file before the include
+            # is pushed, which would also hide an include cycle
+            v = self.raw().value
+        else:
+            v = directive_expr(self)
         if not isinstance(v, str):
             raise self.error(f"expected a file name string after #include, found {type_name(v)}",
                              tok.loc)

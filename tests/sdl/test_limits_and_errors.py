@@ -19,7 +19,7 @@ def error_of(text, **kwargs) -> SceneError:
     ("#declare A = <1, 2;", 1, 19, "expected a value, found ';'"),
     ("#if (1)\nsphere{0,1}\n", 3, 1, "expected '#end'"),
     ("#end", 1, 2, "'#end' without an open"),
-    ("camera { location 0 fly }", 1, 22, "expected a camera item, found 'fly'"),
+    ("camera { location 0 fly }", 1, 21, "expected a camera item, found 'fly'"),
     ("#declare A = sin(1, 2);", 1, 14, "expected 1 arguments to sin, found 2"),
     ("#declare A = \"s\" + 1;", 1, 18, "expected a float or vector, found string"),
     ("plane { 0, 1 }", 1, 9, "non-zero plane normal"),
@@ -75,7 +75,7 @@ def test_unsupported_feature_warns_and_strict_raises():
     assert [w.location.line for w in s.warnings] == [1, 2, 3]
     assert len(s.objects) == 1
     e = error_of(text, strict=True)
-    assert e.location == SourceLoc("<string>", 1, 16)
+    assert e.location == SourceLoc("<string>", 1, 15)
 
 
 def test_nonexistent_path_is_a_scene_error():
