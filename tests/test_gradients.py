@@ -271,9 +271,6 @@ def test_check_grads_on_a_tiny_render(name):
     check_grads(image, (params.get(scene, name),), order=1, modes=("fwd", "rev"), eps=1e-6)
 
 
-@pytest.mark.xfail(strict=True, reason="renderer bug: whitted.trace's combine step uses "
-                   "jnp.where(power == 1, c, safe_pow(c, power)), so at reflection exponent 1 (the default) "
-                   "d colour / d exponent = c·log c is dropped and AD returns 0")
 def test_reflection_exponent_derivative_at_one():
     """A mirror-ish sphere reflecting a lit grey wall: the reflected colour is c^(1/exponent), whose
     derivative at exponent 1 is −c·log c ≠ 0 for 0 < c < 1."""

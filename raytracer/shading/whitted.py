@@ -416,8 +416,10 @@ def trace(ctx: TraceContext, o, d, chunk: int):
             src = index + width * i if i else index
             c = colour_next[jnp.minimum(src, p - 1)]
             if s == "R":
+                # c^(1/exponent) written as c · c^(p-1): exact at p = 1 (the default), where
+                # d/dp = c·log c must survive (a where(p == 1, c, …) shortcut would drop it)
                 pw = rec[s]["power"][:, None]
-                c = jnp.where(pw == 1.0, c, safe_pow(c, pw))
+                c = c * safe_pow(c, pw - 1.0)
             out = out + jnp.where(rec[s]["alive"][:, None], rec[s]["coef"] * c, 0.0)
         return out, None
 
