@@ -159,13 +159,31 @@ def lower_light(rec: LightRec, parent_world) -> S.Light:
                    parallel=rec.parallel, shadowless=rec.shadowless)
 
 
-def lower_camera(cam: CameraRec | None) -> S.Camera:
+def lower_camera(cam: CameraRec | None, warn) -> S.Camera:
     if cam is None:
         return S.Camera()
     v = cam.values
     kwargs = {k: v[k] for k in ("location", "direction", "up", "right", "sky", "look_at") if k in v}
+    if "look_at" in kwargs:
+        _fix_degenerate_sky(kwargs, warn)
     return S.Camera(**kwargs, angle_degrees=v.get("angle"), transform=_transform(cam.transform),
                     projection=cam.projection, up_or_right_given="up" in v or "right" in v)
+
+
+def _fix_degenerate_sky(kw: dict, warn) -> None:
+    """look_at along sky: POV-Ray warns and keeps the old right vector; we pick the sky that gives
+    that right vector (``D̂ × right``), which the Camera's fixed-order frame then reproduces."""
+    view = np.asarray(kw["look_at"], np.float64) - np.asarray(kw.get("location", (0, 0, 0)), np.float64)
+    sky = np.asarray(kw.get("sky", (0, 1, 0)), np.float64)
+    if not np.any(view):
+        return  # the Camera reports this one
+    if np.linalg.norm(np.cross(sky, view)) > 1e-12 * np.linalg.norm(sky) * np.linalg.norm(view):
+        return
+    right = np.asarray(kw.get("right", (1.33, 0, 0)), np.float64)
+    new_sky = np.cross(view / np.linalg.norm(view), right)
+    if np.any(new_sky):
+        warn("camera sky", "camera look_at is parallel to sky; the right vector is kept, as POV-Ray does")
+        kw["sky"] = tuple(new_sky)
 
 
 def output_transfer(p) -> tuple[str, float]:
@@ -189,5 +207,6 @@ def lower_scene(p) -> S.Scene:
     if "max_trace_level" in st:
         st["max_trace_level"] = max(1, min(256, st["max_trace_level"]))
     settings = S.Settings(**st, output_transfer=transfer, assumed_gamma=gamma)
-    return S.Scene(camera=lower_camera(p.camera), objects=tuple(objects), lights=tuple(low.lights),
+    camera = lower_camera(p.camera, lambda f, m: p.warn(f, m, p.camera.loc))
+    return S.Scene(camera=camera, objects=tuple(objects), lights=tuple(low.lights),
                    background=p.background, settings=settings, warnings=tuple(p.warnings))

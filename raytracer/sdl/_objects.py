@@ -533,7 +533,7 @@ CAMERA_VECTORS = ("location", "direction", "up", "right", "sky", "look_at")
 def parse_camera(p, t) -> CameraRec:
     p.expect_op("{", "'{' after camera")
     nt = p.peek()
-    cam = CameraRec()
+    cam = CameraRec(loc=t.loc)
     if declared(p, nt):
         v = parse_expr(p)
         if not isinstance(v, CameraRec):

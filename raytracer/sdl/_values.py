@@ -255,6 +255,7 @@ class CameraRec:
     values: dict = dataclasses.field(default_factory=dict)
     transform: np.ndarray | None = None
     projection: str = "perspective"
+    loc: SourceLoc | None = None
 
     def clone(self) -> CameraRec:
-        return CameraRec(dict(self.values), self.transform, self.projection)
+        return CameraRec(dict(self.values), self.transform, self.projection, self.loc)

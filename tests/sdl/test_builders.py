@@ -239,3 +239,11 @@ def test_standard_include_files_load():
                              ("colors", "textures", "shapes", "metals", "glass", "woods", "stones"))
                    + "\nsphere { 0, 1 texture { T_Stone1 } }")
     assert len(s.objects) == 1
+
+
+def test_look_at_along_sky_keeps_the_right_vector_with_a_warning():
+    s = load_scene("camera { location <0, 5, 0> look_at 0 right x }")
+    _, d, r, u = s.camera.frame()
+    np.testing.assert_allclose(r, [1, 0, 0], atol=1e-6)  # POV keeps the old right (reference §1.1)
+    np.testing.assert_allclose(u, [0, 0, 1], atol=1e-6)  # up = D̂ × R̂
+    assert [w.feature for w in s.warnings] == ["camera sky"]
