@@ -330,3 +330,21 @@ def test_gradients_match_mitsuba_prb_at_pixel_centres():
     assert {r.parameter for r in results} == {"objects[1] reflectance", "lights[0] irradiance"}
     for r in results:
         assert r.rel_error <= vg.MAX_REL_ERROR, r.line()
+
+
+# --------------------------------------------------------------------------------------------------
+# the Optimistix example
+
+
+@pytest.mark.slow  # ~55 s: two renders and two LM solves, compile included
+def test_fit_material_example_recovers_its_parameters(tmp_path):
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, str(ROOT / "examples" / "fit_material.py"), "--out",
+                          str(tmp_path / "fit.png")], capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
+    last = out.stdout.strip().splitlines()[-1]
+    assert last.startswith("max relative parameter error: ")
+    assert float(last.split(":")[1]) <= 1e-3
+    assert (tmp_path / "fit.png").is_file()
