@@ -54,16 +54,26 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--strict", action="store_true",
                    help="treat unsupported features as errors instead of warnings")
     p.add_argument("--x64", action="store_true", help="render in float64 (jax_enable_x64)")
+    # (compiled programs are cached in $RAYTRACER_CACHE_DIR, default ~/.cache/raytracer/xla; "off" disables)
     p.add_argument("--cpu-devices", type=int, default=None, metavar="N",
                    help="split the CPU into N JAX devices and shard tiles over them "
                         "(sets --xla_force_host_platform_device_count; default: JAX's default, 1)")
 
 
-def _load(args):
-    if args.x64:
-        import jax
+def _configure_jax(args) -> None:
+    import jax
 
+    if args.x64:
         jax.config.update("jax_enable_x64", True)
+    # a second render of the same scene structure reuses the compiled program from disk
+    cache = os.environ.get("RAYTRACER_CACHE_DIR", str(Path.home() / ".cache" / "raytracer" / "xla"))
+    if cache and cache.lower() != "off":
+        jax.config.update("jax_compilation_cache_dir", cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+
+def _load(args):
+    _configure_jax(args)
     from .sdl import load_scene
 
     if not Path(args.scene).is_file():
@@ -125,7 +135,7 @@ class _Progress:
         self.shown = True
         width = 30
         filled = width * done // total
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} tiles {elapsed:5.1f} s")
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {elapsed:5.1f} s")
         if done == total:
             sys.stderr.write("\n")
         sys.stderr.flush()

@@ -59,102 +59,121 @@ def _context(scene: Scene):
     return make_context(p, geo, mats, scene.lights, scene.settings, scene.background, dtype)
 
 
-def _trace_tiles(scene: Scene, origins, dirs, index, tile: int, n_tiles: int, progress: bool):
+def _trace_tiles(scene: Scene, origins, dirs, tile: int):
     """Colours of a stack of tiles (T, tile, 3), one tile at a time."""
     ctx = _context(scene)
 
     @jax.checkpoint
     def one_tile(args):
-        o, d, i = args
-        colour = trace(ctx, o, d, chunk=tile // CHUNKS_PER_TILE)
-        if progress:
-            jax.debug.callback(_report_progress, i, n_tiles)
-        return colour
+        o, d = args
+        return trace(ctx, o, d, chunk=tile // CHUNKS_PER_TILE)
 
-    return jax.lax.map(one_tile, (origins, dirs, index))
+    return jax.lax.map(one_tile, (origins, dirs))
+
+
+def _layout(p: Plan, n: int, n_parts: int) -> tuple[int, int, int]:
+    """``(tile, tiles per part, devices)`` for ``n`` camera rays split into ``n_parts`` parts."""
+    tile = _tile_size(p, n)
+    n_dev = len(jax.devices()) if math.ceil(n / tile) >= len(jax.devices()) * n_parts else 1
+    per_part = -(-math.ceil(n / tile) // (n_dev * n_parts)) * n_dev
+    return tile, per_part, n_dev
 
 
 @functools.partial(eqx.filter_jit)
-def _render(scene: Scene, width: int, height: int, k: int, progress: bool):
+def _render_part(scene: Scene, width: int, height: int, k: int, n_parts: int, part):
+    """Colours (tiles, tile, 3) of part ``part`` (traced) of the image's tiles, in ``n_parts`` parts."""
     p = make_plan(scene)
     dtype = scene.camera.location.dtype
-    if not any(prim.rendered for prim in p.prims):  # nothing to hit: every ray sees the background
-        img = jnp.broadcast_to(scene.background.astype(dtype), (height, width, 3))
-        return _output_transfer(img, scene.settings)
     x0, y0 = image_coords(width, height, k, dtype)
     origins, dirs = camera_rays(scene.camera, x0, y0)
     n = width * height * k * k
-    origins, dirs = origins.reshape(n, 3), dirs.reshape(n, 3)
-    tile = _tile_size(p, n)
-    devices = jax.devices()
-    n_dev = len(devices) if math.ceil(n / tile) >= len(devices) else 1
-    n_tiles = -(-math.ceil(n / tile) // n_dev) * n_dev
-    pad = n_tiles * tile - n
-    origins = jnp.concatenate([origins, jnp.broadcast_to(origins[:1], (pad, 3))]).reshape(n_tiles, tile, 3)
-    dirs = jnp.concatenate([dirs, jnp.broadcast_to(dirs[:1], (pad, 3))]).reshape(n_tiles, tile, 3)
-    index = jnp.arange(n_tiles)
-    trace_tiles = functools.partial(_trace_tiles, tile=tile, n_tiles=n_tiles, progress=progress)
+    tile, per_part, n_dev = _layout(p, n, n_parts)
+    total = per_part * n_parts * tile
+    origins = jnp.concatenate([origins.reshape(n, 3), jnp.zeros((total - n, 3), dtype)])
+    dirs = jnp.concatenate([dirs.reshape(n, 3), jnp.broadcast_to(jnp.asarray([0, 0, 1], dtype),
+                                                                 (total - n, 3))])
+    origins = jax.lax.dynamic_slice_in_dim(origins.reshape(-1, tile, 3), part * per_part, per_part)
+    dirs = jax.lax.dynamic_slice_in_dim(dirs.reshape(-1, tile, 3), part * per_part, per_part)
+    trace_tiles = functools.partial(_trace_tiles, tile=tile)
     if n_dev > 1:
         # tiles are independent: shard them over the devices (CPU devices with
         # --xla_force_host_platform_device_count, or GPUs); the scene is replicated
-        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=devices,
+        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.devices(),
                              axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-        colours = jax.shard_map(trace_tiles, mesh=mesh, in_specs=(replicated, spec, spec, spec),
-                                out_specs=spec, check_vma=False)(scene, origins, dirs, index)
-    else:
-        colours = trace_tiles(scene, origins, dirs, index)
-    img = colours.reshape(-1, 3)[:n].reshape(height, width, k * k, 3).mean(axis=2)
+        return jax.shard_map(trace_tiles, mesh=mesh, in_specs=(replicated, spec, spec),
+                             out_specs=spec, check_vma=False)(scene, origins, dirs)
+    return trace_tiles(scene, origins, dirs)
+
+
+def _assemble(scene: Scene, parts, width: int, height: int, k: int):
+    n = width * height * k * k
+    colours = jnp.concatenate([c.reshape(-1, 3) for c in parts])[:n]
+    img = colours.reshape(height, width, k * k, 3).mean(axis=2)
     return _output_transfer(img, scene.settings)
 
 
-_progress_state = {"bar": None}
+def _background_only(scene: Scene, width: int, height: int):
+    dtype = scene.camera.location.dtype
+    img = jnp.broadcast_to(scene.background.astype(dtype), (height, width, 3))
+    return _output_transfer(img, scene.settings)
 
 
-def _report_progress(index, total):
-    bar = _progress_state["bar"]
-    if bar is not None:
-        bar(int(index) + 1, int(total))
+@functools.partial(eqx.filter_jit)
+def _render(scene: Scene, width: int, height: int, k: int):
+    if not any(prim.rendered for prim in make_plan(scene).prims):  # every ray sees the background
+        return _background_only(scene, width, height)
+    return _assemble(scene, [_render_part(scene, width, height, k, 1, 0)], width, height, k)
 
 
-def render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None) -> jax.Array:
-    """Renders ``scene`` to a linear RGB image of shape (height, width, 3), row 0 at the top.
-
-    Args:
-        scene:  the scene; differentiable in every inexact array leaf.
-        width, height: image size in pixels.
-        spp:    samples per pixel: 1 = one ray through each pixel centre (POV-Ray ``-A``);
-                k² = a deterministic k×k grid of sub-pixel centres, averaged (box filter).
-        progress: optional callable ``(tiles_done, tiles_total)`` called as tiles finish.
-    """
+def _check(width: int, height: int, spp: int) -> int:
     k = math.isqrt(spp)
     if k * k != spp or spp < 1:
         raise ValueError(f"spp must be a perfect square (1, 4, 9, 16, …), got {spp}")
     if width < 1 or height < 1:
         raise ValueError(f"image size must be positive, got {width}×{height}")
-    _progress_state["bar"] = progress
-    try:
-        return _render(scene, width, height, k, progress is not None)
-    finally:
-        _progress_state["bar"] = None
+    return k
+
+
+def render(scene: Scene, *, width: int, height: int, spp: int = 1) -> jax.Array:
+    """Renders ``scene`` to a linear RGB image of shape (height, width, 3), row 0 at the top.
+
+    One jit-compiled program (cached per scene structure, image size and spp); differentiable in
+    every inexact array leaf of ``scene`` with ``jax.grad``, ``jax.jvp`` and ``jax.vjp``.
+
+    Args:
+        scene:  the scene.
+        width, height: image size in pixels.
+        spp:    samples per pixel: 1 = one ray through each pixel centre (POV-Ray ``-A``);
+                k² = a deterministic k×k grid of sub-pixel centres, averaged (box filter).
+    """
+    return _render(scene, width, height, _check(width, height, spp))
+
+
+PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None):
-    """Compiles the render of ``scene``'s structure ahead of time (for timing and benchmarks).
+    """Compiles the render of ``scene``'s structure ahead of time (for the CLI and benchmarks).
 
-    Returns a function ``f(scene) -> image`` that runs the compiled program for any scene of the
-    same structure (values may differ) without recompiling.
+    Returns ``f(scene) -> image`` that runs the compiled program for any scene of the same
+    structure without recompiling. With ``progress`` (a callable ``(parts_done, parts_total)``),
+    the image is rendered in ``PROGRESS_PARTS`` calls of one compiled part program, reporting after
+    each; the program has no host callback, so JAX's persistent compilation cache can keep it.
     """
-    k = math.isqrt(spp)
-    if k * k != spp or spp < 1:
-        raise ValueError(f"spp must be a perfect square (1, 4, 9, 16, …), got {spp}")
-    compiled = _render.lower(scene, width, height, k, progress is not None).compile()
+    k = _check(width, height, spp)
+    if not any(prim.rendered for prim in make_plan(scene).prims):
+        return lambda s: _background_only(s, width, height)
+    n_parts = 1 if progress is None else PROGRESS_PARTS
+    compiled = _render_part.lower(scene, width, height, k, n_parts, jnp.asarray(0)).compile()
 
     def run(s: Scene) -> jax.Array:
-        _progress_state["bar"] = progress
-        try:
-            return compiled(s, width, height, k, progress is not None)
-        finally:
-            _progress_state["bar"] = None
+        parts = []
+        for i in range(n_parts):
+            parts.append(compiled(s, width, height, k, n_parts, jnp.asarray(i)))
+            if progress is not None:
+                jax.block_until_ready(parts[-1])
+                progress(i + 1, n_parts)
+        return _assemble(s, parts, width, height, k)
 
     return run
