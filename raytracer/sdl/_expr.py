@@ -334,6 +334,8 @@ def parse_color(p) -> Vec:
     while True:
         t = p.peek()
         if t.kind == ID and t.value in ("rgb", "rgbf", "rgbt", "rgbft", "srgb", "srgbf", "srgbt", "srgbft"):
+            if c is not None:  # a second rgb… starts the next colour (checker rgb A rgb B)
+                return c
             p.next()
             c = _keyword_color(p, t.value, parse_expr(p), t.loc)
         elif t.kind == ID and (t.value in _COLOR_PARTS or t.value == "alpha"):

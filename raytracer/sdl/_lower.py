@@ -190,7 +190,10 @@ def output_transfer(p) -> tuple[str, float]:
     """§3.1: the transfer from working values to linear output."""
     if p.assumed_gamma is not None and p.assumed_gamma != 1.0:
         return "gamma", float(p.assumed_gamma)
-    if p.assumed_gamma is None and p.version < 3.7:
+    # POV-Ray 3.7 also turns gamma handling off for a scene with no #version at all ("assumed_gamma
+    # not specified, so gamma_correction is turned off for compatibility with this pre POV-Ray 3.7
+    # scene"): the seed scene renders sRGB⁻¹(value) to EXR (checked with povray 3.7.0.10)
+    if p.assumed_gamma is None and (p.version < 3.7 or not p.version_seen):
         return "srgb_decode", 1.0
     return "linear", 1.0
 

@@ -48,7 +48,9 @@ def test_seed_scene_objects():
     np.testing.assert_allclose(light.color, [1, 1, 1])
     np.testing.assert_allclose(s.camera.location, [0, 0, -8])
     np.testing.assert_allclose(s.camera.look_at, [0, 0, 0])
-    assert s.settings.output_transfer == "linear"
+    # no #version and no assumed_gamma: POV-Ray 3.7 turns gamma handling off (its parse warning
+    # says so) and writes sRGB⁻¹(value) to EXR
+    assert s.settings.output_transfer == "srgb_decode"
 
 
 @pytest.mark.parametrize("a, b", [
@@ -195,6 +197,8 @@ def test_unsupported_objects_are_parsed_and_left_out():
     ("#version 3.7;", "linear", 1.0),
     ("#version 3.6;", "srgb_decode", 1.0),
     ("#version 3.6; global_settings { assumed_gamma 2.2 }", "gamma", 2.2),
+    ("", "srgb_decode", 1.0),  # no #version: gamma handling off, as povray 3.7.0.10 does
+    ("global_settings { assumed_gamma 1.0 }", "linear", 1.0),
 ])
 def test_gamma_and_version(header, transfer, gamma):
     st = load_scene(header).settings
@@ -247,3 +251,10 @@ def test_look_at_along_sky_keeps_the_right_vector_with_a_warning():
     np.testing.assert_allclose(r, [1, 0, 0], atol=1e-6)  # POV keeps the old right (reference §1.1)
     np.testing.assert_allclose(u, [0, 0, 1], atol=1e-6)  # up = D̂ × R̂
     assert [w.feature for w in s.warnings] == ["camera sky"]
+
+
+def test_checker_colours_need_no_comma():
+    # valid POV: a second rgb… starts the second colour (POV-Ray renders both)
+    s = load_scene("sphere { 0, 1 pigment { checker rgb <.8,.8,.75> rgb <.2,.3,.2> } }")
+    np.testing.assert_allclose(s.objects[0].texture.layers[0].pigment.colors[:, :3],
+                               [[0.8, 0.8, 0.75], [0.2, 0.3, 0.2]], rtol=1e-6)
