@@ -52,6 +52,8 @@ class Interpreter(Stream, Directives):
         self.image_width, self.image_height = width, height
         self.version = 3.7
         self.version_seen = False
+        self.virtual_files: dict[str, list[str]] = {}  # #fopen … write: in memory only
+        self.open_files: dict[str, tuple[str, str, int]] = {}
         self.first_version = None
         self.old_version_warned = False
         self.assumed_gamma = None

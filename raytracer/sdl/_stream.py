@@ -141,6 +141,11 @@ class Stream:
         raise self.error(f'expected an include file, found no "{name}" in {where}', loc)
 
     def push_include(self, name: str, loc: SourceLoc) -> None:
+        if name in getattr(self, "virtual_files", {}):  # written by this scene with #write
+            toks = tokenize("".join(self.virtual_files[name]), f"<written by the scene: {name}>")
+            self.scopes.append({})
+            self.frames.append(Frame(toks, 0, len(toks) - 1, "include", True, call_loc=loc, path=None))
+            return
         path = self.resolve_include(name, loc)
         real = os.path.realpath(path)
         depth = sum(1 for f in self.frames if f.kind == "include")

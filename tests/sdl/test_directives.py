@@ -118,10 +118,30 @@ def test_error_directive_raises_with_location():
     assert str(e.value).startswith("t.pov:2:4: #error: stop here")
 
 
-@pytest.mark.parametrize("directive", ['#fopen F "x.txt" write', '#read (F, A)', '#write (F, "x")'])
-def test_file_io_is_refused(directive):
+def test_reading_files_from_disk_is_refused(tmp_path):
+    data = tmp_path / "data.txt"
+    data.write_text("1, 2, 3")
     with pytest.raises(SceneError, match="refused"):
+        run_sdl(f'#fopen F "{data}" read')
+
+
+@pytest.mark.parametrize("directive", ['#read (F, A)', '#write (F, "x")'])
+def test_file_io_needs_an_open_file(directive):
+    with pytest.raises(SceneError, match="not an open file"):
         run_sdl(directive)
+
+
+def test_written_files_live_in_memory_and_can_be_included_and_read(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    p = run_sdl('#fopen F "gen.inc" write\n'
+                '#write (F, "#declare N = ", 7, ";\\n", "#declare V = ", <1, 2, 3>, ";\\n")\n'
+                '#fclose F\n#include "gen.inc"\n'
+                '#fopen F "nums.txt" write\n#write (F, 4, ",", 5)\n#fclose F\n'
+                '#fopen G "nums.txt" read\n#read (G, A, B)\n#fclose G\n')
+    assert p.lookup("N") == 7
+    assert tuple(p.lookup("V").c[:3]) == (1, 2, 3)
+    assert (p.lookup("A"), p.lookup("B")) == (4, 5)
+    assert list(tmp_path.iterdir()) == []  # nothing touched the file system
 
 
 def test_include_search_order(tmp_path, monkeypatch):
