@@ -19,7 +19,7 @@ demo: setup
 
 # The full suite, slow tests included (this is what CI runs).
 test: setup
-	$(PY) -m pytest -q -p no:cacheprovider
+	$(PY) -m pytest -q -n 2 --dist loadfile -p no:cacheprovider
 
 # Everything but the tests marked slow.
 test-fast: setup
