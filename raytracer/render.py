@@ -32,11 +32,13 @@ def plan(scene: Scene) -> Plan:
     return make_plan(scene)
 
 
-def _tile_size(p: Plan, n_rays: int) -> int:
+def _tile_size(p: Plan, n_rays: int, capacity: int | None = None) -> int:
     """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE``."""
     eff = p.effects
     branch = int(eff.reflection) + int(eff.transmission)
     width = branch ** (eff.depth - 1) if branch > 1 else 1
+    if capacity is not None:
+        width = min(width, capacity)
     size = max(64, min(MAX_TILE, RAYS_PER_TILE // width)) // CHUNKS_PER_TILE * CHUNKS_PER_TILE
     return min(size, -(-n_rays // CHUNKS_PER_TILE) * CHUNKS_PER_TILE)
 
@@ -59,51 +61,56 @@ def _context(scene: Scene):
     return make_context(p, geo, mats, scene.lights, scene.settings, scene.background, dtype)
 
 
-def _trace_tiles(scene: Scene, origins, dirs, tile: int):
-    """Colours of a stack of tiles (T, tile, 3), one tile at a time."""
+def _trace_tiles(scene: Scene, origins, dirs, tile: int, capacity: int | None):
+    """Colours of a stack of tiles (T, tile, 3), one tile at a time, and the dropped-ray count."""
     ctx = _context(scene)
 
     @jax.checkpoint
     def one_tile(args):
         o, d = args
-        return trace(ctx, o, d, chunk=tile // CHUNKS_PER_TILE)
+        return trace(ctx, o, d, chunk=tile // CHUNKS_PER_TILE, capacity=capacity)
 
-    return jax.lax.map(one_tile, (origins, dirs))
+    colours, dropped = jax.lax.map(one_tile, (origins, dirs))
+    return colours, jnp.sum(dropped)[None]
 
 
-def _layout(p: Plan, n: int, n_parts: int) -> tuple[int, int, int]:
+def _layout(p: Plan, n: int, n_parts: int, capacity: int | None) -> tuple[int, int, int]:
     """``(tile, tiles per part, devices)`` for ``n`` camera rays split into ``n_parts`` parts."""
-    tile = _tile_size(p, n)
+    tile = _tile_size(p, n, capacity)
     n_dev = len(jax.devices()) if math.ceil(n / tile) >= len(jax.devices()) * n_parts else 1
     per_part = -(-math.ceil(n / tile) // (n_dev * n_parts)) * n_dev
     return tile, per_part, n_dev
 
 
 @functools.partial(eqx.filter_jit)
-def _render_part(scene: Scene, width: int, height: int, k: int, n_parts: int, part):
-    """Colours (tiles, tile, 3) of part ``part`` (traced) of the image's tiles, in ``n_parts`` parts."""
+def _render_part(scene: Scene, width: int, height: int, k: int, n_parts: int, part,
+                 capacity: int | None = None):
+    """Colours (tiles, tile, 3) of part ``part`` (traced) of the image's tiles, in ``n_parts`` parts,
+    and the number of rays dropped for lack of ``capacity`` (see ``whitted.trace``)."""
     p = make_plan(scene)
     dtype = scene.camera.location.dtype
     x0, y0 = image_coords(width, height, k, dtype)
     origins, dirs = camera_rays(scene.camera, x0, y0)
     n = width * height * k * k
-    tile, per_part, n_dev = _layout(p, n, n_parts)
+    tile, per_part, n_dev = _layout(p, n, n_parts, capacity)
     total = per_part * n_parts * tile
     origins = jnp.concatenate([origins.reshape(n, 3), jnp.zeros((total - n, 3), dtype)])
     dirs = jnp.concatenate([dirs.reshape(n, 3), jnp.broadcast_to(jnp.asarray([0, 0, 1], dtype),
                                                                  (total - n, 3))])
     origins = jax.lax.dynamic_slice_in_dim(origins.reshape(-1, tile, 3), part * per_part, per_part)
     dirs = jax.lax.dynamic_slice_in_dim(dirs.reshape(-1, tile, 3), part * per_part, per_part)
-    trace_tiles = functools.partial(_trace_tiles, tile=tile)
+    trace_tiles = functools.partial(_trace_tiles, tile=tile, capacity=capacity)
     if n_dev > 1:
         # tiles are independent: shard them over the devices (CPU devices with
         # --xla_force_host_platform_device_count, or GPUs); the scene is replicated
         mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.devices(),
                              axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-        return jax.shard_map(trace_tiles, mesh=mesh, in_specs=(replicated, spec, spec),
-                             out_specs=spec, check_vma=False)(scene, origins, dirs)
-    return trace_tiles(scene, origins, dirs)
+        colours, dropped = jax.shard_map(trace_tiles, mesh=mesh, in_specs=(replicated, spec, spec),
+                                         out_specs=(spec, spec), check_vma=False)(scene, origins, dirs)
+        return colours, jnp.sum(dropped)
+    colours, dropped = trace_tiles(scene, origins, dirs)
+    return colours, jnp.sum(dropped)
 
 
 def _assemble(scene: Scene, parts, width: int, height: int, k: int):
@@ -123,7 +130,7 @@ def _background_only(scene: Scene, width: int, height: int):
 def _render(scene: Scene, width: int, height: int, k: int):
     if not any(prim.rendered for prim in make_plan(scene).prims):  # every ray sees the background
         return _background_only(scene, width, height)
-    return _assemble(scene, [_render_part(scene, width, height, k, 1, 0)], width, height, k)
+    return _assemble(scene, [_render_part(scene, width, height, k, 1, 0)[0]], width, height, k)
 
 
 def _check(width: int, height: int, spp: int) -> int:
@@ -151,29 +158,47 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1) -> jax.Array:
 
 
 PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
+FORWARD_CAPACITY = 4  # compile_render: live-ray slots per camera ray and level (grown if short)
 
 
-def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None):
+def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,
+                   capacity: int | None = FORWARD_CAPACITY):
     """Compiles the render of ``scene``'s structure ahead of time (for the CLI and benchmarks).
 
     Returns ``f(scene) -> image`` that runs the compiled program for any scene of the same
     structure without recompiling. With ``progress`` (a callable ``(parts_done, parts_total)``),
     the image is rendered in ``PROGRESS_PARTS`` calls of one compiled part program, reporting after
     each; the program has no host callback, so JAX's persistent compilation cache can keep it.
+
+    ``capacity`` compacts the live rays of each trace level into ``capacity`` slots per camera ray
+    (``None``: the exact full-width tree, as ``render`` uses). If a render drops rays for lack of
+    room, it is recompiled with four times the capacity and rendered again, so the image is exact.
     """
     k = _check(width, height, spp)
     if not any(prim.rendered for prim in make_plan(scene).prims):
         return lambda s: _background_only(s, width, height)
     n_parts = 1 if progress is None else PROGRESS_PARTS
-    compiled = _render_part.lower(scene, width, height, k, n_parts, jnp.asarray(0)).compile()
+    state = {"capacity": capacity}
+
+    def build():
+        return _render_part.lower(scene, width, height, k, n_parts, jnp.asarray(0),
+                                  state["capacity"]).compile()
+
+    state["compiled"] = build()
 
     def run(s: Scene) -> jax.Array:
-        parts = []
-        for i in range(n_parts):
-            parts.append(compiled(s, width, height, k, n_parts, jnp.asarray(i)))
-            if progress is not None:
-                jax.block_until_ready(parts[-1])
-                progress(i + 1, n_parts)
-        return _assemble(s, parts, width, height, k)
+        while True:
+            parts, dropped = [], 0
+            for i in range(n_parts):
+                colours, lost = state["compiled"](s, width, height, k, n_parts, jnp.asarray(i),
+                                                  state["capacity"])
+                parts.append(colours)
+                dropped += int(lost)
+                if progress is not None:
+                    progress(i + 1, n_parts)
+            if dropped == 0 or state["capacity"] is None:
+                return _assemble(s, parts, width, height, k)
+            state["capacity"] *= 4  # some tree level was wider: exact re-render with more room
+            state["compiled"] = build()
 
     return run

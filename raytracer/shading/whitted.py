@@ -345,26 +345,38 @@ def _divisor_near(n: int, target: int) -> int:
     return min(divisors, key=lambda k: abs(k - max(1, target)))
 
 
-def pool_size(ctx: TraceContext, n_camera_rays: int) -> int:
-    """Ray slots per level: the widest level of the Whitted tree, ``n · branch^(depth-1)``."""
+def pool_size(ctx: TraceContext, n_camera_rays: int, capacity: int | None = None) -> int:
+    """Ray slots per level: the widest level of the Whitted tree, ``n · branch^(depth-1)``, or
+    ``n · capacity`` when live rays are compacted (never more than the full width)."""
     eff = ctx.plan.effects
     branch = int(eff.reflection) + int(eff.transmission)
-    return n_camera_rays * (branch ** (eff.depth - 1) if branch > 1 else 1)
+    full = n_camera_rays * (branch ** (eff.depth - 1) if branch > 1 else 1)
+    return full if capacity is None else min(full, n_camera_rays * capacity)
 
 
-def trace(ctx: TraceContext, o, d, chunk: int):
+def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None):
     """Colours (N, 3) of N camera rays: the whole Whitted tree, one ``lax.scan`` step per level.
 
-    Level k of the tree lives in a pool of ``pool_size`` slots (its first ``N·branch^k`` are used;
-    the slots of absent rays are dead). A step shades the level (skipping dead chunks) and writes
-    the children of slot i to slots i and i + N·branch^k of the next level. A reverse scan then
-    combines ``local + coef · child`` from the deepest level up. The shading body is traced once,
-    so compile time does not grow with ``max_trace_level``; scan and cond are differentiable, so
-    reverse mode works (each step's residuals are kept, or recomputed under ``jax.checkpoint``).
+    Each level lives in a pool of slots; a step shades the level (skipping dead chunks) and writes
+    the children into the next level's pool; a reverse scan then combines ``local + coef · child``
+    from the deepest level up. The shading body is traced once, so compile time does not grow with
+    ``max_trace_level``; scan and cond are differentiable, so reverse mode works.
+
+    Two layouts of the pool:
+      * ``capacity=None`` (exact, the default): the pool is as wide as the tree's widest level
+        (``N·branch^(depth-1)``), the children of slot i go to slots i and i + N·branch^k.
+      * ``capacity=c``: the pool has ``N·c`` slots and the live children are compacted into it.
+        Far cheaper for deep trees, where few of the 2^k slots hold a ray; children beyond the
+        capacity are dropped and counted.
+
+    Returns:
+        ``(colours (N, 3), dropped)``: ``dropped`` counts children that did not fit (always 0
+        without a capacity); a caller that needs the exact image re-renders with more capacity.
     """
     n = o.shape[0]
     depth = ctx.plan.effects.depth
-    p = pool_size(ctx, n)
+    p = pool_size(ctx, n, capacity)
+    compact = capacity is not None and p < pool_size(ctx, n)
     dtype = o.dtype
     pad = p - n
     pool = dict(
@@ -377,47 +389,63 @@ def trace(ctx: TraceContext, o, d, chunk: int):
     if depth == 1:
         local, _ = _shade_batch(ctx, pool["o"], pool["d"], pool["weight"], pool["alive"],
                                 pool["reflection"], pool["level"], chunk)
-        return local[:n]
+        return local[:n], jnp.zeros((), jnp.int32)
     slots = None
     index = jnp.arange(p)
+    keys = {"o": "origin", "d": "direction", "weight": "weight", "reflection": "reflection",
+            "level": "level"}
 
     def level(pool, k):
         nonlocal slots
         local, children = _shade_batch(ctx, pool["o"], pool["d"], pool["weight"], pool["alive"],
                                        pool["reflection"], pool["level"], chunk)
         slots = sorted(children)
-        width = n * jnp.power(len(slots), k)  # live slots of this level: [0, width)
         has_next = k + 1 < depth
-        if len(slots) == 1:
-            ch = children[slots[0]]
-            nxt = {"o": ch["origin"], "d": ch["direction"], "weight": ch["weight"],
-                   "alive": ch["alive"] & has_next, "reflection": ch["reflection"], "level": ch["level"]}
+        live = {s: children[s]["alive"] & has_next for s in slots}
+        if compact:
+            # live children, in slot order, packed into the first slots of the next pool
+            every = jnp.concatenate([live[s] for s in slots])
+            pos = jnp.cumsum(every.astype(jnp.int32)) - 1
+            keep = every & (pos < p)
+            dest_all = jnp.where(keep, pos, p)  # p: dropped (out of range, scatter drops it)
+            dropped = jnp.sum(every) - jnp.sum(keep)
+            nxt = {key: jnp.zeros((p,) + children[slots[0]][src].shape[1:], children[slots[0]][src].dtype)
+                   .at[dest_all].set(jnp.concatenate([children[s][src] for s in slots]), mode="drop")
+                   for key, src in keys.items()}
+            nxt["alive"] = jnp.zeros(p, bool).at[dest_all].set(keep, mode="drop")
+            dest = {s: dest_all[i * p:(i + 1) * p] for i, s in enumerate(slots)}
+            live = {s: keep[i * p:(i + 1) * p] for i, s in enumerate(slots)}
         else:
-            second = index >= width
-            src = jnp.where(second, index - width, index)
-            a, b = children[slots[0]], children[slots[1]]
+            width = n * jnp.power(len(slots), k)  # live slots of this level: [0, width)
+            dest = {s: index + width * i for i, s in enumerate(slots)}
+            dropped = jnp.zeros((), jnp.int32)
+            if len(slots) == 1:
+                ch = children[slots[0]]
+                nxt = {key: ch[src] for key, src in keys.items()}
+                nxt["alive"] = live[slots[0]]
+            else:
+                second = index >= width
+                src_slot = jnp.where(second, index - width, index)
+                a, b = children[slots[0]], children[slots[1]]
 
-            def pick(key):
-                return jnp.where(second.reshape((p,) + (1,) * (a[key].ndim - 1)), b[key][src], a[key][src])
+                def pick(key):
+                    sel = second.reshape((p,) + (1,) * (a[key].ndim - 1))
+                    return jnp.where(sel, b[key][src_slot], a[key][src_slot])
 
-            nxt = {"o": pick("origin"), "d": pick("direction"), "weight": pick("weight"),
-                   "alive": pick("alive") & (index < 2 * width) & has_next,
-                   "reflection": pick("reflection"), "level": pick("level")}
+                nxt = {key: pick(src) for key, src in keys.items()}
+                nxt["alive"] = pick("alive") & (index < 2 * width) & has_next
         record = {"local": local}
         for s in slots:
-            record[s] = {"coef": children[s]["coef"], "alive": children[s]["alive"] & has_next,
-                         "power": children[s]["power"]}
-        return nxt, record
+            record[s] = {"coef": children[s]["coef"], "alive": live[s], "power": children[s]["power"],
+                         "dest": jnp.minimum(dest[s], p - 1)}
+        return nxt, (record, dropped)
 
-    _, records = jax.lax.scan(level, pool, jnp.arange(depth))
+    _, (records, dropped) = jax.lax.scan(level, pool, jnp.arange(depth))
 
-    def combine(colour_next, rec_k):
-        rec, k = rec_k
-        width = n * jnp.power(len(slots), k)
+    def combine(colour_next, rec):
         out = rec["local"]
-        for i, s in enumerate(slots):
-            src = index + width * i if i else index
-            c = colour_next[jnp.minimum(src, p - 1)]
+        for s in slots:
+            c = colour_next[rec[s]["dest"]]
             if s == "R":
                 # c^(1/exponent) written as c · c^(p-1): exact at p = 1 (the default), where
                 # d/dp = c·log c must survive (a where(p == 1, c, …) shortcut would drop it)
@@ -426,6 +454,5 @@ def trace(ctx: TraceContext, o, d, chunk: int):
             out = out + jnp.where(rec[s]["alive"][:, None], rec[s]["coef"] * c, 0.0)
         return out, None
 
-    colour, _ = jax.lax.scan(combine, jnp.zeros((p, 3), dtype), (records, jnp.arange(depth)),
-                             reverse=True)
-    return colour[:n]
+    colour, _ = jax.lax.scan(combine, jnp.zeros((p, 3), dtype), records, reverse=True)
+    return colour[:n], jnp.sum(dropped)
