@@ -127,10 +127,12 @@ def _background_only(scene: Scene, width: int, height: int):
 
 
 @functools.partial(eqx.filter_jit)
-def _render(scene: Scene, width: int, height: int, k: int):
+def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None = None):
+    """The image and the number of rays dropped for lack of ``capacity`` (0 when None)."""
     if not any(prim.rendered for prim in make_plan(scene).prims):  # every ray sees the background
-        return _background_only(scene, width, height)
-    return _assemble(scene, [_render_part(scene, width, height, k, 1, 0)[0]], width, height, k)
+        return _background_only(scene, width, height), jnp.zeros((), jnp.int32)
+    colours, dropped = _render_part(scene, width, height, k, 1, 0, capacity)
+    return _assemble(scene, [colours], width, height, k), dropped
 
 
 def _check(width: int, height: int, spp: int) -> int:
@@ -146,7 +148,9 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1) -> jax.Array:
     """Renders ``scene`` to a linear RGB image of shape (height, width, 3), row 0 at the top.
 
     One jit-compiled program (cached per scene structure, image size and spp); differentiable in
-    every inexact array leaf of ``scene`` with ``jax.grad``, ``jax.jvp`` and ``jax.vjp``.
+    every inexact array leaf of ``scene`` with ``jax.grad``, ``jax.jvp`` and ``jax.vjp``. Called on
+    a traced scene it renders the full-width Whitted tree; called on values it compacts live rays
+    between trace levels (recompiling with more room if a level did not fit): the same image.
 
     Args:
         scene:  the scene.
@@ -154,7 +158,18 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1) -> jax.Array:
         spp:    samples per pixel: 1 = one ray through each pixel centre (POV-Ray ``-A``);
                 k² = a deterministic k×k grid of sub-pixel centres, averaged (box filter).
     """
-    return _render(scene, width, height, _check(width, height, spp))
+    k = _check(width, height, spp)
+    if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(scene)):
+        # under jit / grad / vmap: the exact full-width tree in one program
+        return _render(scene, width, height, k)[0]
+    # called with values: compact live rays between levels, and grow the room until nothing is
+    # dropped (same image, far less work in deep reflective/refractive trees)
+    capacity = FORWARD_CAPACITY
+    while True:
+        image, dropped = _render(scene, width, height, k, capacity)
+        if int(dropped) == 0:
+            return image
+        capacity *= 4
 
 
 PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
