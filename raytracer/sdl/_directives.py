@@ -165,8 +165,20 @@ class Directives:
     def _defined_name(self):
         self.expect_op("(")
         name = self.raw_ident().value
+        table, value = self.find(name)
+        indices = []
+        while self.accept_op("["):  # #ifdef (A[i][j]): is that array element initialised?
+            indices.append(int(as_float(self, parse_expr(self))))
+            self.expect_op("]")
         self.expect_op(")")
-        return self.find(name)[0] is not None or self.lookup_macro(name) is not None
+        if indices:
+            if not isinstance(value, ArrayValue):
+                return False
+            try:
+                return value.data[value.flat_index(indices)] is not None
+            except (IndexError, ValueError):
+                return False
+        return table is not None or self.lookup_macro(name) is not None
 
     def d_ifdef(self, tok):
         self._if_branch(self._defined_name())
@@ -482,9 +494,11 @@ class Directives:
         name, mode, _ = self.open_files[ident]
         if mode == "read":
             raise self.error(f"#write: {ident} was opened for reading", tok.loc)
-        while self.accept_op(","):
+        while not self.accept_op(")"):  # commas between items are optional, as in POV-Ray
+            self.accept_op(",")
+            if self.accept_op(")"):
+                break
             self.virtual_files[name].append(_file_text(parse_expr(self)))
-        self.expect_op(")", "')' to close #write")
 
     def _fread(self, tok):
         ident = self._file_args(tok)
@@ -492,13 +506,15 @@ class Directives:
         if mode != "read":
             raise self.error(f"#read: {ident} was opened for writing", tok.loc)
         values = _file_values("".join(self.virtual_files[name]))
-        while self.accept_op(","):
+        while not self.accept_op(")"):
+            self.accept_op(",")
+            if self.accept_op(")"):
+                break
             var = self.expect_ident("a variable to read into").value
             if pos < len(values):
                 self.declare(var, values[pos])
                 pos += 1
         self.open_files[ident] = (name, mode, pos)
-        self.expect_op(")", "')' to close #read")
 
     def _fclose(self, tok):
         ident = self.expect_ident("a file identifier after #fclose").value

@@ -187,3 +187,13 @@ def test_conditional_inside_a_declaration():
 
 def test_loop_end_after_a_declaration_without_semicolon_runs_after_it():
     assert value("#declare R = 0; #while (R < 3) #declare R = R + 1 #end") == 3.0
+
+
+def test_write_items_need_no_commas_and_ifdef_takes_array_elements(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    p = run_sdl('#declare A = array[3]\n#declare A[1] = 5;\n'
+                '#ifdef (A[1]) #declare One = 1; #end\n#ifdef (A[2]) #declare Two = 1; #end\n'
+                '#fopen F "g.inc" write\n#write (F "#declare W = " 3 ";")\n#fclose F\n'
+                '#include "g.inc"\n')
+    assert p.lookup("One") == 1 and p.lookup("W") == 3
+    assert p.lookup("Two") is None
