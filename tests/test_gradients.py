@@ -73,8 +73,10 @@ def demo_scene(width: int = W, height: int = H, *, depth: int = 3) -> rt.Scene:
 
 
 def is_material(name: str) -> bool:
-    # reflection.exponent is excluded: its derivative is wrong at the default exponent 1 (renderer
-    # bug, see test_reflection_exponent_derivative_at_one below)
+    # reflection.exponent is left out of the joint direction: c^(1/exponent) is not differentiable
+    # jointly in (c, exponent) at c = 0 (reflection rays that see the black background), so a
+    # direction moving both the exponent and the background colour has FD ≠ JVP there (measured:
+    # 23 % of pixels, 0.19). Alone, the exponent matches FD to 5e-11 (and its closed form below).
     return not params.moves_edges(name) and not name.endswith("reflection.exponent")
 
 
