@@ -113,6 +113,7 @@ def _render_part(scene: Scene, width: int, height: int, k: int, n_parts: int, pa
     return colours, jnp.sum(dropped)
 
 
+@functools.partial(eqx.filter_jit)
 def _assemble(scene: Scene, parts, width: int, height: int, k: int):
     n = width * height * k * k
     colours = jnp.concatenate([c.reshape(-1, 3) for c in parts])[:n]
