@@ -1,12 +1,12 @@
-"""TraceRay: POV-Ray's recursive (Whitted) model as a wavefront over static depth levels.
+"""TraceRay: POV-Ray's recursive (Whitted) model as a scan over trace levels.
 
 The seed's recursion — shoot shadow rays to all lights, add the local lighting, shoot the
-reflected and the refracted ray, combine — is written once per *level*: all rays of a level are
-shaded together (``vmap``), their children are concatenated into the next level's batch, and the
-children's colours are combined on the way back. The shading body is therefore traced once per
-level (compile time linear in depth), not once per tree node. Per-ray decisions are masks and
-weights: a child whose weight falls below ``adc_bailout`` (or that does not exist) is traced but
-contributes nothing.
+reflected and the refracted ray, combine — is written once: ``shade`` handles one ray, a
+``lax.scan`` step shades every ray of one level of the tree (``vmap``, in chunks, skipping chunks
+with no live ray) and writes the children into the next level's pool, and a reverse scan combines
+``local + coef · child`` on the way back. The shading body is traced once, so compile time does
+not grow with ``max_trace_level``; per-ray decisions are masks and weights: a child whose weight
+falls below ``adc_bailout`` (or that does not exist) is a dead slot and contributes nothing.
 
 Only the child slots the scene can spawn exist: reflection rays only if some finish reflects,
 transmitted rays only if some pigment can be transparent (reference §2.3, §2.7).
