@@ -185,6 +185,11 @@ def _info(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["validate"]:  # every option goes to python -m validation unchanged
+        from validation.__main__ import main as validate_main
+
+        return validate_main(argv[1:])
     args = _parser().parse_args(argv)
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     if getattr(args, "cpu_devices", None):  # must precede the first import of jax

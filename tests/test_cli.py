@@ -1,0 +1,57 @@
+"""The raytracer command: exit codes, messages with file:line:col, images written."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import raytracer as rt
+from raytracer.cli import main
+
+SEED = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "seed.pov"
+
+
+@pytest.fixture(autouse=True)
+def no_compilation_cache(monkeypatch):
+    """The CLI turns on JAX's persistent cache in ~/.cache; tests write only under tmp_path."""
+    monkeypatch.setenv("RAYTRACER_CACHE_DIR", "off")
+
+
+def test_info_prints_objects_lights_and_the_plan(capsys):
+    assert main(["info", str(SEED)]) == 0
+    out = capsys.readouterr().out
+    assert "objects: 1 box, 1 sphere" in out
+    assert "plan: primitives: box, sphere; effects: shadows, highlights" in out
+    assert "depth: 1" in out
+
+
+def test_scene_error_exits_2_with_location_and_no_traceback(tmp_path, capsys):
+    bad = tmp_path / "bad.pov"
+    bad.write_text("sphere { <0, 0, 0>, 1\n  pigment { color rgb <1, 0, 0> }\n")
+    assert main(["info", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:3:1:" in err and "expected" in err
+    assert "Traceback" not in err
+
+
+def test_render_writes_the_image_and_a_summary(tmp_path, capsys):
+    out = tmp_path / "seed.exr"
+    assert main(["render", str(SEED), "-o", str(out), "-W", "32", "-H", "24"]) == 0
+    text = capsys.readouterr().out
+    assert "resolution: 32x24" in text and "times: parse" in text
+    image = rt.read_image(out)
+    assert image.shape == (24, 32, 3)
+    # the same render through the Python API (EXR stores float32 exactly)
+    expected = rt.render(rt.load_scene(SEED, width=32, height=24), width=32, height=24)
+    np.testing.assert_allclose(image, np.asarray(expected), rtol=1e-6, atol=1e-7)
+
+
+def test_unsupported_output_format_is_refused_before_rendering(tmp_path, capsys):
+    assert main(["render", str(SEED), "-o", str(tmp_path / "x.jpg")]) == 2
+    assert "unsupported output format" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_validate_forwards_its_options(capsys):
+    assert main(["validate", "--list"]) == 0
+    assert "lambert_sphere" in capsys.readouterr().out
