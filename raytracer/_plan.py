@@ -177,9 +177,6 @@ class Plan:
     effects: Effects
     warnings: tuple[SceneWarning, ...]
 
-    def prims_of(self, kind: str) -> tuple[int, ...]:
-        return tuple(i for i, p in enumerate(self.prims) if p.kind == kind)
-
 
 # ---------------------------------------------------------------- flattening
 class _Flattener:

@@ -104,9 +104,7 @@ class PackedGeometry:
     groups: tuple[Group, ...]
     params: tuple[tuple, ...]  # per group: stacked shape parameters
     object_from_world: tuple[jax.Array, ...]  # per group: (n, 4, 4)
-    world_from_object: tuple[jax.Array, ...]
     where: dict[int, tuple[int, int]]  # prim -> (group, index in group)
-    offsets: tuple[int, ...]  # candidate offset of each group in the flat candidate list
     cand_prim: np.ndarray  # (C,) prim index of every flat candidate
     n_candidates: int
     circuit: CSGCircuit | None = None  # None when no hit has CSG / clipping conditions
@@ -120,8 +118,7 @@ def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
     keyed: dict[tuple, list[int]] = {}
     for i, p in enumerate(plan.prims):
         keyed.setdefault((p.kind, KINDS[p.kind].static(p.obj.shape)), []).append(i)
-    groups, params, ofw, wfo, where, offsets, cand_prim = [], [], [], [], {}, [], []
-    offset = 0
+    groups, params, ofw, where, cand_prim = [], [], [], {}, []
     for (kind, static), ids in keyed.items():
         shapes = [plan.prims[i].obj.shape for i in ids]
         k = _candidates_per_instance(kind, shapes[0])
@@ -131,16 +128,12 @@ def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
         for i in ids:
             t = plan.prims[i].world_from_object()
             mats.append(jnp.eye(4, dtype=dtype) if t is None else t.matrix.astype(dtype))
-        m = jnp.stack(mats)
-        wfo.append(m)
-        ofw.append(jax.vmap(inverse_affine)(m))
+        ofw.append(jax.vmap(inverse_affine)(jnp.stack(mats)))
         for j, i in enumerate(ids):
             where[i] = (len(groups) - 1, j)
             cand_prim.extend([i] * k)
-        offsets.append(offset)
-        offset += len(ids) * k
-    geo = PackedGeometry(tuple(groups), tuple(params), tuple(ofw), tuple(wfo), where,
-                         tuple(offsets), np.asarray(cand_prim, dtype=np.int32), offset)
+    geo = PackedGeometry(tuple(groups), tuple(params), tuple(ofw), where,
+                         np.asarray(cand_prim, dtype=np.int32), len(cand_prim))
     if plan.effects.csg:
         geo = dataclasses.replace(geo, circuit=build_csg_circuit(geo, plan))
     return geo
@@ -164,18 +157,17 @@ def all_crossings(geo: PackedGeometry, o, d):
         n: (C, 3) unit outward world normals (``inverse`` not applied).
     """
     ts, ns = [], []
-    for g, prm, ofw, wfo in zip(geo.groups, geo.params, geo.object_from_world,
-                                geo.world_from_object, strict=True):
+    for g, prm, ofw in zip(geo.groups, geo.params, geo.object_from_world, strict=True):
         fn = _hits_fn(g.kind, g.static)
 
-        def one(prm_i, ofw_i, wfo_i, fn=fn):
+        def one(prm_i, ofw_i, fn=fn):
             oo, dd = _to_object(ofw_i, o, d)
             t, n = fn(*prm_i, oo, dd)
             # normals transform with the inverse transpose
             nw = n @ ofw_i[:3, :3]
             return t, K.safe_normalize(nw)
 
-        t, n = jax.vmap(one)(prm, ofw, wfo)
+        t, n = jax.vmap(one)(prm, ofw)
         ts.append(t.reshape(-1))
         ns.append(n.reshape(-1, 3))
     return jnp.concatenate(ts), jnp.concatenate(ns)

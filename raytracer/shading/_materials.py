@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._plan import Plan
-from ..scene import Finish, Interior, Pigment, Reflection
+from ..scene import WAVES, Finish, Interior, Pigment, Reflection
 from ..scene._transform import inverse_affine
 
 
@@ -32,7 +32,7 @@ class PackedMaterials:
     pattern_id: np.ndarray  # (N,) int, static
     turbulent: tuple[bool, ...]  # per pattern name: any pigment of it has turbulence
     octaves: dict[str, int]  # per pattern name (static; the max over its pigments)
-    waves: np.ndarray  # (N,) int index into patterns.WAVES, static
+    waves: np.ndarray  # (N,) int index into scene.WAVES, static
     values: jax.Array  # (N, M)
     colors: jax.Array  # (N, M, 5)
     pattern_from_world: jax.Array  # (N, 4, 4)
@@ -125,9 +125,6 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         transparent=np.array([all(layer.pigment.transparent for layer in p.texture.layers)
                               for p in plan.prims]),
     )
-
-
-WAVES = ("ramp", "triangle", "sine", "scallop", "cubic", "poly")
 
 
 def pat_wave_index(pg: Pigment) -> int:
