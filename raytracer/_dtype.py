@@ -12,15 +12,20 @@ def default_float():
     return jnp.float64 if jax.config.jax_enable_x64 else jnp.float32
 
 
-def as_float(x) -> jax.Array:
-    """Converts numbers, lists, numpy or JAX arrays to a JAX array of the default float dtype.
+def as_float(x) -> jax.Array | np.ndarray:
+    """Converts numbers, lists or arrays to an array of the default float dtype.
 
-    JAX arrays (including tracers) that are already floating point keep their dtype, so values
-    flowing through ``jax.grad`` or ``eqx.tree_at`` are never cast.
+    JAX arrays (including tracers) that are already floating point keep their type and dtype, so
+    values flowing through ``jax.grad`` or ``eqx.tree_at`` are never cast. Everything else becomes
+    a read-only numpy array: a valid JAX leaf (``jit``/``grad`` take it like a JAX array) that
+    costs ~1 µs to make, where a JAX array costs ~30-60 µs — the difference between 1 s and 20 s
+    for a scene of 10^5 primitives. Read-only keeps the scene model immutable, as JAX arrays are.
     """
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
         return x
-    return jnp.asarray(np.asarray(x, dtype=np.float64), dtype=default_float())
+    a = np.array(np.asarray(x, dtype=np.float64), dtype=default_float())
+    a.flags.writeable = False
+    return a
 
 
 def as_float_or_none(x):

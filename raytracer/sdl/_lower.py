@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import scene as S
+from ..scene._build import build
 from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
 
 _FINISH_KEYS = ("ambient", "emission", "diffuse", "brilliance", "phong", "phong_size", "specular",
@@ -12,7 +13,7 @@ _FINISH_KEYS = ("ambient", "emission", "diffuse", "brilliance", "phong", "phong_
 
 
 def _transform(m) -> S.Transform | None:
-    return None if m is None else S.Transform(np.asarray(m, dtype=np.float64))
+    return None if m is None else build(S.Transform, matrix=m)
 
 
 def lower_pigment(pig: PigRec, world: np.ndarray | None) -> S.Pigment:
@@ -101,34 +102,38 @@ class Lowerer:
             kids = [k for k in kids if k is not None]
             if not kids:
                 return None
-            return S.CSG(rec.kind, tuple(kids), **common)
-        return S.Object(shape=lower_shape(rec), **common)
+            return build(S.CSG, operation=rec.kind, children=tuple(kids), **common)
+        return build(S.Object, shape=lower_shape(rec), **common)
 
 
 def lower_shape(rec: ObjRec) -> S.AbstractShape:
     s, kind = rec.shape, rec.kind
     if kind == "sphere":
-        return S.Sphere(s["center"], s["radius"])
+        return build(S.Sphere, center=s["center"], radius=s["radius"])
     if kind == "plane":
-        return S.Plane(s["normal"], s["distance"])
+        return build(S.Plane, normal=s["normal"], distance=s["distance"])
     if kind == "box":
-        return S.Box(s["corner1"], s["corner2"])
+        return build(S.Box, corner1=s["corner1"], corner2=s["corner2"])
     if kind == "cylinder":
-        return S.Cylinder(s["base"], s["cap"], s["radius"], open=s.get("open", False))
+        return build(S.Cylinder, base=s["base"], cap=s["cap"], radius=s["radius"],
+                     open=s.get("open", False))
     if kind == "cone":
-        return S.Cone(s["base"], s["base_radius"], s["cap"], s["cap_radius"], open=s.get("open", False))
+        return build(S.Cone, base=s["base"], base_radius=s["base_radius"], cap=s["cap"],
+                     cap_radius=s["cap_radius"], open=s.get("open", False))
     if kind == "torus":
-        return S.Torus(s["major"], s["minor"])
+        return build(S.Torus, major=s["major"], minor=s["minor"])
     if kind == "disc":
-        return S.Disc(s["center"], s["normal"], s["radius"], s["hole_radius"])
+        return build(S.Disc, center=s["center"], normal=s["normal"], radius=s["radius"],
+                     hole_radius=s["hole_radius"])
     if kind == "quadric":
-        return S.Quadric(s["coeffs"])
+        return build(S.Quadric, coeffs=s["coeffs"])
     if kind == "polygon":
         return S.polygon_from_points(s["points"])
     if kind == "triangle":
-        return S.Triangle(s["p1"], s["p2"], s["p3"])
+        return build(S.Triangle, p1=s["p1"], p2=s["p2"], p3=s["p3"])
     if kind == "smooth_triangle":
-        return S.SmoothTriangle(s["p1"], s["p2"], s["p3"], s["n1"], s["n2"], s["n3"])
+        return build(S.SmoothTriangle, p1=s["p1"], p2=s["p2"], p3=s["p3"], n1=s["n1"], n2=s["n2"],
+                     n3=s["n3"])
     if kind in ("mesh", "mesh2"):
         return S.Mesh(s["triangles"], s["normals"])
     raise ValueError(f"cannot lower {kind}")
@@ -211,5 +216,5 @@ def lower_scene(p) -> S.Scene:
         st["max_trace_level"] = max(1, min(256, st["max_trace_level"]))
     settings = S.Settings(**st, output_transfer=transfer, assumed_gamma=gamma)
     camera = lower_camera(p.camera, lambda f, m: p.warn(f, m, p.camera.loc))
-    return S.Scene(camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                   background=p.background, settings=settings, warnings=tuple(p.warnings))
+    return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
+                 background=p.background, settings=settings, warnings=tuple(p.warnings))
