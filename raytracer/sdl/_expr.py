@@ -124,50 +124,45 @@ def _peek_any(p, ops):
     return t.value if t.kind == OP and t.value in ops else None
 
 
-def _logic(p):
-    a = _rel(p)
-    while p.in_parens and (op := _peek_any(p, ("&", "|"))) is not None:
-        loc = p.next().loc
-        b = _rel(p)
-        x, y = truthy(p, a, loc), truthy(p, b, loc)
-        a = float((x and y) if op == "&" else (x or y))
-    return a
+# Binary operators by binding level (higher binds tighter). Comparisons and & | exist only inside
+# parentheses: as the manual says, at the top level '<' starts a vector.
+_LEVELS_TOP = {"+": 3, "-": 3, "*": 4, "/": 4}
+_LEVELS_PAREN = {"&": 1, "|": 1, "<": 2, "<=": 2, "=": 2, "!=": 2, ">=": 2, ">": 2, **_LEVELS_TOP}
 
 
-_REL = ("<", "<=", "=", "!=", ">=", ">")
-
-
-def _rel(p):
-    a = _add(p)
+def _logic(p, min_level: int = 1):
+    """Binary operators by precedence climbing: one loop instead of a function per level."""
+    a = _unary(p)
+    levels = _LEVELS_PAREN if p.in_parens else _LEVELS_TOP
     while True:
-        # as the manual says, comparisons need parentheses: at the top level '<' starts a vector
-        op = _peek_any(p, _REL) if p.in_parens else None
-        if op is None:
+        t = p.peek_op()
+        if t.kind != OP:
+            return a
+        level = levels.get(t.value)
+        if level is None or level < min_level:
             return a
         loc = p.next().loc
-        b = _add(p)
-        if isinstance(a, str) and isinstance(b, str):
-            x, y = (a > b) - (a < b), 0.0
+        b = _logic(p, level + 1)
+        op = t.value
+        if level >= 3:
+            a = binop(p, op, a, b, loc)
+        elif level == 2:
+            a = _compare(p, op, a, b, loc)
         else:
-            x, y = as_float(p, a, loc), as_float(p, b, loc)
-        a = float({"<": x < y, "<=": x <= y, "=": abs(x - y) < EPSILON, "!=": abs(x - y) >= EPSILON,
-                   ">=": x >= y, ">": x > y}[op])
+            x, y = truthy(p, a, loc), truthy(p, b, loc)
+            a = float((x and y) if op == "&" else (x or y))
 
 
-def _add(p):
-    a = _mul(p)
-    while (op := _peek_any(p, ("+", "-"))) is not None:
-        loc = p.next().loc
-        a = binop(p, op, a, _mul(p), loc)
-    return a
-
-
-def _mul(p):
-    a = _unary(p)
-    while (op := _peek_any(p, ("*", "/"))) is not None:
-        loc = p.next().loc
-        a = binop(p, op, a, _unary(p), loc)
-    return a
+def _compare(p, op, a, b, loc) -> float:
+    if isinstance(a, str) and isinstance(b, str):
+        x, y = (a > b) - (a < b), 0.0
+    else:
+        x, y = as_float(p, a, loc), as_float(p, b, loc)
+    if op == "=":
+        return float(abs(x - y) < EPSILON)
+    if op == "!=":
+        return float(abs(x - y) >= EPSILON)
+    return float({"<": x < y, "<=": x <= y, ">=": x >= y, ">": x > y}[op])
 
 
 def _unary(p):
@@ -181,7 +176,8 @@ def _unary(p):
             return float(not truthy(p, v, t.loc))
         return _num(p, v, t.loc)
     a = _postfix(p)
-    if _is(p, "^"):
+    t = p.peek_op()
+    if t.kind == OP and t.value == "^":
         loc = p.next().loc
         a = binop(p, "^", a, _unary(p), loc)
     return a
@@ -190,9 +186,12 @@ def _unary(p):
 def _postfix(p):
     v = _primary(p)
     while True:
-        if isinstance(v, ArrayValue) and _is(p, "["):
+        t = p.peek_op()
+        if t.kind != OP:
+            return v
+        if t.value == "[" and isinstance(v, ArrayValue):
             v = _index(p, v)
-        elif _is(p, "."):
+        elif t.value == ".":
             loc = p.next().loc
             name = p.expect_ident("a component name after '.'").value
             v = dot(p, v, name, loc)
@@ -301,8 +300,6 @@ def _primary(p):
 
 
 def _identifier(p, t):
-    from ._builtins import BUILTIN_FUNCTIONS, constant
-
     name = t.value
     table, v = p.find(name)
     if table is not None:
@@ -314,10 +311,11 @@ def _identifier(p, t):
         return v
     if name in COLOR_KEYWORDS:
         return parse_color(p)
-    if name in BUILTIN_FUNCTIONS:
+    fn = _builtins.BUILTIN_FUNCTIONS.get(name)
+    if fn is not None:
         p.next()
-        return BUILTIN_FUNCTIONS[name](p, t)
-    c = constant(p, name)
+        return fn(p, t)
+    c = _builtins.constant(p, name)
     if c is not None:
         p.next()
         return c
@@ -370,3 +368,7 @@ def _keyword_color(p, kw: str, v, loc) -> Vec:
     if kw == "rgbt":
         return Vec(comps[:3] + [0.0, comps[3]], True)
     return Vec(comps, True)
+
+
+# at the end: _builtins imports this module's names (a cycle resolved at call time)
+from . import _builtins  # noqa: E402

@@ -48,6 +48,9 @@ def parse_object(p):
         return parse_light(p, t)
     if kw == "object":
         return _parse_object_ident(p, t)
+    copy = _object_id_copy(p, t)
+    if copy is not None:
+        return copy
     if kw in CSG_KEYWORDS or kw == "light_group":
         return _parse_csg(p, t)
     if kw in UNSUPPORTED_OBJECTS:
@@ -55,6 +58,25 @@ def parse_object(p):
     rec = ObjRec(kw, loc=t.loc, default_layer=p.default_layer)
     p.expect_op("{", f"'{{' after {kw}")
     SHAPES[kw](p, rec)
+    object_modifiers(p, rec)
+    return rec
+
+
+def _object_id_copy(p, t):
+    """``sphere { Ident … }``: as povray does, an object identifier first in any object's braces
+    makes the object a copy of it — whatever its kind (``mesh { MySphere }`` is a sphere) — and
+    only modifiers may follow (checked with povray 3.7: ``union { A sphere {…} }`` is an error).
+    Returns None (nothing read) when the braces do not start with an object identifier."""
+    if p.la is not None:
+        return None
+    brace, ident = p.raw_peek(0), p.raw_peek(1)
+    if brace is None or brace.kind != OP or brace.value != "{" or ident is None or ident.kind != ID:
+        return None
+    v = p.lookup(ident.value)
+    if not isinstance(v, ObjRec):
+        return None
+    p.next(), p.next()
+    rec = v.clone()
     object_modifiers(p, rec)
     return rec
 

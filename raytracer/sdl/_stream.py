@@ -64,6 +64,7 @@ class Stream:
         self.last = None  # last consumed token
         self.strict = strict
         self.limits = limits or Limits()
+        self.max_tokens = self.limits.max_tokens
         self.include_paths = [Path(p) for p in include_paths]
         self.warnings: list[SceneWarning] = []
         self.token_cache: dict[str, list] = {}
@@ -178,13 +179,13 @@ class Stream:
         """The next token of the current frame, with no directive processing."""
         while True:
             f = self.frames[-1]
-            if f.pos < f.stop:
-                tok = f.tokens[f.pos]
-                f.pos += 1
+            pos = f.pos
+            if pos < f.stop:
+                f.pos = pos + 1
                 self.tokens_read += 1
-                if self.tokens_read > self.limits.max_tokens:
-                    raise self.error(f"the scene reads more than {self.limits.max_tokens} tokens")
-                return tok
+                if self.tokens_read > self.max_tokens:
+                    raise self.error(f"the scene reads more than {self.max_tokens} tokens")
+                return f.tokens[pos]
             if f.kind in ("main", "func"):
                 tok = f.tokens[f.stop] if f.stop < len(f.tokens) else f.tokens[-1]
                 if f.kind == "func":
@@ -212,7 +213,7 @@ class Stream:
                     return tok
                 self.directive(tok)
                 continue
-            if tok.kind == ID:
+            if tok.kind == ID and tok.value in self.macro_names:
                 m = self.lookup_macro(tok.value)
                 if m is not None:
                     if stop_hash and self._stops_declare(False):
@@ -263,9 +264,10 @@ class Stream:
 
     # ---- public token API ----------------------------------------------------------------
     def peek(self) -> Token:
-        if self.la is None or self.la_raw:
-            self.la = self._fetch(False)
-        return self.la
+        la = self.la
+        if la is None or self.la_raw:
+            la = self.la = self._fetch(False)
+        return la
 
     def peek_op(self) -> Token:
         """Like peek, but while reading a #declare expression a directive or macro call ends it."""
@@ -278,13 +280,17 @@ class Stream:
         return self.la
 
     def next(self) -> Token:
-        tok = self.peek()
+        tok = self.la
+        if tok is None or self.la_raw:
+            tok = self._fetch(False)
         self.la = None
         self.last = tok
         return tok
 
     def is_op(self, value: str) -> bool:
-        t = self.peek()
+        t = self.la
+        if t is None or self.la_raw:
+            t = self.la = self._fetch(False)
         return t.kind == OP and t.value == value
 
     def is_id(self, value: str) -> bool:
@@ -292,8 +298,12 @@ class Stream:
         return t.kind == ID and t.value == value
 
     def accept_op(self, value: str) -> bool:
-        if self.is_op(value):
-            self.next()
+        t = self.la
+        if t is None or self.la_raw:
+            t = self.la = self._fetch(False)
+        if t.kind == OP and t.value == value:
+            self.la = None
+            self.last = t
             return True
         return False
 
@@ -304,10 +314,14 @@ class Stream:
         return False
 
     def expect_op(self, value: str, what: str | None = None) -> Token:
-        t = self.peek()
+        t = self.la
+        if t is None or self.la_raw:
+            t = self.la = self._fetch(False)
         if t.kind != OP or t.value != value:
             raise self.error(f"expected {what or repr(value)}, found {t.describe()}", t.loc)
-        return self.next()
+        self.la = None
+        self.last = t
+        return t
 
     def expect_ident(self, what: str = "an identifier") -> Token:
         t = self.peek()
