@@ -103,7 +103,7 @@ def _summary(scene) -> list[str]:
 
 
 def _vec(v) -> str:
-    return "<" + ", ".join(f"{x:.4g}" for x in v) + ">"
+    return "<" + ", ".join(f"{float(x) + 0.0:.4g}" for x in v) + ">"  # + 0.0: no "-0"
 
 
 def _light_text(light) -> str:

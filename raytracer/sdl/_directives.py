@@ -119,14 +119,18 @@ class Directives:
         idx = index_list(self) if self.is_op("[") else []
         self.expect_op("=", f"'=' after #{tok.value} {name}")
         self.push_stop_mark()
+        self.warning_capture.append([])
         try:
             value = self.parse_rvalue()
             t = self.peek_op()
         finally:
             self.stop_marks.pop()
+            held = self.warning_capture.pop()
         if t.kind == OP and t.value == ";":
             self.next()
         if idx:
+            for w in held:  # an array element: no identifier to wait with
+                self.warn(w.feature, w.message, w.location)
             arr = self.lookup(name)
             if not isinstance(arr, ArrayValue):
                 raise self.error(f"expected an array '{name}', found {type_name(arr)}", name_tok.loc)
@@ -136,6 +140,7 @@ class Directives:
                 raise self.error(str(e), name_tok.loc) from None
             return
         self._write(target, name, value)
+        self.hold_warnings(target, name, held)
 
     def d_undef(self, tok):
         self.undef(self.raw_ident("an identifier after #undef").value)

@@ -28,7 +28,13 @@ def type_name(v) -> str:
         return "vector"
     if isinstance(v, str):
         return "string"
-    return type(v).__name__.replace("Rec", "").replace("Value", "").lower()
+    return _TYPE_NAMES.get(type(v).__name__) or type(v).__name__.replace("Value", "").lower()
+
+
+_TYPE_NAMES = {"PigRec": "pigment", "LayerRec": "texture layer", "TextureRec": "texture",
+               "InteriorRec": "interior", "MaterialRec": "material", "LightRec": "light_source",
+               "ObjRec": "object", "CameraRec": "camera", "TransformRec": "transform",
+               "ArrayValue": "array", "MacroDef": "macro", "RandStream": "seed() stream"}
 
 
 def _num(p, v, loc):

@@ -67,6 +67,8 @@ class Stream:
         self.max_tokens = self.limits.max_tokens
         self.include_paths = [Path(p) for p in include_paths]
         self.warnings: list[SceneWarning] = []
+        self.warning_capture: list[list[SceneWarning]] = []
+        self.held_warnings: dict[tuple[int, str], tuple[dict, list[SceneWarning]]] = {}
         self.token_cache: dict[str, list] = {}
         # (frame index, open conditionals) where each #declare being read started: see peek_op
         self.stop_marks: list[tuple[int, int]] = []
@@ -93,12 +95,35 @@ class Stream:
         return None
 
     def warn(self, feature: str, message: str, loc: SourceLoc | None = None) -> None:
-        loc = loc or self.here()
+        w = SceneWarning(feature, message, loc or self.here())
+        if self.warning_capture:  # reading a #declare/#local value: reported when it is used
+            self.warning_capture[-1].append(w)
+        else:
+            self._emit(w)
+
+    def _emit(self, w: SceneWarning) -> None:
         if self.strict:
-            raise self.error(f"{message} [{feature}]", loc)
-        w = SceneWarning(feature, message, loc)
+            raise self.error(f"{w.message} [{w.feature}]", w.location)
         self.warnings.append(w)
         logger.warning("%s", w)
+
+    # Warnings raised while a #declare/#local value is read wait with the identifier until the
+    # identifier is used: textures.inc declares dozens of textures with normal { } blocks, and a
+    # scene using none of them should not hear about those. Nothing reaches the scene unreported.
+    def hold_warnings(self, table: dict, name: str, held: list[SceneWarning]) -> None:
+        while isinstance(table.get(name), Alias):
+            a = table[name]
+            table, name = a.table, a.name
+        if held:
+            self.held_warnings[(id(table), name)] = (table, held)  # the table ref keeps the id unique
+        else:
+            self.held_warnings.pop((id(table), name), None)
+
+    def _release_warnings(self, table: dict, name: str) -> None:
+        held = self.held_warnings.pop((id(table), name), None)
+        if held is not None:
+            for w in held[1]:
+                self.warn(w.feature, w.message, w.location)  # a value being declared holds them
 
     # ---- files ---------------------------------------------------------------------------
     def file_tokens(self, path: str) -> list[Token]:
@@ -358,6 +383,8 @@ class Stream:
                     if name not in table:
                         return None, None
                     v = table[name]
+                if self.held_warnings:
+                    self._release_warnings(table, name)
                 return table, v
         return None, None
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from raytracer import scene as S
-from raytracer.sdl import load_scene
+from raytracer.sdl import SceneError, load_scene
 
 SEED = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "seed.pov"
 
@@ -258,3 +258,23 @@ def test_checker_colours_need_no_comma():
     s = load_scene("sphere { 0, 1 pigment { checker rgb <.8,.8,.75> rgb <.2,.3,.2> } }")
     np.testing.assert_allclose(s.objects[0].texture.layers[0].pigment.colors[:, :3],
                                [[0.8, 0.8, 0.75], [0.2, 0.3, 0.2]], rtol=1e-6)
+
+
+def test_an_object_identifier_first_in_braces_copies_that_object():
+    # povray 3.7 renders 'mesh { S }' as S (a sphere) and 'sphere { B }' as B (a box)
+    s = load_scene("""#declare S = sphere { 0, 1 pigment { rgb <1,0,0> } }
+        #declare B = box { -0.5, 0.5 pigment { rgb <0,1,0> } }
+        mesh { S translate <-1.5,0,0> }
+        sphere { B translate <1.5,0,0> }
+        union { S scale 2 }""")
+    a, b, c = s.objects
+    assert isinstance(a.shape, S.Sphere) and isinstance(b.shape, S.Box) and isinstance(c.shape, S.Sphere)
+    np.testing.assert_allclose(np.asarray(a.transform.matrix)[:3, 3], [-1.5, 0, 0])
+    np.testing.assert_allclose(rgbft(b), [0, 1, 0, 0, 0])
+    np.testing.assert_allclose(np.asarray(c.transform.matrix)[:3, :3], 2 * np.eye(3))
+
+
+def test_only_modifiers_may_follow_an_object_identifier():
+    with pytest.raises(SceneError) as e:  # povray: "No matching } in 'union', sphere found instead"
+        load_scene("#declare S = sphere { 0, 1 }\nunion { S sphere { x, 0.5 } }")
+    assert e.value.location.line == 2 and e.value.location.col == 11

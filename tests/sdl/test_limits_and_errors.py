@@ -78,6 +78,25 @@ def test_unsupported_feature_warns_and_strict_raises():
     assert e.location == SourceLoc("<string>", 1, 15)
 
 
+def test_warnings_of_a_declared_value_wait_until_it_is_used():
+    declare = ("#declare Bumpy = texture { pigment { rgb 1 } normal { bumps 0.5 } }\n"
+               "#declare Copy = Bumpy\n")
+    s = load_scene(declare + "sphere { 0, 1 }")
+    assert s.warnings == ()  # declared, never used: nothing of it reaches the scene
+    load_scene(declare + "sphere { 0, 1 }", strict=True)
+    s = load_scene(declare + "sphere { 0, 1 texture { Copy } }\nbox { 0, 1 texture { Bumpy } }")
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("normal", 1)]  # once, at its source
+    e = error_of(declare + "sphere { 0, 1 texture { Copy } }", strict=True)
+    assert e.location == SourceLoc("<string>", 1, 46)
+
+
+def test_standard_textures_include_is_quiet_until_a_bumpy_texture_is_used():
+    s = load_scene('#include "textures.inc"\nsphere { 0, 1 pigment { Jade } }')
+    assert s.warnings == ()
+    s = load_scene('#include "textures.inc"\nsphere { 0, 1 texture { Brushed_Aluminum } }')
+    assert {w.feature for w in s.warnings} == {"normal"}
+
+
 def test_nonexistent_path_is_a_scene_error():
     e = error_of("/no/such/scene.pov")
     assert "no file" in str(e)
