@@ -51,4 +51,5 @@ from .scene import pov_matrix as pov_matrix
 from .scene import rotation_matrix as rotation_matrix
 from .scene import scale_matrix as scale_matrix
 from .scene import translation_matrix as translation_matrix
+from .sdl import Animation as Animation
 from .sdl import load_scene as load_scene

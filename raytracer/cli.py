@@ -53,6 +53,11 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="extra folder to search for #include files (repeatable)")
     p.add_argument("--strict", action="store_true",
                    help="treat unsupported features as errors instead of warnings")
+    p.add_argument("--ini", metavar="FILE",
+                   help="POV-Ray INI whose animation options (Initial_Frame … Final_Clock) apply")
+    p.add_argument("--frame", type=int, default=None, metavar="N",
+                   help="animation frame to load (sets clock and frame_number; default: the "
+                        "INI's first frame, or no animation)")
     p.add_argument("--x64", action="store_true", help="render in float64 (jax_enable_x64)")
     # (compiled programs are cached in $RAYTRACER_CACHE_DIR, default ~/.cache/raytracer/xla; "off" disables)
     p.add_argument("--cpu-devices", type=int, default=None, metavar="N",
@@ -74,13 +79,18 @@ def _configure_jax(args) -> None:
 
 def _load(args):
     _configure_jax(args)
-    from .sdl import load_scene
+    from .sdl import Animation, load_scene
 
     if not Path(args.scene).is_file():
         raise SceneError(f"cannot open scene file {args.scene!r}")
+    animation = None
+    if args.ini is not None:
+        animation = Animation.from_ini(args.ini, frame=args.frame)
+    elif args.frame is not None:
+        animation = Animation(frame=args.frame, initial_frame=args.frame, final_frame=args.frame)
     t0 = time.perf_counter()
     scene = load_scene(args.scene, include_paths=tuple(args.include_path), strict=args.strict,
-                       width=args.width, height=args.height)
+                       width=args.width, height=args.height, animation=animation)
     return scene, time.perf_counter() - t0
 
 

@@ -55,3 +55,17 @@ def test_unsupported_output_format_is_refused_before_rendering(tmp_path, capsys)
 def test_validate_forwards_its_options(capsys):
     assert main(["validate", "--list"]) == 0
     assert "lambert_sphere" in capsys.readouterr().out
+
+
+def test_info_takes_the_animation_frame_from_an_ini(tmp_path, capsys):
+    scene = tmp_path / "anim.pov"
+    scene.write_text("#declare N = array[2] {1, 2}\nsphere { 0, N[frame_number - 1] }\n"
+                     "#if (frame_number = 2) box { 0, 1 } #end\n")
+    ini = tmp_path / "anim.ini"
+    ini.write_text("Initial_Frame=1\nFinal_Frame=2\n")
+    assert main(["info", str(scene)]) == 2  # frame_number 0 without animation, as in povray
+    assert "array index -1" in capsys.readouterr().err
+    assert main(["info", str(scene), "--ini", str(ini)]) == 0
+    assert "objects: 1 sphere" in capsys.readouterr().out
+    assert main(["info", str(scene), "--ini", str(ini), "--frame", "2"]) == 0
+    assert "objects: 1 box, 1 sphere" in capsys.readouterr().out

@@ -19,7 +19,7 @@ _VECTORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
 
 def constant(p, name: str):
     if name in _CONSTANTS:
-        return _CONSTANTS[name]
+        return p.animation_constants.get(name, _CONSTANTS[name])
     if name in _VECTORS:
         return Vec(_VECTORS[name])
     if name == "image_width":

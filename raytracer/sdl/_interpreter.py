@@ -44,12 +44,14 @@ _SKIPPED_STATEMENTS = ("fog", "sky_sphere", "rainbow", "media", "photons", "radi
 class Interpreter(Stream, Directives):
     """Runs a scene: ``run()`` evaluates every statement and collects camera, lights and objects."""
 
-    def __init__(self, *, include_paths=(), strict=False, limits=None, width=160, height=120):
+    def __init__(self, *, include_paths=(), strict=False, limits=None, width=160, height=120,
+                 animation=None):
         super().__init__(include_paths=include_paths, strict=strict, limits=limits)
         self.directives = self.directive_table()
         self.macro_call = self.invoke_macro
         self.in_parens = False
         self.image_width, self.image_height = width, height
+        self.animation_constants = {} if animation is None else animation.constants()
         self.version = 3.7
         self.version_seen = False
         self.virtual_files: dict[str, list[str]] = {}  # #fopen … write: in memory only

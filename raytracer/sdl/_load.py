@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SceneError
+from ._animation import Animation
 from ._interpreter import Interpreter
 from ._lexer import tokenize
 from ._lower import lower_scene
@@ -23,7 +24,8 @@ def _is_path(path_or_text) -> bool:
 
 
 def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: int | None = None,
-               height: int | None = None, limits: Limits | None = None):
+               height: int | None = None, limits: Limits | None = None,
+               animation: Animation | None = None):
     """Parses a POV-Ray 3.7 scene (a file path or SDL text) into a :class:`raytracer.scene.Scene`.
 
     Args:
@@ -33,12 +35,14 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
         strict: raise SceneError for unsupported features instead of warning.
         width, height: the ``image_width``/``image_height`` the scene sees (default 160×120).
         limits: loop/recursion/include bounds (:class:`Limits`).
+        animation: the frame to load (``clock``, ``frame_number`` …; :class:`Animation`, e.g.
+            ``Animation.from_ini("scene.ini", frame=3)``); None: no animation (``clock`` = 0).
 
     Raises:
         SceneError: for any scene that cannot be loaded, with ``file:line:col``.
     """
     p = Interpreter(include_paths=include_paths, strict=strict, limits=limits,
-                    width=width or 160, height=height or 120)
+                    width=width or 160, height=height or 120, animation=animation)
     old_limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(old_limit, 20000))
     try:
