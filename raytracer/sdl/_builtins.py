@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ._expr import as_float, as_vector, parse_expr_paren, type_name
-from ._values import ArrayValue, RandStream, Vec
+from ._values import ArrayValue, ObjRec, RandStream, Vec
 
 _CONSTANTS = {
     "pi": math.pi, "tau": 2 * math.pi, "true": 1.0, "yes": 1.0, "on": 1.0, "false": 0.0, "no": 0.0,
@@ -158,10 +158,38 @@ def _vturbulence(p, tok):
     return Vec((0.0, 0.0, 0.0))
 
 
+def _tracer(p):
+    if getattr(p, "tracer", None) is None:
+        from ._trace import Tracer  # JAX and the renderer's kernels: imported only when used
+
+        p.tracer = Tracer()
+    return p.tracer
+
+
+def _object_arg(p, tok):
+    t = p.peek()
+    v = parse_expr_paren(p)
+    if not isinstance(v, ObjRec):
+        raise p.error(f"expected an object identifier in {tok.value}(), found {type_name(v)}", t.loc)
+    return v
+
+
 def _trace(p, tok):
-    _args(p, tok, 3, 4)
-    p.warn("trace", "trace() is not implemented at parse time; it returns <0,0,0>", tok.loc)
-    return Vec((0.0, 0.0, 0.0))
+    """``trace(OBJECT, A, B [, N])``: the nearest hit of the ray A + t·B, N := its normal."""
+    p.expect_op("(", f"'(' after {tok.value}")
+    obj = _object_arg(p, tok)
+    p.expect_op(",", "',' after the object in trace()")
+    a = as_vector(p, parse_expr_paren(p), 3, tok.loc)
+    p.expect_op(",", "',' after the start point in trace()")
+    b = as_vector(p, parse_expr_paren(p), 3, tok.loc)
+    normal_name = None
+    if p.accept_op(","):
+        normal_name = p.expect_ident("a vector identifier for trace()'s normal").value
+    p.expect_op(")", "')' to close trace(")
+    point, normal = _tracer(p).trace(obj, a, b)
+    if normal_name is not None:
+        p._write(p._owner_table(normal_name), normal_name, Vec(normal))
+    return Vec(point)
 
 
 def _extent(p, tok):
@@ -172,9 +200,13 @@ def _extent(p, tok):
 
 
 def _inside(p, tok):
-    _args(p, tok, 2)
-    p.warn("inside", "inside() is not implemented; it returns 0", tok.loc)
-    return 0.0
+    """``inside(OBJECT, P)``: 1 when P is inside the object's solid, else 0."""
+    p.expect_op("(", f"'(' after {tok.value}")
+    obj = _object_arg(p, tok)
+    p.expect_op(",", "',' after the object in inside()")
+    pt = as_vector(p, parse_expr_paren(p), 3, tok.loc)
+    p.expect_op(")", "')' to close inside(")
+    return float(_tracer(p).inside(obj, pt))
 
 
 def _seed(p, tok):
@@ -217,9 +249,11 @@ def _format_float(a: float, w: int, prec: int) -> str:
 
 
 def _vstr(p, tok):
-    args = _args(p, tok, 5)
-    n = int(as_float(p, args[1], tok.loc))
-    v = as_vector(p, args[0], n, tok.loc)
+    args = _args(p, tok, 5)  # vstr(N, A, S, L, P): N components of vector A (manual)
+    n = int(as_float(p, args[0], tok.loc))
+    if not 2 <= n <= 5:
+        raise p.error(f"expected 2 to 5 components in vstr(), found {n}", tok.loc)
+    v = as_vector(p, args[1], n, tok.loc)
     sep = _str_arg(p, tok, args[2])
     w, prec = int(as_float(p, args[3], tok.loc)), int(as_float(p, args[4], tok.loc))
     return sep.join(_format_float(c, w, prec) for c in v)

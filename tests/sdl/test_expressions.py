@@ -91,6 +91,9 @@ def test_string_builtins():
     assert value('#declare R = strupr("aB");') == "AB"
     assert value('#declare R = strlwr("aB");') == "ab"
     assert value('#declare R = str(3, -4, 0);') == "0003"
+    # vstr(N, A, S, L, P): the component count comes first (povray 3.7 rejects the other order)
+    assert value('#declare R = vstr(3, <1, 2.5, -3>, ", ", 0, 1);') == "1.0, 2.5, -3.0"
+    assert value('#declare R = vstr(2, <1, 2, 3>, "/", 0, 0);') == "1/2"
 
 
 def test_image_size_and_version_constants():

@@ -1,0 +1,70 @@
+"""trace() and inside() at parse time, against closed forms (values povray 3.7 prints agree)."""
+
+import numpy as np
+import pytest
+
+from raytracer.errors import SceneError
+
+from .conftest import run_sdl
+
+
+def vec(p, name):
+    return np.asarray(p.lookup(name).c[:3])
+
+
+def test_trace_returns_the_nearest_hit_and_its_normal():
+    # a sphere of radius 2 centred at x = 1: the ray x = 1, y = 0 along +z enters at z = -2
+    p = run_sdl("""#declare S = sphere { 0, 1 scale 2 translate x }
+        #declare N = <9, 9, 9>;
+        #declare P = trace(S, <1, 0, -10>, <0, 0, 3>, N);
+        #declare Q = trace(S, <1, 1, -10>, z);""")
+    np.testing.assert_allclose(vec(p, "P"), [1, 0, -2], atol=1e-5)
+    np.testing.assert_allclose(vec(p, "N"), [0, 0, -1], atol=1e-5)
+    np.testing.assert_allclose(vec(p, "Q"), [1, 1, -np.sqrt(3)], atol=1e-5)
+
+
+def test_a_miss_returns_zero_and_resets_the_normal():
+    p = run_sdl("""#declare S = sphere { 0, 1 }
+        #declare N = <9, 9, 9>;
+        #declare P = trace(S, <5, 5, -10>, z, N);
+        #declare B = trace(S, <0, 0, -10>, -z, N);""")
+    assert vec(p, "P").tolist() == [0, 0, 0] and vec(p, "N").tolist() == [0, 0, 0]
+    assert vec(p, "B").tolist() == [0, 0, 0]  # behind the start: no hit
+
+
+def test_trace_sees_csg_and_the_cavity_of_a_difference_faces_inwards():
+    p = run_sdl("""#declare D = difference { box { -1, 1 } sphere { 0, 0.5 } }
+        #declare N1 = 0; #declare N2 = 0;
+        #declare A = trace(D, <0, 0, -5>, z, N1);
+        #declare B = trace(D, <0, 0, -0.75>, z, N2);
+        #declare C = trace(D, <0, 0.9, -5>, z);""")
+    np.testing.assert_allclose(vec(p, "A"), [0, 0, -1], atol=1e-5)
+    np.testing.assert_allclose(vec(p, "N1"), [0, 0, -1], atol=1e-5)
+    # from inside the solid into the cavity: the cavity wall's normal points into the cavity
+    np.testing.assert_allclose(vec(p, "B"), [0, 0, -0.5], atol=1e-5)
+    np.testing.assert_allclose(vec(p, "N2"), [0, 0, 1], atol=1e-5)
+    np.testing.assert_allclose(vec(p, "C"), [0, 0.9, -1], atol=1e-5)
+
+
+@pytest.mark.parametrize("obj, point, expected", [
+    ("difference { box { -1, 1 } sphere { 0, 0.5 } }", "<0.8, 0, 0>", 1.0),
+    ("difference { box { -1, 1 } sphere { 0, 0.5 } }", "<0.1, 0, 0>", 0.0),
+    ("difference { box { -1, 1 } sphere { 0, 0.5 } }", "<2, 0, 0>", 0.0),
+    ("union { sphere { 0, 1 } sphere { 3*x, 1 } translate y }", "<3, 1.5, 0>", 1.0),
+    ("intersection { sphere { 0, 1 } sphere { x, 1 } }", "<0.5, 0, 0>", 1.0),
+    ("intersection { sphere { 0, 1 } sphere { x, 1 } }", "<-0.5, 0, 0>", 0.0),
+    ("sphere { 0, 1 inverse }", "<0, 0, 0>", 0.0),
+    ("sphere { 0, 1 clipped_by { plane { y, 0 } } }", "<0, 0.5, 0>", 0.0),
+    ("sphere { 0, 1 clipped_by { plane { y, 0 } } }", "<0, -0.5, 0>", 1.0),
+    ("box { 0, 1 scale 2 rotate 45*z }", "<0, 1.5, 0.5>", 1.0),
+    ("box { 0, 1 scale 2 rotate 45*z }", "<1.5, 0, 0.5>", 0.0),
+    ("triangle { 0, x, y }", "<0.1, 0.1, 0>", 0.0),  # no inside
+])
+def test_inside(obj, point, expected):
+    p = run_sdl(f"#declare O = {obj}\n#declare R = inside(O, {point});")
+    assert p.lookup("R") == expected
+
+
+def test_trace_needs_an_object_identifier():
+    with pytest.raises(SceneError, match="expected an object identifier in trace"):
+        run_sdl("#declare P = trace(1, 0, z);")
