@@ -87,7 +87,8 @@ class Prim:
         texture:    resolved texture (own, else the nearest ancestor's, else the default).
         interior:   resolved interior, or None.
         rendered:   whether its surface can be hit (False for ``clipped_by`` objects).
-        inverse:    whether its inside is flipped (object's own ``inverse`` and CSG inverses).
+        inverse:    whether its normals are turned inwards: its own ``inverse``, CSG inverses,
+                    and being subtracted in a ``difference`` (inside tests use the CSG trees).
         conditions: CSG / clipping conditions a hit must satisfy.
         flags:      frozenset of POV object flags ("no_shadow", "no_image", "no_reflection",
                     "double_illuminate").
@@ -218,12 +219,15 @@ class _Flattener:
             # Second pass: each child's primitives get the visibility conditions of this node.
             for i, (s, e) in enumerate(spans):
                 conds = self._csg_conditions(obj.operation, i, trees) + clip_conds + conditions
+                # the node's inverse flips its primitives' normals (inside trees carry it on the
+                # node itself); so does being subtracted: A - B is A ∩ inverse(B), and the
+                # cavity B leaves has B's normals turned inwards — without that, a ray leaving
+                # hollow glass through the cavity wall would be taken for one entering it
+                flip = obj_inverse != (obj.operation == "difference" and i > 0)
                 for k in range(s, e):
                     p = self.prims[k]
-                    # the node's inverse flips its primitives' normals (inside trees carry it
-                    # on the node itself)
                     self.prims[k] = dataclasses.replace(
-                        p, conditions=p.conditions + conds, inverse=p.inverse != obj_inverse)
+                        p, conditions=p.conditions + conds, inverse=p.inverse != flip)
             node = {"union": InAny, "merge": InAny, "intersection": InAll,
                     "difference": InDiff}[obj.operation]
             return node(tuple(trees), inverse=obj_inverse)

@@ -81,6 +81,36 @@ def test_opaque_object_casts_a_full_shadow_and_transparent_one_filters_it():
     np.testing.assert_allclose(got, 0.1 + S * np.array([0.3, 0.6, 0.6]) ** 2, rtol=1e-4)
 
 
+def test_a_fading_interior_attenuates_shadows_by_its_chord():
+    # the shadow ray leaves the hit point (0, 0, -1) towards the light along (0, S, -S); a glass
+    # sphere of radius r centred on it at distance 3 is crossed along a chord of 2r. povray 3.7
+    # measured (docs in raytracer.shading.lighting.interior_fade): fade over the chord at the
+    # exit crossing, nothing for the air before the entry
+    blocker_pos = (0.0, 3 * S, -1 - 3 * S)
+    light = rt.Light(position=(0.0, 10 * S, -1 - 10 * S))
+    fin = rt.Finish(ambient=(0.1, 0.1, 0.1), diffuse=1.0)
+    fc = np.array([0.2, 0.6, 0.3])
+    for power, attenuation in ((2.0, lambda d: fc + (1 - fc) / (1 + (d / 0.5) ** 2)),
+                               (1000.0, lambda d: np.exp(-(1 - fc) * d / 0.5))):
+        glass = rt.Object(rt.Sphere(blocker_pos, 0.4),
+                          texture=rt.Texture.of(rt.Pigment.solid((1, 1, 1), transmit=1.0)),
+                          interior=rt.Interior(ior=1.5, fade_distance=0.5, fade_power=power,
+                                               fade_color=fc))
+        got = one_pixel(sphere_scene(fin, pigment=(1, 1, 1), lights=(light,), extra=(glass,)))
+        np.testing.assert_allclose(got, 0.1 + S * attenuation(0.8), rtol=1e-4)
+
+
+def test_a_difference_turns_the_subtracted_normals_inwards():
+    from raytracer._plan import make_plan
+
+    scene = rt.load_scene("difference { box { -1, 1 } sphere { 0, 0.5 } cylinder { -2*x, 2*x, 0.2 } "
+                          "inverse }")
+    # the whole difference is inverted: the box flips once, the subtracted ones twice
+    assert [p.inverse for p in make_plan(scene).prims] == [True, False, False]
+    scene = rt.load_scene("difference { box { -1, 1 } sphere { 0, 0.5 } }")
+    assert [p.inverse for p in make_plan(scene).prims] == [False, True]
+
+
 def test_constant_reflection_adds_the_mirrored_background():
     fin = rt.Finish(ambient=(0, 0, 0), diffuse=0.0,
                     reflection=rt.Reflection(min=(0.3, 0.3, 0.3), max=(0.3, 0.3, 0.3)))

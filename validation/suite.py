@@ -122,6 +122,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("csg_union_merge", povray=POV_BAR),
     _example("csg_intersection_difference", povray=POV_BAR),
     _example("csg_clipped_inverse", povray=POV_BAR),
+    _example("csg_hollow_glass", povray=POV_BAR),
     _example("brilliance", povray=POV_BAR),
     _example("phong_specular", povray=POV_BAR),
     _example("metallic", povray=POV_BAR),

@@ -23,6 +23,18 @@ def fade(dist, fade_distance, fade_power):
     return jnp.where(on, 2.0 / (1.0 + safe_pow(jnp.abs(ratio), jnp.where(on, fade_power, 1.0))), 1.0)
 
 
+def interior_fade(depth, fade_distance, fade_power, fade_color, on=True):
+    """Attenuation after ``depth`` inside an object (§2.7): ``fc + (1 - fc)/(1 + (d/fd)^fp)``, or
+    ``exp(-(1 - fc)·d/fd)`` when ``fade_power >= 1000``; 1 where ``on`` is False or fading is off
+    (``fade_distance`` or ``fade_power`` 0). Used by transmitted rays and by shadow rays alike."""
+    on = on & (fade_distance != 0) & (fade_power > 0)
+    fd = jnp.where(on, fade_distance, 1.0)
+    ratio = jnp.where(on, depth / fd, 0.0)
+    rational = fade_color + (1 - fade_color) / (1 + safe_pow(ratio, jnp.where(on, fade_power, 1.0)))
+    exponential = jnp.exp(-(1 - fade_color) * ratio)
+    return jnp.where(on, jnp.where(fade_power >= 1000, exponential, rational), 1.0)
+
+
 def spot(cos_theta, radius_degrees, falloff_degrees, tightness):
     """Spotlight factor ``cosθ^tightness · cubic_spline(cos falloff, cos radius, cosθ)``."""
     lo = jnp.cos(jnp.deg2rad(falloff_degrees))

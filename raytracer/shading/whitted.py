@@ -51,6 +51,7 @@ class TraceContext:
     casts_shadow: np.ndarray  # (C,)
     transparent_cands: np.ndarray  # (C,) candidate belongs to a transparent-capable prim
     inverse_sign: np.ndarray  # (C,) -1 where the prim is inverted
+    fading_cands: np.ndarray  # candidate slots of transparent prims whose interior may fade
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
@@ -67,6 +68,10 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
                                       and "no_shadow" not in prims[i].flags),
         transparent_cands=static_prim_mask(geo, lambda i: bool(mats.transparent[i])),
         inverse_sign=np.where(static_prim_mask(geo, lambda i: prims[i].inverse), -1.0, 1.0),
+        fading_cands=np.flatnonzero(static_prim_mask(
+            geo, lambda i: bool(mats.transparent[i]) and prims[i].interior is not None
+            and prims[i].interior.fade_distance is not None
+            and prims[i].interior.fade_power is not None)),
     )
 
 
@@ -74,7 +79,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
 def _shadow_filter(ctx: TraceContext, o, l, dist):
     """RGB transmittance of the segment ``o → o + dist·l`` (§2.5): opaque crossings block,
     transparent ones multiply by ``f·P + t`` at each crossing; refraction is ignored."""
-    t, _ = all_crossings(ctx.geo, o, l)
+    t, n = all_crossings(ctx.geo, o, l)
     scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
     ok = jnp.asarray(ctx.casts_shadow) & jnp.isfinite(t) & (t > scale) & (t < dist - scale)
     ok = ok & csg_mask(ctx.geo, ctx.plan, o, l, t)
@@ -91,6 +96,22 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
             pig = pigment_at(ctx.mats, prim * n_layers + int(k), o + safe_t[c] * l)
             f = pig[3] * pig[:3] + pig[4]
             filt = filt * jnp.where(ok[c], f, 1.0)
+    fading = ctx.fading_cands
+    if ctx.plan.effects.interior_fade and fading.size:
+        # interior fade at every exit crossing, over the depth since the previous crossing (or
+        # the shadow ray's start): the shadow ray continues from each hit (§2.4; povray 3.7
+        # measured: a fading sphere attenuates a shadow by its chord, not by the air before it)
+        accepted = jnp.where(ok, t, -jnp.inf)
+        tc = accepted[fading]
+        prev = jnp.max(jnp.where(accepted[None, :] < tc[:, None], accepted[None, :], 0.0), axis=1)
+        prims = ctx.geo.cand_prim[fading]
+        exiting = ok[fading] & (jnp.einsum("ri,i->r", n[fading], l)
+                                * jnp.asarray(ctx.inverse_sign[fading], n.dtype) > 0)
+        m = ctx.mats
+        att = lt.interior_fade(jnp.where(exiting, tc - prev, 0.0)[:, None],
+                               m.fade_distance[prims][:, None], m.fade_power[prims][:, None],
+                               m.fade_color[prims], on=exiting[:, None])
+        filt = filt * jnp.prod(att, axis=0)
     return jnp.where(jnp.any(opaque), 0.0, 1.0) * filt
 
 
@@ -266,10 +287,7 @@ def shade(ctx: TraceContext, o, d, weight, alive, is_reflection_ray, level):
         # interior fade on leaving (distance travelled inside = this segment's length)
         fd, fp = mats.fade_distance[prim], mats.fade_power[prim]
         if eff.interior_fade:
-            fc = mats.fade_color[prim]
-            on = (~entering) & (fd != 0) & (fp > 0)
-            ratio = jnp.where(on, hit.t / jnp.where(on, fd, 1.0), 0.0)
-            att_col = jnp.where(on, fc + (1 - fc) / (1 + safe_pow(ratio, jnp.where(on, fp, 1.0))), 1.0)
+            att_col = lt.interior_fade(hit.t, fd, fp, mats.fade_color[prim], on=~entering)
         else:
             att_col = jnp.ones(3, ctx.dtype)
         t_weight = weight * jnp.max(jnp.abs(fil))
