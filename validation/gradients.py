@@ -160,7 +160,7 @@ def target_scene(scene):
     for i, obj in enumerate(scene.objects):
         pig = obj.texture.layers[0].pigment
         scaled = jnp.minimum(pig.colors[:, :3] * jnp.array([[0.6, 1.1, 0.8]]), 0.95)
-        colours = pig.colors.at[:, :3].set(scaled)
+        colours = jnp.asarray(pig.colors).at[:, :3].set(scaled)
         out = eqx.tree_at(lambda s, i=i: s.objects[i].texture.layers[0].pigment.colors, out, colours)
     for k, light in enumerate(scene.lights):
         out = eqx.tree_at(lambda s, k=k: s.lights[k].color, out, light.color * 0.85)

@@ -1,4 +1,12 @@
-"""The scene model: frozen Equinox pytrees whose array leaves are the differentiable parameters."""
+"""The scene model: frozen Equinox pytrees whose array leaves are the differentiable parameters.
+
+Leaves given as numbers, lists or numpy arrays are stored as read-only numpy arrays of the default
+float dtype (float32, or float64 under ``jax_enable_x64``); JAX arrays and tracers are kept as
+they are. numpy leaves are ordinary JAX leaves — ``jit``, ``grad``, ``eqx.tree_at`` and
+``raytracer.params`` take them as they take JAX arrays — and cost ~1 µs to make instead of
+~30-60 µs, which is what lets a 10^5-primitive POV-Ray scene load in a second. For JAX-only
+methods such as ``.at[]``, take ``jnp.asarray(leaf)`` first.
+"""
 
 from ._camera import Camera as Camera
 from ._lights import AreaLight as AreaLight
