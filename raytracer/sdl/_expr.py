@@ -141,7 +141,7 @@ def _logic(p, min_level: int = 1):
     a = _unary(p)
     levels = _LEVELS_PAREN if p.in_parens else _LEVELS_TOP
     while True:
-        t = p.peek_op()
+        t = p.la or p.peek_op()  # (a token is a non-empty tuple: truthy)
         if t.kind != OP:
             return a
         level = levels.get(t.value)
@@ -181,28 +181,28 @@ def _unary(p):
         if t.value == "!":
             return float(not truthy(p, v, t.loc))
         return _num(p, v, t.loc)
-    a = _postfix(p)
-    t = p.peek_op()
-    if t.kind == OP and t.value == "^":
+    # postfix: primary, then .x / [i] (inlined: this is the interpreter's hottest path)
+    if t.kind == NUM:
+        p.la = None
+        p.last = t
+        a = t.value
+    else:
+        a = _primary(p)
+    while True:
+        t = p.la or p.peek_op()
+        if t.kind != OP:
+            return a
+        if t.value == "[" and isinstance(a, ArrayValue):
+            a = _index(p, a)
+        elif t.value == ".":
+            loc = p.next().loc
+            a = dot(p, a, p.expect_ident("a component name after '.'").value, loc)
+        else:
+            break
+    if t.value == "^":
         loc = p.next().loc
         a = binop(p, "^", a, _unary(p), loc)
     return a
-
-
-def _postfix(p):
-    v = _primary(p)
-    while True:
-        t = p.peek_op()
-        if t.kind != OP:
-            return v
-        if t.value == "[" and isinstance(v, ArrayValue):
-            v = _index(p, v)
-        elif t.value == ".":
-            loc = p.next().loc
-            name = p.expect_ident("a component name after '.'").value
-            v = dot(p, v, name, loc)
-        else:
-            return v
 
 
 def dot(p, v, name: str, loc):
