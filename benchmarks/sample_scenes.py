@@ -26,6 +26,9 @@ def _load_one(path: str, queue, ini: str | None = None) -> None:
     import logging
 
     logging.getLogger("raytracer.sdl").setLevel(logging.ERROR)
+    import jax
+
+    jax.config.update("jax_cpu_enable_async_dispatch", False)  # as the CLI does (see cli.py)
     from raytracer.sdl import Animation, SceneError, load_scene
 
     t0 = time.perf_counter()

@@ -10,6 +10,9 @@ POV-Ray's definitions (manual, "Functions"): ``trace(OBJECT, A, B [, N])`` shoot
 ``N`` receives the surface normal there (<0,0,0> when nothing was hit — the only reliable way to
 tell). ``inside(OBJECT, P)`` is 1 when P is inside the object's solid and 0 otherwise; a clipped
 object is inside where its shape and every clipping object are.
+
+Speed: a call costs ~13 µs with ``jax.config.update("jax_cpu_enable_async_dispatch", False)`` set
+before JAX first runs anything (the CLI does), ~40 µs with JAX's default asynchronous dispatch.
 """
 
 from __future__ import annotations
