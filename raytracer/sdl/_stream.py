@@ -195,7 +195,10 @@ class Stream:
     def pop_frame(self) -> Frame:
         f = self.frames.pop()
         if f.scope:
-            self.scopes.pop()
+            table = self.scopes.pop()
+            if self.held_warnings:  # a macro's locals are gone: so are their unused warnings
+                for key in [k for k in self.held_warnings if k[0] == id(table)]:
+                    del self.held_warnings[key]
         if f.kind in ("macro", "func"):
             self.macro_depth -= 1
         return f

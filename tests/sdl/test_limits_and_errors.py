@@ -90,6 +90,19 @@ def test_warnings_of_a_declared_value_wait_until_it_is_used():
     assert e.location == SourceLoc("<string>", 1, 46)
 
 
+def test_a_macro_local_value_reports_its_warning_when_returned_and_forgets_it_otherwise():
+    text = """#macro Bumpy(Used)
+        #local T = texture { pigment { rgb 1 } normal { bumps 0.5 } }
+        #if (Used) T #else texture { pigment { rgb 1 } } #end
+    #end
+    #declare I = 0; #while (I < 50) #declare Unused = Bumpy(0); #declare I = I + 1; #end
+    """
+    s = load_scene(text + "sphere { 0, 1 texture { Unused } }")
+    assert s.warnings == ()
+    s = load_scene(text + "sphere { 0, 1 texture { Bumpy(1) } }")
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("normal", 2)]
+
+
 def test_standard_textures_include_is_quiet_until_a_bumpy_texture_is_used():
     s = load_scene('#include "textures.inc"\nsphere { 0, 1 pigment { Jade } }')
     assert s.warnings == ()
