@@ -100,6 +100,19 @@ def test_a_fading_interior_attenuates_shadows_by_its_chord():
         np.testing.assert_allclose(got, 0.1 + S * attenuation(0.8), rtol=1e-4)
 
 
+def test_interior_fade_gradients_are_finite_in_both_forms():
+    from raytracer.shading.lighting import interior_fade
+
+    fc = jnp.array([0.2, 0.6, 0.3])
+    # exponential form: d/dd sum(exp(-(1 - fc) d / fd)) = -sum((1 - fc)/fd · exp(...)); the
+    # rational branch, not taken, once made this NaN (inf · 0) at depth 5, power 1000
+    g = jax.grad(lambda d: interior_fade(d, 0.5, 1000.0, fc).sum())(5.0)
+    np.testing.assert_allclose(g, -np.sum((1 - fc) / 0.5 * np.exp(-(1 - fc) * 10.0)), rtol=1e-5)
+    # rational form: d/dd [fc + (1 - fc)/(1 + (d/fd)²)] = -(1 - fc)·2d/fd² / (1 + (d/fd)²)²
+    g = jax.grad(lambda d: interior_fade(d, 0.5, 2.0, fc).sum())(5.0)
+    np.testing.assert_allclose(g, -np.sum((1 - fc) * 2 * 5.0 / 0.25 / (1 + 100.0) ** 2), rtol=1e-5)
+
+
 def test_a_difference_turns_the_subtracted_normals_inwards():
     from raytracer._plan import make_plan
 

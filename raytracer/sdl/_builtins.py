@@ -188,7 +188,7 @@ def _trace(p, tok):
     p.expect_op(")", "')' to close trace(")
     point, normal = _tracer(p).trace(obj, a, b)
     if normal_name is not None:
-        p._write(p._owner_table(normal_name), normal_name, Vec(normal))
+        p.declare(normal_name, Vec(normal))
     return Vec(point)
 
 

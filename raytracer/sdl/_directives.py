@@ -139,8 +139,7 @@ class Directives:
             except (IndexError, ValueError) as e:
                 raise self.error(str(e), name_tok.loc) from None
             return
-        self._write(target, name, value)
-        self.hold_warnings(target, name, held)
+        self.hold_warnings(*self._write(target, name, value), held)
 
     def d_undef(self, tok):
         self.undef(self.raw_ident("an identifier after #undef").value)

@@ -125,11 +125,6 @@ def _is(p, op: str) -> bool:
     return t.kind == OP and t.value == op
 
 
-def _peek_any(p, ops):
-    t = p.peek_op()
-    return t.value if t.kind == OP and t.value in ops else None
-
-
 # Binary operators by binding level (higher binds tighter). Comparisons and & | exist only inside
 # parentheses: as the manual says, at the top level '<' starts a vector.
 _LEVELS_TOP = {"+": 3, "-": 3, "*": 4, "/": 4}

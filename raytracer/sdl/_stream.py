@@ -111,9 +111,7 @@ class Stream:
     # identifier is used: textures.inc declares dozens of textures with normal { } blocks, and a
     # scene using none of them should not hear about those. Nothing reaches the scene unreported.
     def hold_warnings(self, table: dict, name: str, held: list[SceneWarning]) -> None:
-        while isinstance(table.get(name), Alias):
-            a = table[name]
-            table, name = a.table, a.name
+        """Holds ``held`` for the binding ``table[name]`` (as ``_write`` resolved it)."""
         if held:
             self.held_warnings[(id(table), name)] = (table, held)  # the table ref keeps the id unique
         else:
@@ -403,12 +401,14 @@ class Stream:
                 return v if isinstance(v, MacroDef) else None
         return None
 
-    def _write(self, table: dict, name: str, value) -> None:
+    def _write(self, table: dict, name: str, value) -> tuple[dict, str]:
+        """Assigns through aliases; returns the binding written (table, name)."""
         v = table.get(name)
         while isinstance(v, Alias):
             table, name = v.table, v.name
             v = table.get(name)
         table[name] = value
+        return table, name
 
     def declare(self, name: str, value) -> None:
         """#declare: updates the most local existing binding, else creates a global one."""

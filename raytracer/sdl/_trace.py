@@ -26,7 +26,6 @@ import numpy as np
 
 from .. import scene as S
 from .._plan import make_plan
-from ..scene._transform import inverse_affine
 from ..shading._geometry import KINDS, _inside_fn, closest_hit, pack_geometry, static_prim_mask
 from ._lower import Lowerer
 
@@ -35,46 +34,39 @@ from ._lower import Lowerer
 _T_MIN = 1e-6
 
 
-def _lowered(rec) -> S.AbstractObject | None:
-    return Lowerer().obj(rec, None, True)
-
-
 class Tracer:
     """Compiled trace/inside functions per object record (the record is kept alive by the cache)."""
 
     def __init__(self):
-        self._trace: dict[int, tuple[object, object]] = {}
-        self._inside: dict[int, tuple[object, object]] = {}
+        self._compiled: dict[tuple[str, int], tuple[object, object]] = {}
+
+    def _function(self, kind: str, rec, make):
+        """The compiled ``kind`` function of ``rec`` (None when nothing of it can be hit)."""
+        entry = self._compiled.get((kind, id(rec)))
+        if entry is None or entry[0] is not rec:
+            obj = Lowerer().obj(rec, None, True)
+            entry = self._compiled[(kind, id(rec))] = (rec, None if obj is None else make(obj))
+        return entry[1]
 
     def trace(self, rec, origin, direction) -> tuple[tuple, tuple]:
         """(point, normal) of the nearest hit, both (0, 0, 0) when the ray misses."""
-        entry = self._trace.get(id(rec))
-        if entry is None or entry[0] is not rec:
-            entry = self._trace[id(rec)] = (rec, _trace_function(_lowered(rec)))
+        fn = self._function("trace", rec, _trace_function)
         dx, dy, dz = direction
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if entry[1] is None or not math.isfinite(length) or length == 0.0:
+        if fn is None or not math.isfinite(length) or length == 0.0:
             return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
         ray = np.array((*origin, dx / length, dy / length, dz / length), dtype=np.float64)
-        out = np.asarray(entry[1](ray)).tolist()
+        out = np.asarray(fn(ray)).tolist()
         if out[0] == 0.0:
             return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
         return tuple(out[1:4]), tuple(out[4:7])
 
     def inside(self, rec, point) -> bool:
-        entry = self._inside.get(id(rec))
-        if entry is None or entry[0] is not rec:
-            obj = _lowered(rec)
-            fn = None if obj is None else jax.jit(functools.partial(_inside, obj, None))
-            entry = self._inside[id(rec)] = (rec, fn)
-        if entry[1] is None:
-            return False
-        return bool(entry[1](np.asarray(point, np.float64)))
+        fn = self._function("inside", rec, lambda obj: jax.jit(functools.partial(_inside, obj, None)))
+        return fn is not None and bool(fn(np.asarray(point, np.float64)))
 
 
 def _trace_function(obj):
-    if obj is None:
-        return None
     scene = S.Scene(camera=S.Camera(), objects=(obj,))
     plan = make_plan(scene)
     if not plan.prims:
@@ -98,8 +90,8 @@ def _trace_function(obj):
 
 def _inside(obj, object_from_world, p):
     """Whether world point ``p`` is inside ``obj`` (traced into one jit program per object)."""
-    if obj.transform is not None:
-        m = inverse_affine(jnp.asarray(obj.transform.matrix))
+    if obj.transform is not None:  # concrete: inverted here, a constant of the program
+        m = np.linalg.inv(np.asarray(obj.transform.matrix, np.float64))
         object_from_world = m if object_from_world is None else m @ object_from_world
     if isinstance(obj, S.CSG):
         kids = [_inside(c, object_from_world, p) for c in obj.children]
@@ -117,8 +109,8 @@ def _inside(obj, object_from_world, p):
         if fn is None:  # triangles, polygons, meshes have no inside
             v = jnp.asarray(False)
         else:
-            q = p if object_from_world is None else (
-                object_from_world[:3, :3] @ p + object_from_world[:3, 3])
+            m = None if object_from_world is None else jnp.asarray(object_from_world, p.dtype)
+            q = p if m is None else m[:3, :3] @ p + m[:3, 3]
             v = jnp.asarray(fn(*KINDS[kind].params(obj.shape), q))
     for clip in obj.clipped_by:
         v = v & _inside(clip, object_from_world, p)

@@ -30,9 +30,11 @@ def interior_fade(depth, fade_distance, fade_power, fade_color, on=True):
     on = on & (fade_distance != 0) & (fade_power > 0)
     fd = jnp.where(on, fade_distance, 1.0)
     ratio = jnp.where(on, depth / fd, 0.0)
-    rational = fade_color + (1 - fade_color) / (1 + safe_pow(ratio, jnp.where(on, fade_power, 1.0)))
-    exponential = jnp.exp(-(1 - fade_color) * ratio)
-    return jnp.where(on, jnp.where(fade_power >= 1000, exponential, rational), 1.0)
+    exponential = fade_power >= 1000
+    # the branch not taken gets a harmless exponent, so its gradient cannot be inf · 0
+    power = jnp.where(on & ~exponential, fade_power, 1.0)
+    rational = fade_color + (1 - fade_color) / (1 + safe_pow(ratio, power))
+    return jnp.where(on, jnp.where(exponential, jnp.exp(-(1 - fade_color) * ratio), rational), 1.0)
 
 
 def spot(cos_theta, radius_degrees, falloff_degrees, tightness):
