@@ -173,10 +173,14 @@ class Effects:
 
 @dataclasses.dataclass(frozen=True)
 class Plan:
+    """The flattened scene: primitives, lights, effects, warnings, and the inside tree of each
+    top-level object (``roots``, in ``scene.objects`` order; used by ``inside()`` queries)."""
+
     prims: tuple[Prim, ...]
     lights: tuple[Light, ...]
     effects: Effects
     warnings: tuple[SceneWarning, ...]
+    roots: tuple[InsideTree, ...] = ()
 
 
 # ---------------------------------------------------------------- flattening
@@ -193,7 +197,8 @@ class _Flattener:
         obj_inverse = inverse != obj.inverse
         if isinstance(obj, Object):
             chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
-            clip_conds = self._clip_conditions(obj.clipped_by, chain, interior)
+            clip_trees = self._clip_trees(obj.clipped_by, chain, interior)
+            clip_conds = tuple(Condition(t, True) for t in clip_trees)
             index = len(self.prims)
             self.prims.append(Prim(
                 obj=obj, transforms=chain,
@@ -201,12 +206,13 @@ class _Flattener:
                 interior=obj.interior if obj.interior is not None else interior,
                 rendered=rendered, inverse=obj_inverse, conditions=conditions + clip_conds,
                 flags=frozenset(flags)))
-            return InPrim(index, obj_inverse)
+            return _clipped(InPrim(index, obj_inverse), clip_trees)
         if isinstance(obj, CSG):
             chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
             tex = obj.texture if obj.texture is not None else texture
             inter = obj.interior if obj.interior is not None else interior
-            clip_conds = self._clip_conditions(obj.clipped_by, chain, inter)
+            clip_trees = self._clip_trees(obj.clipped_by, chain, inter)
+            clip_conds = tuple(Condition(t, True) for t in clip_trees)
             # First pass: inside trees of every child (primitives are appended in order).
             trees = []
             spans = []
@@ -230,7 +236,7 @@ class _Flattener:
                         p, conditions=p.conditions + conds, inverse=p.inverse != flip)
             node = {"union": InAny, "merge": InAny, "intersection": InAll,
                     "difference": InDiff}[obj.operation]
-            return node(tuple(trees), inverse=obj_inverse)
+            return _clipped(node(tuple(trees), inverse=obj_inverse), clip_trees)
         raise SceneError(f"not a scene object: {type(obj).__name__}")
 
     @staticmethod
@@ -248,28 +254,24 @@ class _Flattener:
         return (Condition(trees[0], True),) + tuple(Condition(t, False) for j, t in enumerate(trees)
                                                     if j not in (0, i))
 
-    def _clip_conditions(self, clips, chain, interior) -> tuple[Condition, ...]:
-        conds = []
-        for clip in clips:
-            tree = self.flatten(clip, transforms=chain, texture=Texture(), interior=interior,
-                                rendered=False, inverse=False, conditions=(), flags=frozenset())
-            conds.append(Condition(tree, True))
-        return tuple(conds)
+    def _clip_trees(self, clips, chain, interior) -> tuple[InsideTree, ...]:
+        return tuple(self.flatten(clip, transforms=chain, texture=Texture(), interior=interior,
+                                  rendered=False, inverse=False, conditions=(), flags=frozenset())
+                     for clip in clips)
 
 
-def _max_crossings(prim: Prim) -> int:
-    """Surfaces a straight line can cross on this primitive (for the straight-pass bound)."""
-    return {"plane": 1, "disc": 1, "triangle": 1, "smooth_triangle": 1, "polygon": 1, "torus": 4,
-            "mesh": 4}.get(prim.kind, 2)
+def _clipped(tree: InsideTree, clip_trees: tuple[InsideTree, ...]) -> InsideTree:
+    """A clipped object is inside where its own solid (with its ``inverse``) and every clipping
+    object are (POV-Ray's inside test checks the clipping objects first, uninverted)."""
+    return InAll((tree, *clip_trees)) if clip_trees else tree
 
 
 def make_plan(scene: Scene) -> Plan:
     """Flattens ``scene`` and derives its :class:`Effects` (structure only; safe under jit)."""
     fl = _Flattener()
     default_texture = Texture()
-    for obj in scene.objects:
-        fl.flatten(obj, transforms=(), texture=default_texture, interior=None, rendered=True,
-                   inverse=False, conditions=(), flags=frozenset())
+    roots = tuple(fl.flatten(obj, transforms=(), texture=default_texture, interior=None, rendered=True,
+                             inverse=False, conditions=(), flags=frozenset()) for obj in scene.objects)
     prims = tuple(fl.prims)
     warnings = list(scene.warnings)
     rendered = [p for p in prims if p.rendered]
@@ -295,7 +297,7 @@ def make_plan(scene: Scene) -> Plan:
     straight_prims = [p for p in rendered if transmission
                       and all(layer.pigment.transparent for layer in p.texture.layers)
                       and (p.interior is None or p.interior.ior is None)]
-    straight_passes = min(STRAIGHT_PASSES, sum(_max_crossings(p) for p in straight_prims))
+    straight_passes = min(STRAIGHT_PASSES, sum(p.obj.shape.line_crossings for p in straight_prims))
     if reflection and transmission:  # the tree branches: keep its width (2^(depth-1)) bounded
         straight_passes = min(straight_passes, max(0, MAX_BRANCHING_DEPTH - scene.settings.max_trace_level))
     depth = scene.settings.max_trace_level + straight_passes if (reflection or transmission) else 1
@@ -321,4 +323,5 @@ def make_plan(scene: Scene) -> Plan:
         straight_passes=straight_passes,
         depth=depth,
     )
-    return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)))
+    return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),
+                roots=roots)

@@ -9,7 +9,7 @@ import pytest
 
 from raytracer import scene as S
 from raytracer._dtype import as_float, default_float
-from raytracer.scene._build import build
+from raytracer._build import build
 
 CASES = [
     (S.Sphere, dict(center=(1.0, 2.0, 3.0), radius=0.5)),

@@ -54,6 +54,9 @@ import sys
 
 import numpy as np
 
+from raytracer.shapes import NoEquivalent
+from raytracer.shapes._base import affine, frame, unit
+
 __all__ = ["NotMatchable", "MitsubaDict", "load", "mitsuba", "render_mitsuba_centres", "render_mitsuba_film",
            "to_mitsuba", "variant"]
 
@@ -215,33 +218,7 @@ def _norm(v) -> float:
     return float(np.linalg.norm(v))
 
 
-def _unit(v) -> np.ndarray:
-    return _np(v) / _norm(v)
-
-
-def _frame(n) -> np.ndarray:
-    """3×3 rotation whose third column is the unit vector ``n``."""
-    n = _unit(n)
-    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t = _unit(np.cross(a, n))
-    b = np.cross(n, t)
-    return np.stack([t, b, n], axis=1)
-
-
-def _affine(linear, translation) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, :3] = linear
-    m[:3, 3] = translation
-    return m
-
-
-def _similarity_scale(m) -> float | None:
-    """The uniform scale of a rotation·scale (+translation) matrix, or None if it is not one."""
-    a = m[:3, :3]
-    s2 = np.trace(a.T @ a) / 3.0
-    if s2 <= 0 or not np.allclose(a.T @ a, s2 * np.eye(3), rtol=0.0, atol=1e-5 * s2):  # float32 input
-        return None
-    return math.sqrt(s2)
+_unit, _frame, _affine = unit, frame, affine
 
 
 def _matrix(transform) -> np.ndarray:
@@ -357,73 +334,31 @@ class _Converter:
         return f"{kind}_{self.count}"
 
     def shape(self, shape, m, texture, interior, inverse):
-        mi = mitsuba()
-        kind = shape.kind
-        T = mi.ScalarTransform4f
-        planar = kind in ("plane", "disc", "triangle", "smooth_triangle", "mesh")
-        if kind == "sphere":
-            s = _similarity_scale(m)
-            if s is None:
-                raise NotMatchable("ellipsoid", "a non-uniformly scaled sphere needs tessellation in Mitsuba")
-            centre = (m @ np.append(_np(shape.center), 1.0))[:3]
-            radius = s * float(shape.radius)
-            entries = [{"type": "sphere", "center": centre.tolist(), "radius": radius}]
-            closed = True
-            self._check_camera_outside(_norm(self.camera_origin - centre) < radius, "sphere")
-        elif kind == "box":
-            c1, c2 = _np(shape.corner1), _np(shape.corner2)
-            lo, hi = np.minimum(c1, c2), np.maximum(c1, c2)
-            local = _affine(np.diag((hi - lo) / 2.0), (hi + lo) / 2.0)
-            entries = [{"type": "cube", "to_world": T(m @ local)}]
-            closed = True
-            p = np.linalg.solve(m, np.append(self.camera_origin, 1.0))[:3]
-            self._check_camera_outside(bool(np.all((p > lo) & (p < hi))), "box")
-        elif kind == "cylinder":
-            s = _similarity_scale(m)
-            if s is None:
-                raise NotMatchable("non-uniformly scaled cylinder")
-            base = (m @ np.append(_np(shape.base), 1.0))[:3]
-            cap = (m @ np.append(_np(shape.cap), 1.0))[:3]
-            radius = s * float(shape.radius)
-            entries = [{"type": "cylinder", "p0": base.tolist(), "p1": cap.tolist(), "radius": radius}]
-            axis = _unit(cap - base)
-            if not shape.open:
-                for centre, normal in ((base, -axis), (cap, axis)):
-                    local = _affine(_frame(normal) @ np.diag([radius, radius, 1.0]), centre)
-                    entries.append({"type": "disk", "to_world": T(local)})
-            closed = not shape.open
-        elif kind == "disc":
-            if float(shape.hole_radius) != 0.0:
-                raise NotMatchable("disc with a hole")
-            centre = (m @ np.append(_np(shape.center), 1.0))[:3]
-            n_world = np.linalg.inv(m[:3, :3]).T @ _unit(shape.normal)
-            if np.dot(self.camera_origin - centre, n_world) < 0:
-                n_world = -n_world  # one-sided emitters face the camera; POV shades both sides
-            r = float(shape.radius)
-            a = m[:3, :3] @ _frame(_unit(shape.normal))  # disc plane axes, transformed
-            linear = np.stack([a[:, 0] * r, a[:, 1] * r, _unit(n_world)], axis=1)
-            entries = [{"type": "disk", "to_world": T(_affine(linear, centre))}]
-            closed = False
-        elif kind == "plane":
-            entries, pigment_uv = self._plane(shape, m, texture)
-            self._material(entries, texture, interior, closed=False, planar=True, uv=pigment_uv)
-            return
-        elif kind in ("triangle", "smooth_triangle", "mesh"):
-            entries = [self._mesh(shape, m)]
-            closed = False
-        else:
-            raise NotMatchable(kind, "no Mitsuba primitive; tessellation would be an approximation")
-        self._material(entries, texture, interior, closed=closed, planar=planar, uv=None)
+        """The shape's own Mitsuba equivalent (``AbstractShape.to_mitsuba``) with its material;
+        the two requests a shape may make (a triangle mesh, an infinite plane) are built here."""
+        try:
+            geo = shape.to_mitsuba(m, self.camera_origin)
+        except NoEquivalent as e:
+            raise NotMatchable(e.feature, e.detail) from None
+        uv = None
+        entries = []
+        for entry in geo.entries:
+            if entry["type"] == "_plane":
+                rect, uv = self._plane(entry["point"], entry["normal"], texture)
+                entries.append(rect)
+            elif entry["type"] == "_mesh":
+                entries.append({"_mesh": True, "name": self._name("mesh"), "vertices": entry["vertices"],
+                                "normals": entry["normals"]})
+            elif "to_world" in entry:
+                entries.append({**entry, "to_world": mitsuba().ScalarTransform4f(entry["to_world"])})
+            else:
+                entries.append(entry)
+        self._material(entries, texture, interior, closed=geo.closed, planar=geo.planar, uv=uv)
 
-    def _check_camera_outside(self, inside: bool, what: str):
-        if inside:
-            raise NotMatchable(f"camera inside a {what}")
-
-    def _plane(self, shape, m, texture):
+    def _plane(self, p_world, n_world, texture):
+        """A rectangle standing in for the infinite plane through ``p_world`` with unit normal
+        ``n_world``, centred under the camera, and the checker's uv when the pigment is one."""
         mi = mitsuba()
-        n_obj = _unit(shape.normal)
-        p_world = (m @ np.append(n_obj * float(shape.distance), 1.0))[:3]
-        n_world = _unit(np.linalg.inv(m[:3, :3]).T @ n_obj)
         height = float(np.dot(self.camera_origin - p_world, n_world))
         if height < 0:
             self._inside_plane = True
@@ -441,7 +376,7 @@ class _Converter:
         # e1/e2 carry the checker's uv; the third column (the normal Mitsuba uses, whatever the
         # determinant) faces the camera, because area emitters (POV's ambient) are one-sided
         linear = np.stack([e1 * half, e2 * half, facing], axis=1)
-        return [{"type": "rectangle", "to_world": mi.ScalarTransform4f(_affine(linear, centre))}], uv
+        return {"type": "rectangle", "to_world": mi.ScalarTransform4f(_affine(linear, centre))}, uv
 
     def _checker_frame(self, pigment, n_world, centre, half):
         """Rectangle axes and the ``to_uv`` that reproduce POV's checker on an axis-aligned plane.
@@ -472,46 +407,21 @@ class _Converter:
         to_uv = np.array([[rows[0][0], 0.0, rows[0][1]], [0.0, rows[1][0], rows[1][1]], [0.0, 0.0, 1.0]])
         return (e1, e2), {"to_uv": mi.ScalarTransform3f(to_uv), "swap": parity == 1}
 
-    def _mesh(self, shape, m):
-        mi = mitsuba()
-        kind = shape.kind
-        normals = None
-        if kind == "triangle":
-            tris = np.stack([_np(shape.p1), _np(shape.p2), _np(shape.p3)])[None]
-        elif kind == "smooth_triangle":
-            tris = np.stack([_np(shape.p1), _np(shape.p2), _np(shape.p3)])[None]
-            normals = np.stack([_np(shape.n1), _np(shape.n2), _np(shape.n3)])[None]
-        else:
-            tris = _np(shape.triangles)
-            normals = None if shape.normals is None else _np(shape.normals)
-        if normals is not None:
-            lengths = np.linalg.norm(normals, axis=-1)
-            if not np.allclose(lengths, 1.0, rtol=1e-5):
-                raise NotMatchable("smooth triangle normals that are not unit length",
-                                   "POV interpolates unnormalised normals, Mitsuba normalises")
-        flat = tris.reshape(-1, 3)
-        world = (m[:3, :3] @ flat.T).T + m[:3, 3]
-        n_faces = len(tris)
-        mesh_name = self._name("mesh")
-        props = mi.Properties()
-        self._pending_mesh = (mesh_name, world, normals, m, n_faces)
-        return {"_mesh": True, "name": mesh_name, "props": props}
-
     def _build_mesh(self, entry, bsdf, emitter):
         mi = mitsuba()
-        mesh_name, world, normals, m, n_faces = self._pending_mesh
+        world, normals = entry["vertices"], entry["normals"]
+        n_faces = len(world)
         props = mi.Properties()
         props["bsdf"] = mi.load_dict(bsdf)
         if emitter is not None:
             props["emitter"] = mi.load_dict(emitter)
-        mesh = mi.Mesh(mesh_name, 3 * n_faces, n_faces, props=props, has_vertex_normals=normals is not None)
+        mesh = mi.Mesh(entry["name"], 3 * n_faces, n_faces, props=props,
+                       has_vertex_normals=normals is not None)
         params = mi.traverse(mesh)
         params["vertex_positions"] = world.astype(np.float32).ravel()
         params["faces"] = np.arange(3 * n_faces, dtype=np.uint32)
         if normals is not None:
-            nw = (np.linalg.inv(m[:3, :3]).T @ normals.reshape(-1, 3).T).T
-            nw /= np.linalg.norm(nw, axis=-1, keepdims=True)
-            params["vertex_normals"] = nw.astype(np.float32).ravel()
+            params["vertex_normals"] = normals.astype(np.float32).ravel()
         params.update()
         return mesh
 

@@ -8,6 +8,20 @@ they are. numpy leaves are ordinary JAX leaves — ``jit``, ``grad``, ``eqx.tree
 methods such as ``.at[]``, take ``jnp.asarray(leaf)`` first.
 """
 
+from ..shapes import AbstractShape as AbstractShape
+from ..shapes import Box as Box
+from ..shapes import Cone as Cone
+from ..shapes import Cylinder as Cylinder
+from ..shapes import Disc as Disc
+from ..shapes import Mesh as Mesh
+from ..shapes import Plane as Plane
+from ..shapes import Polygon as Polygon
+from ..shapes import Quadric as Quadric
+from ..shapes import SmoothTriangle as SmoothTriangle
+from ..shapes import Sphere as Sphere
+from ..shapes import Torus as Torus
+from ..shapes import Triangle as Triangle
+from ..shapes import polygon_from_points as polygon_from_points
 from ._camera import Camera as Camera
 from ._lights import AreaLight as AreaLight
 from ._lights import Light as Light
@@ -18,20 +32,6 @@ from ._objects import AbstractObject as AbstractObject
 from ._objects import Object as Object
 from ._scene import Scene as Scene
 from ._scene import Settings as Settings
-from ._shapes import AbstractShape as AbstractShape
-from ._shapes import Box as Box
-from ._shapes import Cone as Cone
-from ._shapes import Cylinder as Cylinder
-from ._shapes import Disc as Disc
-from ._shapes import Mesh as Mesh
-from ._shapes import Plane as Plane
-from ._shapes import Polygon as Polygon
-from ._shapes import Quadric as Quadric
-from ._shapes import SmoothTriangle as SmoothTriangle
-from ._shapes import Sphere as Sphere
-from ._shapes import Torus as Torus
-from ._shapes import Triangle as Triangle
-from ._shapes import polygon_from_points as polygon_from_points
 from ._texture import PATTERNS as PATTERNS
 from ._texture import WAVES as WAVES
 from ._texture import Finish as Finish

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import equinox as eqx
 
-from ._shapes import AbstractShape
+from ..shapes import AbstractShape
 from ._texture import Interior, Texture
 from ._transform import Transform
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import scene as S
-from ..scene._build import build
+from .._build import build
+from ..shapes import SDL_KEYWORDS
 from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
 
 _FINISH_KEYS = ("ambient", "emission", "diffuse", "brilliance", "phong", "phong_size", "specular",
@@ -107,36 +108,7 @@ class Lowerer:
 
 
 def lower_shape(rec: ObjRec) -> S.AbstractShape:
-    s, kind = rec.shape, rec.kind
-    if kind == "sphere":
-        return build(S.Sphere, center=s["center"], radius=s["radius"])
-    if kind == "plane":
-        return build(S.Plane, normal=s["normal"], distance=s["distance"])
-    if kind == "box":
-        return build(S.Box, corner1=s["corner1"], corner2=s["corner2"])
-    if kind == "cylinder":
-        return build(S.Cylinder, base=s["base"], cap=s["cap"], radius=s["radius"],
-                     open=s.get("open", False))
-    if kind == "cone":
-        return build(S.Cone, base=s["base"], base_radius=s["base_radius"], cap=s["cap"],
-                     cap_radius=s["cap_radius"], open=s.get("open", False))
-    if kind == "torus":
-        return build(S.Torus, major=s["major"], minor=s["minor"])
-    if kind == "disc":
-        return build(S.Disc, center=s["center"], normal=s["normal"], radius=s["radius"],
-                     hole_radius=s["hole_radius"])
-    if kind == "quadric":
-        return build(S.Quadric, coeffs=s["coeffs"])
-    if kind == "polygon":
-        return S.polygon_from_points(s["points"])
-    if kind == "triangle":
-        return build(S.Triangle, p1=s["p1"], p2=s["p2"], p3=s["p3"])
-    if kind == "smooth_triangle":
-        return build(S.SmoothTriangle, p1=s["p1"], p2=s["p2"], p3=s["p3"], n1=s["n1"], n2=s["n2"],
-                     n3=s["n3"])
-    if kind in ("mesh", "mesh2"):
-        return S.Mesh(s["triangles"], s["normals"])
-    raise ValueError(f"cannot lower {kind}")
+    return SDL_KEYWORDS[rec.kind].from_sdl(rec.shape)
 
 
 def _apply_point(m, v):

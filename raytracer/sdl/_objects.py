@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..shapes import SDL_KEYWORDS
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
 from ._lexer import EOF, ID, OP
 from ._textures import (
@@ -25,8 +26,7 @@ from ._textures import (
 )
 from ._values import CameraRec, LayerRec, LightRec, ObjRec, TextureRec, Vec
 
-PRIMITIVES = ("sphere", "plane", "box", "cylinder", "cone", "torus", "disc", "quadric", "polygon",
-              "triangle", "smooth_triangle", "mesh", "mesh2")
+PRIMITIVES = tuple(SDL_KEYWORDS)
 CSG_KEYWORDS = ("union", "intersection", "difference", "merge")
 UNSUPPORTED_OBJECTS = ("lathe", "sor", "prism", "sphere_sweep", "blob", "superellipsoid",
                        "height_field", "text", "isosurface", "parametric", "julia_fractal",
@@ -57,7 +57,7 @@ def parse_object(p):
         return _parse_unsupported(p, t)
     rec = ObjRec(kw, loc=t.loc, default_layer=p.default_layer)
     p.expect_op("{", f"'{{' after {kw}")
-    SHAPES[kw](p, rec)
+    rec.shape = SDL_KEYWORDS[kw].parse_sdl(kw, _ShapeArgs(p, rec))
     object_modifiers(p, rec)
     return rec
 
@@ -177,8 +177,8 @@ def _modifier(p, rec: ObjRec, t) -> None:
         rec.flags[kw] = _opt_bool(p)
     elif kw == "inverse":
         rec.flags["inverse"] = not rec.flags.get("inverse", False)
-    elif kw == "open" and rec.kind in ("cylinder", "cone"):
-        rec.shape["open"] = True
+    elif rec.kind in SDL_KEYWORDS and kw in SDL_KEYWORDS[rec.kind].sdl_flags:
+        rec.shape[kw] = True
     elif kw in ("hollow", "sturm", "smooth", "split_union", "global_lights", "cutaway_textures",
                 "no_radiosity",
                 "uv_mapping", "hierarchy"):
@@ -232,239 +232,95 @@ def _bounded_by(p, rec):
 
 
 # ---- shapes ----------------------------------------------------------------------------------
-def _sphere(p, rec):
-    rec.shape = {"center": vector3(p)}
-    opt_comma(p)
-    rec.shape["radius"] = float_(p)
+# Each shape's syntax lives with the shape (``raytracer.shapes``); it reads its arguments through
+# this facade, so the shape modules never import the interpreter.
+MAX_COUNT = 10_000_000  # entries of a polygon, mesh2 list … (a larger count is an error, not a hang)
 
 
-def _plane(p, rec):
-    t = p.peek()
-    n = np.asarray(vector3(p), dtype=np.float64)
-    opt_comma(p)
-    d = float_(p)
-    length = float(np.linalg.norm(n))
-    if length == 0:
-        raise p.error("expected a non-zero plane normal, found <0,0,0>", t.loc)
-    rec.shape = {"normal": tuple(n / length), "distance": d}
+class _ShapeArgs:
+    """The interpreter as ``raytracer.shapes.ShapeArgs`` for the object record ``rec``."""
 
+    def __init__(self, p, rec: ObjRec):
+        self._p, self._rec = p, rec
 
-def _box(p, rec):
-    a = vector3(p)
-    opt_comma(p)
-    rec.shape = {"corner1": a, "corner2": vector3(p)}
+    @property
+    def loc(self):
+        return self._p.peek().loc
 
+    def float(self) -> float:
+        return float_(self._p)
 
-def _cylinder(p, rec):
-    a = vector3(p)
-    opt_comma(p)
-    b = vector3(p)
-    opt_comma(p)
-    rec.shape = {"base": a, "cap": b, "radius": float_(p)}
+    def expr(self):
+        return parse_expr(self._p)
 
-
-def _cone(p, rec):
-    a = vector3(p)
-    opt_comma(p)
-    r0 = float_(p)
-    opt_comma(p)
-    b = vector3(p)
-    opt_comma(p)
-    rec.shape = {"base": a, "base_radius": r0, "cap": b, "cap_radius": float_(p)}
-
-
-def _torus(p, rec):
-    a = float_(p)
-    opt_comma(p)
-    rec.shape = {"major": a, "minor": float_(p)}
-
-
-def _disc(p, rec):
-    c = vector3(p)
-    opt_comma(p)
-    n = vector3(p)
-    opt_comma(p)
-    r = float_(p)
-    hole = 0.0
-    if p.accept_op(","):
-        hole = float_(p)
-    rec.shape = {"center": c, "normal": n, "radius": r, "hole_radius": hole}
-
-
-def _quadric(p, rec):
-    a = vector3(p)
-    opt_comma(p)
-    b = vector3(p)
-    opt_comma(p)
-    c = vector3(p)
-    opt_comma(p)
-    rec.shape = {"coeffs": (*a, *b, *c, float_(p))}
-
-
-def _polygon(p, rec):
-    t = p.peek()
-    n = int(float_(p))
-    pts = []
-    for _ in range(n):
-        opt_comma(p)
+    def vector(self, size: int = 3, *, allow_2d: bool = False) -> tuple:
+        p = self._p
+        loc = p.peek().loc
         v = parse_expr(p)
-        pts.append(as_vector(p, v, 3, t.loc) if isinstance(v, Vec) and len(v) >= 3
-                   else as_vector(p, v, 2, t.loc) + (0.0,))
-    if n < 3:
-        raise p.error(f"expected at least 3 polygon points, found {n}", t.loc)
-    rec.shape = {"points": pts}
+        if allow_2d and not (isinstance(v, Vec) and len(v) >= 3):
+            return as_vector(p, v, 2, loc) + (0.0,)
+        return as_vector(p, v, size, loc)
 
+    def count(self, what: str) -> int:
+        p = self._p
+        loc = p.peek().loc
+        v = float_(p)
+        if not (0 <= v <= MAX_COUNT):  # also NaN and ±inf
+            raise p.error(f"expected a number of {what} from 0 to {MAX_COUNT:,}, found {v:.6g}", loc)
+        return int(v)
 
-def _triangle(p, rec):
-    a = vector3(p)
-    opt_comma(p)
-    b = vector3(p)
-    opt_comma(p)
-    rec.shape = {"p1": a, "p2": b, "p3": vector3(p)}
+    def comma(self) -> None:
+        opt_comma(self._p)
 
+    def accept(self, op: str) -> bool:
+        return self._p.accept_op(op)
 
-def _smooth_triangle(p, rec):
-    vals = []
-    for i in range(6):
-        if i:
-            opt_comma(p)
-        vals.append(vector3(p))
-    rec.shape = {"p1": vals[0], "n1": vals[1], "p2": vals[2], "n2": vals[3], "p3": vals[4],
-                 "n3": vals[5]}
+    def expect(self, op: str, what: str = "") -> None:
+        self._p.expect_op(op, what or None)
 
+    def keyword(self, *names: str) -> str | None:
+        t = self._p.peek()
+        if t.kind == ID and t.value in names:
+            self._p.next()
+            return t.value
+        return None
 
-def _mesh(p, rec):
-    tris, norms, smooth = [], [], False
-    while p.peek().kind == ID and p.peek().value in ("triangle", "smooth_triangle"):
-        t = p.next()
-        p.expect_op("{")
-        sub = ObjRec(t.value)
-        (_triangle if t.value == "triangle" else _smooth_triangle)(p, sub)
-        s = sub.shape
-        tris.append((s["p1"], s["p2"], s["p3"]))
-        if t.value == "smooth_triangle":
-            smooth = True
-            norms.append((s["n1"], s["n2"], s["n3"]))
-        else:
-            norms.append(None)
-        while not p.accept_op("}"):
-            k = p.next()
-            if k.kind == ID and k.value == "texture":
-                _mesh_texture(p, rec, k)
-            elif k.kind == ID and k.value == "uv_vectors":
-                for i in range(3):
-                    if i:
-                        opt_comma(p)
-                    parse_expr(p)
-            else:
-                raise p.error(f"expected '}}' after the mesh triangle, found {k.describe()}", k.loc)
-    _set_mesh(p, rec, tris, norms, smooth)
+    def number_after_comma(self) -> bool:
+        p = self._p
+        if not p.is_op(","):
+            return False
+        t = p.raw_peek(0) if p.la is not None else None
+        return t is not None and t.kind == "num"
 
-
-def _mesh_texture(p, rec, k):
-    if not rec.flags.get("_mesh_tex_warned"):
-        p.warn("mesh texture", "per-triangle mesh textures are not supported; the first one is used "
-               "for the whole mesh", k.loc)
-    tex = p.lookup(p.peek().value) if p.peek().kind == ID and not p.is_op("{") else None
-    if isinstance(tex, TextureRec):
-        p.next()
-    else:
-        tex = parse_texture(p, p.default_layer)
-    if not rec.flags.get("_mesh_tex_warned"):
-        rec.flags["_mesh_tex_warned"] = True
-        rec.layers = list(tex.layers)
-
-
-def _set_mesh(p, rec, tris, norms, smooth):
-    if not tris:
-        rec.supported = False
-        p.warn("mesh", "empty mesh; left out", rec.loc)
-        return
-    n = None
-    if smooth:
-        n = []
-        for tri, nn in zip(tris, norms, strict=True):
-            if nn is None:
-                a, b, c = (np.asarray(v) for v in tri)
-                fn = np.cross(b - a, c - a)
-                nn = (fn, fn, fn)
-            n.append(nn)
-        n = np.asarray(n, dtype=np.float64)
-    rec.shape = {"triangles": np.asarray(tris, dtype=np.float64), "normals": n}
-
-
-def _count_list(p, name):
-    p.expect_op("{", f"'{{' after {name}")
-    t = p.peek()
-    n = int(float_(p))
-    items = []
-    for _ in range(n):
-        opt_comma(p)
-        items.append(parse_expr(p))
-    opt_comma(p)
-    p.expect_op("}", f"'}}' to close {name} ({n} entries)")
-    return items, t.loc
-
-
-def _mesh2(p, rec):
-    verts = normals = faces = nidx = None
-    while p.peek().kind == ID and p.peek().value in ("vertex_vectors", "normal_vectors",
-                                                      "uv_vectors", "texture_list", "face_indices",
-                                                      "normal_indices", "uv_indices"):
-        t = p.next()
-        if t.value == "texture_list":
-            p.warn("mesh2 texture_list", "mesh2 texture_list is not supported; ignored", t.loc)
-            skip_braces(p)
-            continue
-        if t.value == "face_indices":
-            faces = _face_list(p)
-            continue
-        items, loc = _count_list(p, t.value)
-        if t.value == "vertex_vectors":
-            verts = [as_vector(p, v, 3, loc) for v in items]
-        elif t.value == "normal_vectors":
-            normals = [as_vector(p, v, 3, loc) for v in items]
-        elif t.value == "normal_indices":
-            nidx = [tuple(int(c) for c in as_vector(p, v, 3, loc)) for v in items]
-    if verts is None or faces is None:
-        raise p.error("expected vertex_vectors and face_indices in mesh2", rec.loc)
-    try:
-        tris = [tuple(verts[i] for i in f) for f in faces]
-        norms = None
-        if normals is not None:
-            idx = nidx if nidx is not None else faces
-            norms = [tuple(normals[i] for i in f) for f in idx]
-    except IndexError:
-        raise p.error("mesh2 index out of range", rec.loc) from None
-    _set_mesh(p, rec, tris, norms or [None] * len(tris), norms is not None)
-
-
-def _face_list(p):
-    p.expect_op("{")
-    t = p.peek()
-    n = int(float_(p))
-    faces = []
-    for _ in range(n):
-        opt_comma(p)
-        v = parse_expr(p)
-        faces.append(tuple(int(c) for c in as_vector(p, v, 3, t.loc)))
-        # optional texture indices after a face
-        while p.is_op(",") and _texture_index_follows(p):
+    def texture(self) -> None:
+        p, rec = self._p, self._rec
+        loc = p.peek().loc
+        tex = p.lookup(p.peek().value) if p.peek().kind == ID and not p.is_op("{") else None
+        if isinstance(tex, TextureRec):
             p.next()
-            float_(p)
-    opt_comma(p)
-    p.expect_op("}")
-    return faces
+        else:
+            tex = parse_texture(p, p.default_layer)
+        if not rec.flags.get("_part_texture_seen"):
+            rec.flags["_part_texture_seen"] = True
+            p.warn(f"{rec.kind} texture", f"per-part {rec.kind} textures are not supported; the first one "
+                   f"is used for the whole {rec.kind}", loc)
+            rec.layers = list(tex.layers)
 
+    def skip_block(self) -> None:
+        skip_braces(self._p)
 
-def _texture_index_follows(p) -> bool:
-    t = p.raw_peek(0) if p.la is not None else None
-    return t is not None and t.kind == "num"
+    def describe_next(self) -> str:
+        return self._p.peek().describe()
 
+    def error(self, message: str, loc=None):
+        return self._p.error(message, loc)
 
-SHAPES = {"sphere": _sphere, "plane": _plane, "box": _box, "cylinder": _cylinder, "cone": _cone,
-          "torus": _torus, "disc": _disc, "quadric": _quadric, "polygon": _polygon,
-          "triangle": _triangle, "smooth_triangle": _smooth_triangle, "mesh": _mesh, "mesh2": _mesh2}
+    def warn(self, feature: str, message: str, loc=None) -> None:
+        self._p.warn(feature, message, loc or self._p.peek().loc)
+
+    def leave_out(self, message: str) -> None:
+        self._rec.supported = False
+        self._p.warn(self._rec.kind, message, self._rec.loc)
 
 
 # ---- lights ----------------------------------------------------------------------------------

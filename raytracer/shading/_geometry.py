@@ -12,89 +12,27 @@ the same candidates.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import kernels as K
 from .._plan import InAll, InDiff, InPrim, InsideTree, Plan
+from ..kernels import safe_normalize
 from ..scene._transform import inverse_affine
-
-
-@dataclasses.dataclass(frozen=True)
-class KindSpec:
-    """How to call the kernels of one primitive kind."""
-
-    params: Callable  # shape -> tuple of arrays
-    hits: Callable  # (*params, o, d) -> (t (K,), n (K, 3))
-    inside: Callable | None  # (*params, p) -> bool
-    static: Callable = lambda shape: ()  # shape -> hashable static variant key
-
-
-def _mesh_hits(triangles, normals, o, d):
-    if normals is None:
-        t, n = jax.vmap(lambda tri: K.triangle_hits(tri[0], tri[1], tri[2], o, d))(triangles)
-    else:
-        t, n = jax.vmap(lambda tri, nn: K.smooth_triangle_hits(tri[0], tri[1], tri[2], nn[0], nn[1],
-                                                               nn[2], o, d))(triangles, normals)
-    return t[:, 0], n[:, 0]
-
-
-KINDS: dict[str, KindSpec] = {
-    "sphere": KindSpec(lambda s: (s.center, s.radius), K.sphere_hits, K.sphere_inside),
-    "plane": KindSpec(lambda s: (s.normal, s.distance), K.plane_hits, K.plane_inside),
-    "box": KindSpec(lambda s: (s.corner1, s.corner2), K.box_hits, K.box_inside),
-    "cylinder": KindSpec(
-        lambda s: (s.base, s.cap, s.radius),
-        None, None, static=lambda s: (s.open,)),
-    "cone": KindSpec(
-        lambda s: (s.base, s.base_radius, s.cap, s.cap_radius),
-        None, None, static=lambda s: (s.open,)),
-    "quadric": KindSpec(lambda s: (s.coeffs,), K.quadric_hits, K.quadric_inside),
-    "torus": KindSpec(lambda s: (s.major, s.minor), lambda *a: K.torus_hits(*a),
-                      lambda *a: K.torus_inside(*a)),
-    "disc": KindSpec(lambda s: (s.center, s.normal, s.radius, s.hole_radius), K.disc_hits,
-                     K.disc_inside),
-    "triangle": KindSpec(lambda s: (s.p1, s.p2, s.p3), K.triangle_hits, None),
-    "smooth_triangle": KindSpec(lambda s: (s.p1, s.p2, s.p3, s.n1, s.n2, s.n3),
-                                K.smooth_triangle_hits, None),
-    "polygon": KindSpec(lambda s: (s.vertices,), None, None,
-                        static=lambda s: (s.edges, s.vertices.shape[0])),
-    "mesh": KindSpec(lambda s: (s.triangles, s.normals), None, None,
-                     static=lambda s: (s.triangles.shape[0], s.normals is None)),
-}
-
-
-def _hits_fn(kind: str, static: tuple) -> Callable:
-    if kind == "cylinder":
-        return lambda b, c, r, o, d: K.cylinder_hits(b, c, r, o, d, open=static[0])
-    if kind == "cone":
-        return lambda b, rb, c, rc, o, d: K.cone_hits(b, rb, c, rc, o, d, open=static[0])
-    if kind == "polygon":
-        return lambda v, o, d: K.polygon_hits(v, static[0], o, d)
-    if kind == "mesh":
-        return _mesh_hits
-    return KINDS[kind].hits
-
-
-def _inside_fn(kind: str, static: tuple) -> Callable | None:
-    if kind == "cylinder":
-        return K.cylinder_inside  # open or not, the inside is the solid's (reference §4.1)
-    if kind == "cone":
-        return K.cone_inside
-    return KINDS[kind].inside
+from ..shapes import AbstractShape
 
 
 @dataclasses.dataclass(frozen=True)
 class Group:
-    """Static description of one stacked group of primitives."""
+    """Static description of one stacked group of primitives: one shape class and one static
+    variant (the shape's pytree structure and leaf shapes), so one ``vmap`` of its kernel."""
 
     kind: str
-    static: tuple
     prims: tuple[int, ...]  # indices into plan.prims
     k: int  # crossings per instance
+    solid: bool  # has an inside test
 
 
 @dataclasses.dataclass
@@ -102,28 +40,34 @@ class PackedGeometry:
     """Arrays of every group (built inside the jit trace from the scene's leaves)."""
 
     groups: tuple[Group, ...]
-    params: tuple[tuple, ...]  # per group: stacked shape parameters
+    shapes: tuple[AbstractShape, ...]  # per group: the group's shapes stacked along a leading axis
     object_from_world: tuple[jax.Array, ...]  # per group: (n, 4, 4)
     where: dict[int, tuple[int, int]]  # prim -> (group, index in group)
     cand_prim: np.ndarray  # (C,) prim index of every flat candidate
     n_candidates: int
-    circuit: CSGCircuit | None = None  # None when no hit has CSG / clipping conditions
+    conditions: CSGConditions | None = None  # None when no hit has CSG / clipping conditions
 
 
 def _stack(trees):
     return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trees)
 
 
+def _variant(shape: AbstractShape) -> tuple:
+    """Shapes with equal keys stack into one group: same class, static fields and leaf shapes."""
+    leaves, treedef = jax.tree_util.tree_flatten(shape)
+    return treedef, tuple(np.shape(x) for x in leaves)
+
+
 def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
     keyed: dict[tuple, list[int]] = {}
     for i, p in enumerate(plan.prims):
-        keyed.setdefault((p.kind, KINDS[p.kind].static(p.obj.shape)), []).append(i)
-    groups, params, ofw, where, cand_prim = [], [], [], {}, []
-    for (kind, static), ids in keyed.items():
-        shapes = [plan.prims[i].obj.shape for i in ids]
-        k = _candidates_per_instance(kind, shapes[0])
-        groups.append(Group(kind, static, tuple(ids), k))
-        params.append(_stack([KINDS[kind].params(s) for s in shapes]))
+        keyed.setdefault(_variant(p.obj.shape), []).append(i)
+    groups, shapes, ofw, where, cand_prim = [], [], [], {}, []
+    for ids in keyed.values():
+        members = [plan.prims[i].obj.shape for i in ids]
+        k = members[0].n_crossings()
+        groups.append(Group(members[0].kind, tuple(ids), k, type(members[0]).solid))
+        shapes.append(_stack(members))
         mats = []
         for i in ids:
             t = plan.prims[i].world_from_object()
@@ -132,17 +76,11 @@ def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
         for j, i in enumerate(ids):
             where[i] = (len(groups) - 1, j)
             cand_prim.extend([i] * k)
-    geo = PackedGeometry(tuple(groups), tuple(params), tuple(ofw), where,
+    geo = PackedGeometry(tuple(groups), tuple(shapes), tuple(ofw), where,
                          np.asarray(cand_prim, dtype=np.int32), len(cand_prim))
     if plan.effects.csg:
-        geo = dataclasses.replace(geo, circuit=build_csg_circuit(geo, plan))
+        geo = dataclasses.replace(geo, conditions=build_csg_conditions(geo, plan))
     return geo
-
-
-def _candidates_per_instance(kind: str, shape) -> int:
-    if kind == "mesh":
-        return int(shape.triangles.shape[0])
-    return getattr(K, f"{kind.upper()}_K")
 
 
 def _to_object(m, o, d):
@@ -157,54 +95,52 @@ def all_crossings(geo: PackedGeometry, o, d):
         n: (C, 3) unit outward world normals (``inverse`` not applied).
     """
     ts, ns = [], []
-    for g, prm, ofw in zip(geo.groups, geo.params, geo.object_from_world, strict=True):
-        fn = _hits_fn(g.kind, g.static)
+    for shapes, ofw in zip(geo.shapes, geo.object_from_world, strict=True):
 
-        def one(prm_i, ofw_i, fn=fn):
+        def one(shape, ofw_i):
             oo, dd = _to_object(ofw_i, o, d)
-            t, n = fn(*prm_i, oo, dd)
+            t, n = shape.hits(oo, dd)
             # normals transform with the inverse transpose
-            nw = n @ ofw_i[:3, :3]
-            return t, K.safe_normalize(nw)
+            return t, safe_normalize(n @ ofw_i[:3, :3])
 
-        t, n = jax.vmap(one)(prm, ofw)
+        t, n = jax.vmap(one)(shapes, ofw)
         ts.append(t.reshape(-1))
         ns.append(n.reshape(-1, 3))
     return jnp.concatenate(ts), jnp.concatenate(ns)
 
 
 @dataclasses.dataclass(frozen=True)
-class CSGCircuit:
-    """The CSG / clipping conditions of every candidate slot as one flat boolean circuit.
+class InsideCircuit:
+    """Inside trees instantiated at points, as one flat boolean circuit: the ONE evaluation of CSG
+    inside tests (hit conditions of the renderer, ``inside()`` / ``trace()`` at parse time).
 
-    Every condition tree is instantiated at the candidate point it tests. Node values live in one
-    array: two constants (False, True), then the leaves (an inside test of primitive ``prim`` at
-    candidate ``cand``'s point), then internal nodes, grouped by height so each height is one
-    gather-and-reduce. ``difference`` is rewritten as ``all(first, not rest…)``. The trace size
-    grows with the circuit's height, not with the number of conditions.
+    Node values live in one array: two constants (False, True), then the leaves (an inside test of
+    primitive ``leaf_prim`` at point ``leaf_point``), then internal nodes, grouped by height so each
+    height is one gather-and-reduce. ``difference`` is rewritten as ``all(first, not rest…)``. The
+    trace size grows with the circuit's height, not with the number of trees.
     """
 
-    leaf_cand: np.ndarray  # (L,) candidate slot of each leaf
+    leaf_point: np.ndarray  # (L,) point index of each leaf
     leaf_prim: np.ndarray  # (L,) primitive of each leaf
     levels: tuple  # per height: (is_all (n,), children (n, A), negate (n, A), inverse (n,))
-    cond_cand: np.ndarray  # (Q,) candidate slot of each condition
-    cond_root: np.ndarray  # (Q,) node id of the condition's tree
-    cond_want: np.ndarray  # (Q,) bool: inside wanted
+    roots: np.ndarray  # (Q,) node id of each instantiated tree
 
 
-def build_csg_circuit(geo: PackedGeometry, plan: Plan) -> CSGCircuit:
+def build_inside_circuit(trees: Sequence[tuple[InsideTree, int]]) -> InsideCircuit:
+    """The circuit of ``(tree, point index)`` pairs, roots in the order given."""
     leaves: list[tuple[int, int]] = []
     internal: list[tuple[int, bool, list[tuple[int, bool]], bool]] = []  # (height, all, kids, inv)
-    def instantiate(tree: InsideTree, cand: int) -> tuple[int, int]:
+
+    def instantiate(tree: InsideTree, point: int) -> tuple[int, int]:
         """(node ref, height); refs < 0 are leaves (-1 - leaf index), refs >= 0 internal."""
         if isinstance(tree, InPrim):
-            leaves.append((cand, tree.prim))
+            leaves.append((point, tree.prim))
             ref = -len(leaves)
             if not tree.inverse:
                 return ref, 0
             internal.append((1, True, [(ref, False)], True))
             return len(internal) - 1, 1
-        kids = [instantiate(t, cand) for t in tree.terms]
+        kids = [instantiate(t, point) for t in tree.terms]
         height = 1 + max(h for _, h in kids)
         if isinstance(tree, InDiff):
             children = [(kids[0][0], False)] + [(r, True) for r, _ in kids[1:]]
@@ -215,28 +151,18 @@ def build_csg_circuit(geo: PackedGeometry, plan: Plan) -> CSGCircuit:
         internal.append((height, is_all, children, tree.inverse))
         return len(internal) - 1, height
 
-    roots = []
-    for c in range(geo.n_candidates):
-        for cond in plan.prims[int(geo.cand_prim[c])].conditions:
-            roots.append((c, instantiate(cond.tree, c)[0], cond.want))
+    root_refs = [instantiate(tree, point)[0] for tree, point in trees]
     # node ids: 0 False, 1 True, 2.. leaves, then internal nodes by height
-    n_leaves = len(leaves)
     order = sorted(range(len(internal)), key=lambda i: internal[i][0])
-    node_id = {}
-    next_id = 2 + n_leaves
-    for i in order:
-        node_id[i] = next_id
-        next_id += 1
+    node_id = {i: 2 + len(leaves) + rank for rank, i in enumerate(order)}
 
     def ref_id(ref: int) -> int:
         return 2 + (-ref - 1) if ref < 0 else node_id[ref]
 
     levels = []
-    heights = sorted({internal[i][0] for i in order})
-    for h in heights:
+    for h in sorted({internal[i][0] for i in order}):
         nodes = [i for i in order if internal[i][0] == h]
         arity = max(len(internal[i][2]) for i in nodes)
-        is_all = np.array([internal[i][1] for i in nodes])
         children = np.zeros((len(nodes), arity), np.int32)
         negate = np.zeros((len(nodes), arity), bool)
         for row, i in enumerate(nodes):
@@ -244,47 +170,69 @@ def build_csg_circuit(geo: PackedGeometry, plan: Plan) -> CSGCircuit:
             pad = 1 if internal[i][1] else 0  # True pads an "all", False pads an "any"
             children[row] = [ref_id(r) for r, _ in kids] + [pad] * (arity - len(kids))
             negate[row] = [neg for _, neg in kids] + [False] * (arity - len(kids))
-        levels.append((is_all, children, negate, np.array([internal[i][3] for i in nodes])))
-    return CSGCircuit(
-        leaf_cand=np.array([c for c, _ in leaves], np.int32),
+        levels.append((np.array([internal[i][1] for i in nodes]), children, negate,
+                       np.array([internal[i][3] for i in nodes])))
+    return InsideCircuit(
+        leaf_point=np.array([c for c, _ in leaves], np.int32),
         leaf_prim=np.array([q for _, q in leaves], np.int32),
         levels=tuple(levels),
-        cond_cand=np.array([c for c, _, _ in roots], np.int32),
-        cond_root=np.array([ref_id(r) for _, r, _ in roots], np.int32),
-        cond_want=np.array([w for _, _, w in roots], bool))
+        roots=np.array([ref_id(r) for r in root_refs], np.int32))
 
 
-def _leaf_values(geo: PackedGeometry, circuit: CSGCircuit, points):
+def _leaf_values(geo: PackedGeometry, circuit: InsideCircuit, points):
     """Inside tests of every leaf (primitive's own ``inverse`` excluded), vectorised per group."""
     values = jnp.zeros(circuit.leaf_prim.shape[0], bool)
-    for gi, g in enumerate(geo.groups):
-        fn = _inside_fn(g.kind, g.static)
+    for g, shapes, ofw in zip(geo.groups, geo.shapes, geo.object_from_world, strict=True):
         rows = np.flatnonzero(np.isin(circuit.leaf_prim, np.asarray(g.prims)))
-        if fn is None or rows.size == 0:
+        if not g.solid or rows.size == 0:
             continue  # triangles, polygons, meshes have no inside: False
         local = np.array([geo.where[int(q)][1] for q in circuit.leaf_prim[rows]], np.int32)
-        prm = jax.tree_util.tree_map(lambda a, local=local: a[local], geo.params[gi])
-        m = geo.object_from_world[gi][local]
-        pts = points[circuit.leaf_cand[rows]]
-        obj_pts = jnp.einsum("nij,nj->ni", m[:, :3, :3], pts) + m[:, :3, 3]
-        values = values.at[rows].set(jax.vmap(fn)(*prm, obj_pts))
+        members = jax.tree_util.tree_map(lambda a, local=local: a[local], shapes)
+        m = ofw[local]
+        obj_pts = jnp.einsum("nij,nj->ni", m[:, :3, :3], points[circuit.leaf_point[rows]]) + m[:, :3, 3]
+        values = values.at[rows].set(jax.vmap(lambda s, p: s.inside(p))(members, obj_pts))
     return values
 
 
-def csg_mask(geo: PackedGeometry, plan: Plan, o, d, t):
-    """(C,) bool: crossings that satisfy their primitive's CSG / clipping conditions."""
-    circuit = geo.circuit
-    if circuit is None:
-        return jnp.ones(t.shape, bool)
-    safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
-    points = o[None, :] + safe_t[:, None] * d[None, :]
+def evaluate_inside(geo: PackedGeometry, circuit: InsideCircuit, points) -> jax.Array:
+    """(Q,) bool: each root tree of ``circuit`` evaluated at its point of ``points`` (P, 3)."""
     values = jnp.concatenate([jnp.array([False, True]), _leaf_values(geo, circuit, points)])
     for is_all, children, negate, inverse in circuit.levels:
         kid = values[children] != jnp.asarray(negate)
         v = jnp.where(jnp.asarray(is_all), jnp.all(kid, axis=1), jnp.any(kid, axis=1))
         values = jnp.concatenate([values, v != jnp.asarray(inverse)])
-    failed = values[circuit.cond_root] != jnp.asarray(circuit.cond_want)
-    bad = jnp.zeros(t.shape, bool).at[circuit.cond_cand].max(failed)
+    return values[circuit.roots]
+
+
+@dataclasses.dataclass(frozen=True)
+class CSGConditions:
+    """The CSG / clipping conditions of every candidate slot: condition q holds when its tree,
+    evaluated at candidate ``cand[q]``'s point, is ``want[q]`` (inside wanted or outside)."""
+
+    circuit: InsideCircuit
+    cand: np.ndarray  # (Q,) candidate slot of each condition
+    want: np.ndarray  # (Q,) bool
+
+
+def build_csg_conditions(geo: PackedGeometry, plan: Plan) -> CSGConditions:
+    trees, cand, want = [], [], []
+    for c in range(geo.n_candidates):
+        for cond in plan.prims[int(geo.cand_prim[c])].conditions:
+            trees.append((cond.tree, c))
+            cand.append(c)
+            want.append(cond.want)
+    return CSGConditions(build_inside_circuit(trees), np.array(cand, np.int32), np.array(want, bool))
+
+
+def csg_mask(geo: PackedGeometry, plan: Plan, o, d, t):
+    """(C,) bool: crossings that satisfy their primitive's CSG / clipping conditions."""
+    conds = geo.conditions
+    if conds is None:
+        return jnp.ones(t.shape, bool)
+    safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
+    points = o[None, :] + safe_t[:, None] * d[None, :]
+    failed = evaluate_inside(geo, conds.circuit, points) != jnp.asarray(conds.want)
+    bad = jnp.zeros(t.shape, bool).at[conds.cand].max(failed)
     return ~bad
 
 

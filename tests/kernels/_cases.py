@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from raytracer import kernels as k
+from raytracer import shapes as k
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,6 +31,15 @@ class Case:
     geometric_normal: bool = True  # n is the gradient of distance (not an interpolated normal)
     signed_normal: bool = True  # n points out; False: either side (triangles, polygons)
     on_patch: Callable[[np.ndarray], bool] = lambda p: True
+
+
+def triangle_inside(p1, p2, p3, p):
+    """The registered shape's inside test (a triangle has none: always False)."""
+    return k.Triangle(p1, p2, p3).inside(p)
+
+
+def smooth_triangle_inside(p1, p2, p3, n1, n2, n3, p):
+    return k.SmoothTriangle(p1, p2, p3, n1, n2, n3).inside(p)
 
 
 def _unit(v):
@@ -170,9 +179,9 @@ def _triangle_case(smooth):
     n_hat = _unit(np.cross(p2 - p1, p3 - p1))
     if smooth:
         normals = (n_hat + [0.3, 0, 0], n_hat + [0, 0.3, 0], n_hat + [0, 0, -0.3])
-        params, hits, inside = (p1, p2, p3, *normals), k.smooth_triangle_hits, k.smooth_triangle_inside
+        params, hits, inside = (p1, p2, p3, *normals), k.smooth_triangle_hits, smooth_triangle_inside
     else:
-        params, hits, inside = (p1, p2, p3), k.triangle_hits, k.triangle_inside
+        params, hits, inside = (p1, p2, p3), k.triangle_hits, triangle_inside
     return Case(
         "smooth_triangle" if smooth else "triangle",
         params,
@@ -205,7 +214,7 @@ def _polygon_case():
         "polygon",
         (verts,),
         lambda v, o_, d_: k.polygon_hits(v, edges, o_, d_),
-        lambda v, p: k.polygon_inside(v, edges, p),
+        lambda v, p: k.Polygon(vertices=v, edges=edges).inside(p),
         lambda p: n_hat @ (p - o),
         o,
         1.0,
@@ -256,7 +265,7 @@ def _jit(fn):
 
 
 class _JittedKernels:
-    """``raytracer.kernels`` with every function jit-compiled (static ``open`` / ``edges``).
+    """The kernels of ``raytracer.shapes`` with every function jit-compiled (static ``open`` / ``edges``).
 
     Eager dispatch compiles each primitive op separately, which costs far more than one jit of a kernel.
     """

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from jax.test_util import check_grads
 
-from raytracer import kernels as k
+from raytracer import shapes as k
 
 from ._cases import CASE_IDS, CASES, random_rays
 

@@ -5,6 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from raytracer.shapes import Polygon
+
 from ._cases import jitted_kernels as k
 
 # A 4x4 square with a 2x2 square hole, both in z = 0, loops closed by their edge lists.
@@ -65,4 +67,4 @@ def test_collinear_polygon_is_degenerate_and_misses_with_finite_gradient():
 
 
 def test_polygon_has_no_inside():
-    assert not bool(k.polygon_inside(SQUARE_WITH_HOLE, SQUARE_WITH_HOLE_EDGES, jnp.zeros(3)))
+    assert not bool(Polygon(vertices=SQUARE_WITH_HOLE, edges=SQUARE_WITH_HOLE_EDGES).inside(jnp.zeros(3)))

@@ -5,11 +5,27 @@ Both are the frustum ``|p⊥|² = r(h)²`` with ``h`` the height along the axis 
 Slots: ``[side crossing 0, side crossing 1, base cap, cap cap]``.
 """
 
+from typing import ClassVar
+
+import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from ._common import masked_hits, points_at
-from ._numerics import as_float_arrays, safe_div, safe_normalize, solve_linear, solve_quadratic
+from .._dtype import as_float
+from ..kernels._common import masked_hits, points_at
+from ..kernels._numerics import as_float_arrays, safe_div, safe_normalize, solve_linear, solve_quadratic
+from ._base import (
+    AbstractShape,
+    MitsubaShape,
+    NoEquivalent,
+    affine,
+    apply_point,
+    array_module,
+    frame,
+    similarity_scale,
+    unit,
+)
 
 CYLINDER_K = 4
 CONE_K = 4
@@ -143,3 +159,92 @@ def cone_inside(
     """True where ``p`` is strictly inside the solid frustum."""
     base, base_radius, cap, cap_radius, p = as_float_arrays(base, base_radius, cap, cap_radius, p)
     return _frustum_inside(base, base_radius, cap, cap_radius, p)
+
+
+# ---------------------------------------------------------------- the record
+
+class Cylinder(AbstractShape):
+    """``cylinder { base, cap, radius [open] }``."""
+
+    kind: ClassVar[str] = "cylinder"
+    crossings: ClassVar[int] = CYLINDER_K
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("cylinder",)
+    sdl_flags: ClassVar[tuple[str, ...]] = ("open",)
+    base: Float[Array, "3"] = eqx.field(converter=as_float)
+    cap: Float[Array, "3"] = eqx.field(converter=as_float)
+    radius: Float[Array, ""] = eqx.field(converter=as_float)
+    open: bool = eqx.field(static=True, default=False)
+    line_crossings: ClassVar[int] = 2  # convex: side and caps together are crossed at most twice
+
+    def hits(self, o, d):
+        return cylinder_hits(self.base, self.cap, self.radius, o, d, open=self.open)
+
+    def inside(self, p):
+        # open or not, the inside is the solid's (docs/semantics.md §4.1)
+        return cylinder_inside(self.base, self.cap, self.radius, p)
+
+    def bounds(self):
+        return _segment_bounds(self.base, self.cap, self.radius, self.radius)
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        a = args.vector()
+        args.comma()
+        b = args.vector()
+        args.comma()
+        return {"base": a, "cap": b, "radius": args.float()}
+
+    def to_mitsuba(self, m, camera_origin):
+        s = similarity_scale(m)
+        if s is None:
+            raise NoEquivalent("non-uniformly scaled cylinder")
+        base, cap = apply_point(m, self.base), apply_point(m, self.cap)
+        radius = s * float(self.radius)
+        entries = [{"type": "cylinder", "p0": base.tolist(), "p1": cap.tolist(), "radius": radius}]
+        axis = unit(cap - base)
+        if not self.open:
+            for centre, normal in ((base, -axis), (cap, axis)):
+                entries.append({"type": "disk",
+                                "to_world": affine(frame(normal) @ np.diag([radius, radius, 1.0]), centre)})
+        return MitsubaShape(entries, closed=not self.open, planar=False)
+
+
+class Cone(AbstractShape):
+    """``cone { base, base_radius, cap, cap_radius [open] }`` (a frustum)."""
+
+    kind: ClassVar[str] = "cone"
+    crossings: ClassVar[int] = CONE_K
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("cone",)
+    sdl_flags: ClassVar[tuple[str, ...]] = ("open",)
+    base: Float[Array, "3"] = eqx.field(converter=as_float)
+    base_radius: Float[Array, ""] = eqx.field(converter=as_float)
+    cap: Float[Array, "3"] = eqx.field(converter=as_float)
+    cap_radius: Float[Array, ""] = eqx.field(converter=as_float)
+    open: bool = eqx.field(static=True, default=False)
+    line_crossings: ClassVar[int] = 2  # convex: side and caps together are crossed at most twice
+
+    def hits(self, o, d):
+        return cone_hits(self.base, self.base_radius, self.cap, self.cap_radius, o, d, open=self.open)
+
+    def inside(self, p):
+        return cone_inside(self.base, self.base_radius, self.cap, self.cap_radius, p)
+
+    def bounds(self):
+        return _segment_bounds(self.base, self.cap, self.base_radius, self.cap_radius)
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        a = args.vector()
+        args.comma()
+        r0 = args.float()
+        args.comma()
+        b = args.vector()
+        args.comma()
+        return {"base": a, "base_radius": r0, "cap": b, "cap_radius": args.float()}
+
+
+def _segment_bounds(base, cap, r0, r1):
+    """A box holding every disc of radius ≤ max(|r0|, |r1|) centred on the segment base–cap."""
+    xp = array_module(base, cap, r0, r1)
+    r = xp.maximum(xp.abs(r0), xp.abs(r1))
+    return xp.minimum(base, cap) - r, xp.maximum(base, cap) + r

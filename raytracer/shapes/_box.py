@@ -1,10 +1,22 @@
 """Axis-aligned box between two corners: the slab method (Kay & Kajiya 1986, as pbrt-v4 `IntersectP`)."""
 
+from typing import ClassVar
+
+import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from ._common import masked_hits
-from ._numerics import as_float_arrays, solve_linear
+from .._dtype import as_float
+from ..kernels._common import masked_hits
+from ..kernels._numerics import as_float_arrays, solve_linear
+from ._base import (
+    AbstractShape,
+    MitsubaShape,
+    NoEquivalent,
+    affine,
+    array_module,
+)
 
 BOX_K = 2
 
@@ -55,3 +67,40 @@ def box_inside(
     corner1, corner2, p = as_float_arrays(corner1, corner2, p)
     lo, hi = jnp.minimum(corner1, corner2), jnp.maximum(corner1, corner2)
     return jnp.all((p > lo) & (p < hi))
+
+
+# ---------------------------------------------------------------- the record
+
+class Box(AbstractShape):
+    """``box { corner1, corner2 }`` (axis-aligned in object space)."""
+
+    kind: ClassVar[str] = "box"
+    crossings: ClassVar[int] = BOX_K
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("box",)
+    corner1: Float[Array, "3"] = eqx.field(converter=as_float)
+    corner2: Float[Array, "3"] = eqx.field(converter=as_float)
+
+    def hits(self, o, d):
+        return box_hits(self.corner1, self.corner2, o, d)
+
+    def inside(self, p):
+        return box_inside(self.corner1, self.corner2, p)
+
+    def bounds(self):
+        xp = array_module(self.corner1, self.corner2)
+        return xp.minimum(self.corner1, self.corner2), xp.maximum(self.corner1, self.corner2)
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        a = args.vector()
+        args.comma()
+        return {"corner1": a, "corner2": args.vector()}
+
+    def to_mitsuba(self, m, camera_origin):
+        m = np.asarray(m, np.float64)
+        lo, hi = (np.asarray(b, np.float64) for b in self.bounds())
+        p = np.linalg.solve(m, np.append(camera_origin, 1.0))[:3]
+        if np.all((p > lo) & (p < hi)):
+            raise NoEquivalent("camera inside a box")
+        local = affine(np.diag((hi - lo) / 2.0), (hi + lo) / 2.0)
+        return MitsubaShape([{"type": "cube", "to_world": m @ local}], closed=True, planar=False)

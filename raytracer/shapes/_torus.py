@@ -7,13 +7,21 @@ The roots found without gradient get their derivatives from the implicit functio
 (:func:`differentiable_root`).
 """
 
+from typing import ClassVar
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from ._common import masked_hits
-from ._numerics import as_float_arrays, differentiable_root, safe_mask, safe_normalize, solve_quartic
+from .._dtype import as_float
+from ..kernels._common import masked_hits
+from ..kernels._numerics import as_float_arrays, differentiable_root, safe_mask, safe_normalize, solve_quartic
+from ._base import (
+    AbstractShape,
+    array_module,
+)
 
 TORUS_K = 4
 
@@ -120,3 +128,34 @@ def torus_inside(
 ) -> Bool[Array, ""]:
     """True where ``p`` is strictly inside the tube (the quartic is negative)."""
     return torus_value(major, minor, p) < 0
+
+
+# ---------------------------------------------------------------- the record
+
+class Torus(AbstractShape):
+    """``torus { major, minor }`` in the x–z plane, the y axis through the hole."""
+
+    kind: ClassVar[str] = "torus"
+    crossings: ClassVar[int] = TORUS_K
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("torus",)
+    major: Float[Array, ""] = eqx.field(converter=as_float)
+    minor: Float[Array, ""] = eqx.field(converter=as_float)
+
+    def hits(self, o, d):
+        return torus_hits(self.major, self.minor, o, d)
+
+    def inside(self, p):
+        return torus_inside(self.major, self.minor, p)
+
+    def bounds(self):
+        xp = array_module(self.major, self.minor)
+        r = xp.abs(self.minor)
+        big = xp.abs(self.major) + r
+        hi = xp.stack([big, r, big])
+        return -hi, hi
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        a = args.float()
+        args.comma()
+        return {"major": a, "minor": args.float()}

@@ -1,10 +1,17 @@
 """General quadric ``A x² + B y² + C z² + D xy + E xz + F yz + G x + H y + I z + J = 0``; inside is < 0."""
 
+from typing import ClassVar
+
+import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from ._common import masked_hits, points_at
-from ._numerics import as_float_arrays, safe_normalize, solve_quadratic
+from .._dtype import as_float
+from ..kernels._common import masked_hits, points_at
+from ..kernels._numerics import as_float_arrays, safe_normalize, solve_quadratic
+from ._base import (
+    AbstractShape,
+)
 
 QUADRIC_K = 2
 
@@ -56,3 +63,33 @@ def quadric_hits(
 def quadric_inside(coeffs: Float[ArrayLike, "10"], p: Float[ArrayLike, "3"]) -> Bool[Array, ""]:
     """True where ``Q(p) < 0``."""
     return quadric_value(coeffs, p) < 0
+
+
+# ---------------------------------------------------------------- the record
+
+class Quadric(AbstractShape):
+    """``quadric { <A,B,C>, <D,E,F>, <G,H,I>, J }``:
+    ``A x² + B y² + C z² + D xy + E xz + F yz + G x + H y + I z + J = 0``, inside < 0.
+
+    Unbounded in general (``bounds`` is None); POV-Ray users bound it with ``clipped_by``."""
+
+    kind: ClassVar[str] = "quadric"
+    crossings: ClassVar[int] = QUADRIC_K
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("quadric",)
+    coeffs: Float[Array, "10"] = eqx.field(converter=as_float)
+
+    def hits(self, o, d):
+        return quadric_hits(self.coeffs, o, d)
+
+    def inside(self, p):
+        return quadric_inside(self.coeffs, p)
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        a = args.vector()
+        args.comma()
+        b = args.vector()
+        args.comma()
+        c = args.vector()
+        args.comma()
+        return {"coeffs": (*a, *b, *c, args.float())}

@@ -1,10 +1,23 @@
 """Sphere ``|p - center| = radius``: two crossings, outward normal ``(p - center) / |p - center|``."""
 
+from typing import ClassVar
+
+import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from ._common import masked_hits, points_at
-from ._numerics import as_float_arrays, safe_normalize, solve_quadratic
+from .._dtype import as_float
+from ..kernels._common import masked_hits, points_at
+from ..kernels._numerics import as_float_arrays, safe_normalize, solve_quadratic
+from ._base import (
+    AbstractShape,
+    MitsubaShape,
+    NoEquivalent,
+    apply_point,
+    array_module,
+    similarity_scale,
+)
 
 SPHERE_K = 2
 
@@ -49,3 +62,41 @@ def sphere_inside(
     center, radius, p = as_float_arrays(center, radius, p)
     l = p - center
     return jnp.dot(l, l) < radius * radius
+
+
+# ---------------------------------------------------------------- the record
+
+class Sphere(AbstractShape):
+    """``sphere { center, radius }``."""
+
+    kind: ClassVar[str] = "sphere"
+    crossings: ClassVar[int] = SPHERE_K
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("sphere",)
+    center: Float[Array, "3"] = eqx.field(converter=as_float)
+    radius: Float[Array, ""] = eqx.field(converter=as_float)
+
+    def hits(self, o, d):
+        return sphere_hits(self.center, self.radius, o, d)
+
+    def inside(self, p):
+        return sphere_inside(self.center, self.radius, p)
+
+    def bounds(self):
+        r = array_module(self.radius).abs(self.radius)
+        return self.center - r, self.center + r
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        center = args.vector()
+        args.comma()
+        return {"center": center, "radius": args.float()}
+
+    def to_mitsuba(self, m, camera_origin):
+        s = similarity_scale(m)
+        if s is None:
+            raise NoEquivalent("ellipsoid", "a non-uniformly scaled sphere needs tessellation in Mitsuba")
+        centre, radius = apply_point(m, self.center), s * float(self.radius)
+        if np.linalg.norm(camera_origin - centre) < radius:
+            raise NoEquivalent("camera inside a sphere")
+        return MitsubaShape([{"type": "sphere", "center": centre.tolist(), "radius": radius}],
+                            closed=True, planar=False)

@@ -7,13 +7,17 @@ test counts crossings of a ray in the plane with the (static) edge list, all edg
 """
 
 from collections.abc import Sequence
+from typing import ClassVar
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Bool, Float
+from jaxtyping import Array, ArrayLike, Float
 
-from ._common import masked_hits, points_at
-from ._numerics import as_float_arrays, eps_of, safe_div, safe_normalize, solve_linear
+from .._dtype import as_float
+from ..kernels._common import masked_hits, points_at
+from ..kernels._numerics import as_float_arrays, eps_of, safe_div, safe_normalize, solve_linear
+from ._base import AbstractShape
 
 POLYGON_K = 1
 
@@ -77,8 +81,58 @@ def polygon_hits(
     return masked_hits(t[None], n_hat[None], (ok & proper & inside)[None])
 
 
-def polygon_inside(
-    vertices: Float[ArrayLike, "V 3"], edges: Sequence[tuple[int, int]], p: Float[ArrayLike, "3"]
-) -> Bool[Array, ""]:
-    """Always False: a polygon has no inside."""
-    return jnp.zeros((), bool)
+# ---------------------------------------------------------------- the record
+class Polygon(AbstractShape):
+    """``polygon { n, P1, …, Pn }``: planar, even-odd rule, sub-polygons make holes.
+
+    Attributes:
+        vertices: (V, 3) points (2-D points get z = 0 in the parser).
+        edges:    static tuple of ``(i, j)`` vertex index pairs, the closed outlines.
+    """
+
+    kind: ClassVar[str] = "polygon"
+    crossings: ClassVar[int] = POLYGON_K
+    solid: ClassVar[bool] = False
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("polygon",)
+    vertices: Float[Array, "V 3"] = eqx.field(converter=as_float)
+    edges: tuple[tuple[int, int], ...] = eqx.field(static=True)
+
+    def hits(self, o, d):
+        return polygon_hits(self.vertices, self.edges, o, d)
+
+    def bounds(self):
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        loc = args.loc
+        n = args.count("polygon points")
+        pts = []
+        for _ in range(n):
+            args.comma()
+            pts.append(args.vector(allow_2d=True))
+        if n < 3:
+            raise args.error(f"expected at least 3 polygon points, found {n}", loc)
+        return {"points": pts}
+
+    @classmethod
+    def from_sdl(cls, fields):
+        return polygon_from_points(fields["points"])
+
+
+def polygon_from_points(points) -> Polygon:
+    """Builds a POV polygon from its point list: an outline closes when its first point repeats."""
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.shape[-1] == 2:
+        pts = np.concatenate([pts, np.zeros((len(pts), 1))], axis=1)
+    edges, start, i = [], 0, 1
+    while i < len(pts):
+        edges.append((i - 1, i))
+        if np.array_equal(pts[i], pts[start]) and i > start:
+            start = i + 1
+            i += 2
+            continue
+        i += 1
+    if start < len(pts) and not np.array_equal(pts[-1], pts[start]):
+        edges.append((len(pts) - 1, start))  # POV closes an open last outline (with a warning)
+    return Polygon(vertices=pts, edges=tuple(edges))

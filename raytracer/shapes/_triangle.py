@@ -6,10 +6,17 @@ Barycentric convention: the hit is ``(1 - u - v) p1 + u p2 + v p3``, so the weig
 of the hit point, so the interpolated normals agree.
 """
 
-import jax.numpy as jnp
-from jaxtyping import Array, ArrayLike, Bool, Float
 
-from ._numerics import as_float_arrays, eps_of, safe_mask, safe_normalize
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from .._dtype import as_float
+from ..kernels._numerics import as_float_arrays, eps_of, safe_mask, safe_normalize
+from ._base import AbstractShape, MitsubaShape, array_module, mesh_entry
 
 TRIANGLE_K = 1
 SMOOTH_TRIANGLE_K = 1
@@ -60,13 +67,6 @@ def triangle_hits(
     return jnp.where(hit, t, jnp.inf)[None], jnp.where(hit, n, up)[None]
 
 
-def triangle_inside(
-    p1: Float[ArrayLike, "3"], p2: Float[ArrayLike, "3"], p3: Float[ArrayLike, "3"], p: Float[ArrayLike, "3"]
-) -> Bool[Array, ""]:
-    """Always False: a triangle has no inside."""
-    return jnp.zeros((), bool)
-
-
 def smooth_triangle_hits(
     p1: Float[ArrayLike, "3"],
     p2: Float[ArrayLike, "3"],
@@ -96,14 +96,73 @@ def smooth_triangle_hits(
     return jnp.where(hit, t, jnp.inf)[None], jnp.where(hit, n, up)[None]
 
 
-def smooth_triangle_inside(
-    p1: Float[ArrayLike, "3"],
-    p2: Float[ArrayLike, "3"],
-    p3: Float[ArrayLike, "3"],
-    n1: Float[ArrayLike, "3"],
-    n2: Float[ArrayLike, "3"],
-    n3: Float[ArrayLike, "3"],
-    p: Float[ArrayLike, "3"],
-) -> Bool[Array, ""]:
-    """Always False: a triangle has no inside."""
-    return jnp.zeros((), bool)
+# ---------------------------------------------------------------- the record
+class Triangle(AbstractShape):
+    """``triangle { p1, p2, p3 }`` (no inside)."""
+
+    kind: ClassVar[str] = "triangle"
+    crossings: ClassVar[int] = TRIANGLE_K
+    solid: ClassVar[bool] = False
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("triangle",)
+    p1: Float[Array, "3"] = eqx.field(converter=as_float)
+    p2: Float[Array, "3"] = eqx.field(converter=as_float)
+    p3: Float[Array, "3"] = eqx.field(converter=as_float)
+
+    def hits(self, o, d):
+        return triangle_hits(self.p1, self.p2, self.p3, o, d)
+
+    def bounds(self):
+        return _vertex_bounds(self.p1, self.p2, self.p3)
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        a = args.vector()
+        args.comma()
+        b = args.vector()
+        args.comma()
+        return {"p1": a, "p2": b, "p3": args.vector()}
+
+    def to_mitsuba(self, m, camera_origin):
+        tris = np.stack([np.asarray(v, np.float64) for v in (self.p1, self.p2, self.p3)])[None]
+        return MitsubaShape([mesh_entry(tris, None, m)], closed=False, planar=True)
+
+
+class SmoothTriangle(AbstractShape):
+    """``smooth_triangle { p1, n1, p2, n2, p3, n3 }``: normals interpolated barycentrically."""
+
+    kind: ClassVar[str] = "smooth_triangle"
+    crossings: ClassVar[int] = SMOOTH_TRIANGLE_K
+    solid: ClassVar[bool] = False
+    sdl_keywords: ClassVar[tuple[str, ...]] = ("smooth_triangle",)
+    p1: Float[Array, "3"] = eqx.field(converter=as_float)
+    p2: Float[Array, "3"] = eqx.field(converter=as_float)
+    p3: Float[Array, "3"] = eqx.field(converter=as_float)
+    n1: Float[Array, "3"] = eqx.field(converter=as_float)
+    n2: Float[Array, "3"] = eqx.field(converter=as_float)
+    n3: Float[Array, "3"] = eqx.field(converter=as_float)
+
+    def hits(self, o, d):
+        return smooth_triangle_hits(self.p1, self.p2, self.p3, self.n1, self.n2, self.n3, o, d)
+
+    def bounds(self):
+        return _vertex_bounds(self.p1, self.p2, self.p3)
+
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        vals = []
+        for i in range(6):
+            if i:
+                args.comma()
+            vals.append(args.vector())
+        return {"p1": vals[0], "n1": vals[1], "p2": vals[2], "n2": vals[3], "p3": vals[4], "n3": vals[5]}
+
+    def to_mitsuba(self, m, camera_origin):
+        tris = np.stack([np.asarray(v, np.float64) for v in (self.p1, self.p2, self.p3)])[None]
+        normals = np.stack([np.asarray(v, np.float64) for v in (self.n1, self.n2, self.n3)])[None]
+        return MitsubaShape([mesh_entry(tris, normals, m)], closed=False, planar=True)
+
+
+def _vertex_bounds(*vertices):
+    xp = array_module(*vertices)
+    v = xp.stack(vertices)
+    return v.min(axis=0), v.max(axis=0)

@@ -1,0 +1,243 @@
+"""What every primitive shape is: one record holding all the rest of the system asks of it.
+
+A shape is a frozen Equinox module (its array fields are the differentiable parameters, its static
+fields the static variants) that also carries, as methods and class variables:
+
+============================  ========================================================================
+``kind``                      its name in plans, messages and the registry
+``crossings``                 K, the crossings of a line it reports (slots of ``hits``)
+``line_crossings``            surfaces a straight line can really cross (bounds straight passes)
+``solid``                     whether it has an inside (usable in CSG; ``inside`` is meaningful)
+``hits(o, d)``                every crossing of the line ``o + t d`` in object space: ``t`` (K,) of
+                              any sign, ``+inf`` in empty slots, and unit outward normals (K, 3)
+``inside(p)``                 strictly inside the solid (POV-Ray semantics); False for non-solids
+``bounds()``                  object-space ``(lo, hi)`` corners of a box holding the surface, or
+                              None for unbounded shapes (planes, most quadrics)
+``sdl_keywords``              the SDL keywords that make it (``mesh``, ``mesh2``)
+``sdl_flags``                 bare object-modifier keywords that set a bool field (``open``)
+``parse_sdl(keyword, args)``  reads its arguments after ``keyword {`` through :class:`ShapeArgs`
+``from_sdl(fields)``          builds the shape from what ``parse_sdl`` returned
+``to_mitsuba(m, camera)``     its exact Mitsuba 3 equivalent, or raises :class:`NoEquivalent`
+============================  ========================================================================
+
+The renderer, the plan, the SDL interpreter and the Mitsuba converter ask these and the registry
+(``raytracer.shapes.REGISTRY``); none of them names a shape. ``hits`` and ``inside`` handle ONE
+ray and ONE shape; batch with ``jax.vmap`` over a stacked shape (``tree_map(jnp.stack, …)``).
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import Any, ClassVar, NamedTuple, Protocol
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+
+from .._build import build
+
+
+class NoEquivalent(Exception):
+    """The shape (as placed) has no exact Mitsuba 3 equivalent.
+
+    Attributes:
+        feature: short name of what is missing (``"torus"``, ``"disc with a hole"``).
+    """
+
+    def __init__(self, feature: str, detail: str = ""):
+        self.feature = feature
+        self.detail = detail
+        super().__init__(feature + (f" ({detail})" if detail else ""))
+
+
+class MitsubaShape(NamedTuple):
+    """A shape's Mitsuba equivalent in world space, as plain data (no Mitsuba import here).
+
+    Attributes:
+        entries: Mitsuba shape dictionaries; a ``"to_world"`` value is a (4, 4) numpy matrix (the
+                 converter wraps it). Two entry types are not Mitsuba plugins but requests the
+                 converter fulfils: ``"_mesh"`` (``vertices`` (F, 3, 3) world positions, ``normals``
+                 (F, 3, 3) world vertex normals or None) and ``"_plane"`` (``point``, unit
+                 ``normal``): an infinite plane, which Mitsuba lacks, stood in for by a large
+                 rectangle under the camera.
+        closed:  the entries enclose a volume (a dielectric interior is meaningful).
+        planar:  flat surfaces (POV-Ray shades both sides).
+    """
+
+    entries: list[dict]
+    closed: bool
+    planar: bool
+
+
+class ShapeArgs(Protocol):
+    """What a shape's SDL parser may ask of the interpreter (``raytracer.sdl`` implements it).
+
+    Values are evaluated expressions; every method raises the interpreter's ``SceneError`` with
+    ``file:line:col`` on bad input.
+    """
+
+    @property
+    def loc(self) -> Any:
+        """Source location of the next token."""
+
+    def float(self) -> float: ...
+
+    def expr(self) -> Any:
+        """Any expression's value (float, vector, colour, string)."""
+
+    def describe_next(self) -> str:
+        """The next token as an error message shows it (``'foo'``, ``end of file``)."""
+
+    def vector(self, size: int = 3, *, allow_2d: bool = False) -> tuple[float, ...]:
+        """A vector of ``size`` components; ``allow_2d`` also takes a 2-D vector (z = 0)."""
+
+    def count(self, what: str) -> int:
+        """A non-negative whole number of ``what`` (bounded; an error names ``what``)."""
+
+    def comma(self) -> None:
+        """An optional comma."""
+
+    def accept(self, op: str) -> bool:
+        """Consumes the operator ``op`` if it is next."""
+
+    def expect(self, op: str, what: str = "") -> None: ...
+
+    def keyword(self, *names: str) -> str | None:
+        """Consumes and returns the next identifier if it is one of ``names``."""
+
+    def number_after_comma(self) -> bool:
+        """Whether a comma follows and then a literal number (optional trailing indices)."""
+
+    def texture(self) -> None:
+        """Reads ``{…}`` of a ``texture`` (or a texture identifier) for the object being built;
+        the first one given is used for the whole object (per-part textures are not rendered)."""
+
+    def skip_block(self) -> None:
+        """Skips a ``{…}`` block."""
+
+    def error(self, message: str, loc: Any = None) -> Exception:
+        """The ``SceneError`` to raise (at ``loc``, default: the next token)."""
+
+    def warn(self, feature: str, message: str, loc: Any = None) -> None: ...
+
+    def leave_out(self, message: str) -> None:
+        """The object is dropped from the scene (with a warning naming it)."""
+
+
+def array_module(*xs):
+    """``jax.numpy`` if any input is a JAX array or tracer, else ``numpy`` (bounds stay cheap)."""
+    return jnp if any(isinstance(x, jax.Array) for x in xs) else np
+
+
+class AbstractShape(eqx.Module):
+    """A primitive shape in its object space (see the module docstring for the interface)."""
+
+    kind: ClassVar[str]
+    crossings: ClassVar[int]
+    solid: ClassVar[bool] = True
+
+    @property
+    def line_crossings(self) -> int:
+        """Surfaces a straight line can cross (bounds the straight ior-1 passes of the plan)."""
+        return type(self).crossings
+    sdl_keywords: ClassVar[tuple[str, ...]] = ()
+    sdl_flags: ClassVar[tuple[str, ...]] = ()
+
+    def n_crossings(self) -> int:
+        """K for this instance (a mesh reports one crossing per triangle)."""
+        return type(self).crossings
+
+    @abc.abstractmethod
+    def hits(self, o: Float[Array, "3"], d: Float[Array, "3"]) -> tuple[Float[Array, " K"], Float[Array, "K 3"]]:  # noqa: E501
+        """Every crossing of the line ``o + t d`` (object space): ``t`` (K,), normals (K, 3)."""
+
+    def inside(self, p: Float[Array, "3"]) -> Bool[Array, ""]:
+        """False: a shape without an inside (triangles, polygons, meshes)."""
+        return jnp.zeros((), bool)
+
+    def bounds(self):
+        """Object-space ``(lo (3,), hi (3,))``, or None when the shape is unbounded."""
+        return None
+
+    @classmethod
+    @abc.abstractmethod
+    def parse_sdl(cls, keyword: str, args: ShapeArgs) -> dict:
+        """The fields read after ``keyword {`` (up to the object modifiers)."""
+
+    @classmethod
+    def from_sdl(cls, fields: dict) -> AbstractShape:
+        return build(cls, **fields)
+
+    def to_mitsuba(self, world_from_object: np.ndarray, camera_origin: np.ndarray) -> MitsubaShape:
+        raise NoEquivalent(self.kind, "no Mitsuba primitive; tessellation would be an approximation")
+
+
+def world_bounds(shape: AbstractShape, world_from_object=None):
+    """World-space ``(lo, hi)`` of ``shape`` placed by ``world_from_object`` (4, 4), or None.
+
+    The eight corners of the object-space box are transformed; the result holds the surface (it is
+    exact for boxes under axis-aligned scales and translations, conservative otherwise).
+    """
+    b = shape.bounds()
+    if b is None:
+        return None
+    lo, hi = b
+    if world_from_object is None:
+        return lo, hi
+    xp = array_module(lo, hi, world_from_object)
+    m = xp.asarray(world_from_object)
+    corners = xp.stack([xp.stack([(lo, hi)[(i >> a) & 1][a] for a in range(3)]) for i in range(8)])
+    pts = corners @ m[:3, :3].T + m[:3, 3]
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+# ------------------------------------------------------------ plain-numpy helpers for to_mitsuba
+def unit(v) -> np.ndarray:
+    v = np.asarray(v, np.float64)
+    return v / np.linalg.norm(v)
+
+
+def frame(n) -> np.ndarray:
+    """3×3 rotation whose third column is the unit vector ``n``."""
+    n = unit(n)
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t = unit(np.cross(a, n))
+    return np.stack([t, np.cross(n, t), n], axis=1)
+
+
+def affine(linear, translation) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, :3] = linear
+    m[:3, 3] = translation
+    return m
+
+
+def similarity_scale(m) -> float | None:
+    """The uniform scale of a rotation·scale (+translation) matrix, or None if it is not one."""
+    a = np.asarray(m, np.float64)[:3, :3]
+    s2 = np.trace(a.T @ a) / 3.0
+    if s2 <= 0 or not np.allclose(a.T @ a, s2 * np.eye(3), rtol=0.0, atol=1e-5 * s2):  # float32 input
+        return None
+    return float(np.sqrt(s2))
+
+
+def apply_point(m, p) -> np.ndarray:
+    return (np.asarray(m, np.float64) @ np.append(np.asarray(p, np.float64), 1.0))[:3]
+
+
+def mesh_entry(triangles, normals, m) -> dict:
+    """The ``"_mesh"`` request for (F, 3, 3) object-space triangles and optional vertex normals."""
+    m = np.asarray(m, np.float64)
+    tris = np.asarray(triangles, np.float64)
+    world = tris @ m[:3, :3].T + m[:3, 3]
+    nw = None
+    if normals is not None:
+        normals = np.asarray(normals, np.float64)
+        if not np.allclose(np.linalg.norm(normals, axis=-1), 1.0, rtol=1e-5):
+            raise NoEquivalent("smooth triangle normals that are not unit length",
+                               "POV interpolates unnormalised normals, Mitsuba normalises")
+        nw = normals @ np.linalg.inv(m[:3, :3])  # the inverse transpose, row vectors
+        nw = nw / np.linalg.norm(nw, axis=-1, keepdims=True)
+    return {"type": "_mesh", "vertices": world, "normals": nw}
