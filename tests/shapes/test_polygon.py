@@ -7,7 +7,8 @@ import pytest
 
 from raytracer.shapes import Polygon
 
-from ._cases import jitted_kernels as k
+from ._case import Case, unit
+from ._case import jitted_kernels as k
 
 # A 4x4 square with a 2x2 square hole, both in z = 0, loops closed by their edge lists.
 SQUARE_WITH_HOLE = jnp.array(
@@ -68,3 +69,33 @@ def test_collinear_polygon_is_degenerate_and_misses_with_finite_gradient():
 
 def test_polygon_has_no_inside():
     assert not bool(Polygon(vertices=SQUARE_WITH_HOLE, edges=SQUARE_WITH_HOLE_EDGES).inside(jnp.zeros(3)))
+
+
+# ---------------------------------------------------------------- the generic test case
+def _polygon_case():
+    # A square with a square hole in the plane through (0.1, 0.2, 0.3) spanned by u, w.
+    u, w = unit([1.0, 0.2, -0.1]), unit(np.cross([1.0, 0.2, -0.1], [0.1, 1.0, 0.4]))
+    o = np.array([0.1, 0.2, 0.3])
+    square = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
+    verts = np.array([o + a * u + b * w for a, b in square] + [o + 0.4 * (a * u + b * w) for a, b in square])
+    edges = ((0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4))
+    n_hat = unit(np.cross(u, w))
+
+    def on_patch(p):
+        a, b = (p - o) @ u, (p - o) @ w
+        return max(abs(a), abs(b)) <= 1 + 1e-4 and max(abs(a), abs(b)) >= 0.4 - 1e-4
+
+    return Case(
+        "polygon",
+        lambda v: Polygon(vertices=v, edges=edges),
+        (verts,),
+        lambda p: n_hat @ (p - o),
+        o,
+        1.0,
+        solid=False,
+        signed_normal=False,
+        on_patch=on_patch,
+    )
+
+
+CASES = [_polygon_case()]

@@ -5,7 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._cases import jitted_kernels as k
+from ._case import jitted_kernels as k
 
 
 def _rays(seed, count, spread=2.0):

@@ -5,7 +5,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ._cases import jitted_kernels as k
+from raytracer.shapes import Torus
+
+from ._case import Case
+from ._case import jitted_kernels as k
 
 
 def numpy_torus_roots(major, minor, o, d):
@@ -102,3 +105,18 @@ def test_torus_zero_direction_is_a_finite_miss(dtype):
     with jax.enable_x64(dtype == jnp.float64):
         t, n = k.torus_hits(jnp.asarray(2.0, dtype), 0.5, jnp.ones(3, dtype), jnp.zeros(3, dtype))
         assert np.all(np.isinf(t)) and np.all(np.isfinite(np.asarray(n)))
+
+
+# ---------------------------------------------------------------- the generic test case
+def _torus_case():
+    major, minor = 1.5, 0.4
+
+    def distance(p):
+        return np.hypot(np.hypot(p[0], p[2]) - major, p[1]) - minor
+
+    return Case(
+        "torus", Torus, (major, minor), distance, np.zeros(3), 1.9, convex=False
+    )
+
+
+CASES = [_torus_case()]

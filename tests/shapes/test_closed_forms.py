@@ -4,8 +4,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ._cases import jitted_kernels as k
-from ._cases import triangle_inside
+from raytracer.shapes import Triangle
+
+from ._case import jitted_kernels as k
 
 O_MINUS_Z = jnp.array([0.0, 0.0, -5.0])
 PLUS_Z = jnp.array([0.0, 0.0, 1.0])
@@ -171,7 +172,7 @@ def test_smooth_triangle_normal_is_barycentric_blend():
         (k.quadric_inside, (jnp.array([1.0, 1, 1, 0, 0, 0, 0, 0, 0, -1]),), [0.5, 0.5, 0.5], True),
         (k.disc_inside, (jnp.zeros(3), Z, 1.0, 0.0), [5.0, 5.0, -0.1], True),
         (k.disc_inside, (jnp.zeros(3), Z, 1.0, 0.0), [0.0, 0.0, 0.1], False),
-        (triangle_inside, (jnp.zeros(3), X, Y), [0.1, 0.1, 0.0], False),
+        (lambda *a: Triangle(*a[:3]).inside(a[3]), (jnp.zeros(3), X, Y), [0.1, 0.1, 0.0], False),
     ],
 )
 def test_inside_follows_pov_semantics(inside, args, point, expected):

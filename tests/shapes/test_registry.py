@@ -1,0 +1,85 @@
+"""The shape registry is the one source: every registered shape has its test case, SDL syntax,
+bounds that hold its surface, and stacks and batches like the renderer uses it."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import raytracer as rt
+from raytracer.shapes import REGISTRY, SDL_KEYWORDS, world_bounds
+
+from ._cases import CASE_IDS, CASES, random_rays
+
+
+def test_every_registered_shape_has_a_test_case():
+    assert {case.kind for case in CASES} == set(REGISTRY)
+
+
+def test_sdl_keywords_are_the_registry_and_the_interpreter_knows_them():
+    from raytracer.sdl._objects import OBJECT_KEYWORDS
+
+    assert set(SDL_KEYWORDS) >= set(REGISTRY) - {"mesh"} | {"mesh", "mesh2"}
+    assert set(SDL_KEYWORDS) <= set(OBJECT_KEYWORDS)
+    for kw, cls in SDL_KEYWORDS.items():
+        assert kw in cls.sdl_keywords
+
+
+def test_records_declare_crossings_consistent_with_their_kernels():
+    for case in CASES:
+        shape = case.make(*case.params)
+        t, n = shape.hits(jnp.asarray(case.aim) - jnp.array([0.0, 0.0, 5.0]), jnp.array([0.0, 0.0, 1.0]))
+        assert t.shape == (shape.n_crossings(),) and n.shape == (shape.n_crossings(), 3), case.name
+        assert shape.line_crossings <= shape.n_crossings() or shape.kind == "mesh", case.name
+
+
+def _random_similarity(seed):
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    m = np.eye(4)
+    m[:3, :3] = q @ np.diag(rng.uniform(0.3, 3.0, 3))
+    m[:3, 3] = rng.normal(size=3) * 5
+    return m
+
+
+@pytest.mark.parametrize("index", range(len(CASES)), ids=CASE_IDS)
+def test_bounds_hold_every_hit_in_object_and_world_space(index):
+    case = CASES[index]
+    shape = case.make(*case.params)
+    if shape.bounds() is None:
+        assert shape.kind in ("plane", "quadric"), "only unbounded shapes may omit their bounds"
+        return
+    o, d = random_rays(case, 5, 256)
+    t, _ = jax.jit(jax.vmap(shape.hits))(jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32))
+    t = np.asarray(t, np.float64)
+    ray, slot = np.nonzero(np.isfinite(t))
+    assert ray.size > 0, case.name
+    p = o[ray] + t[ray, slot][:, None] * d[ray]
+    tol = 1e-4 * case.size
+    lo, hi = (np.asarray(b, np.float64) for b in shape.bounds())
+    assert np.all(p >= lo - tol) and np.all(p <= hi + tol), case.name
+    m = _random_similarity(index)
+    wlo, whi = (np.asarray(b, np.float64) for b in world_bounds(shape, m))
+    pw = p @ m[:3, :3].T + m[:3, 3]
+    tol_w = tol * np.abs(m[:3, :3]).sum()
+    assert np.all(pw >= wlo - tol_w) and np.all(pw <= whi + tol_w), case.name
+
+
+def test_renderer_groups_shapes_by_static_variant_and_vmaps_their_own_kernels():
+    from raytracer._plan import make_plan
+    from raytracer.shading._geometry import all_crossings, pack_geometry
+
+    objects = (rt.Object(rt.Cylinder((0, -1, 0), (0, 1, 0), 0.5)),
+               rt.Object(rt.Cylinder((2, -1, 0), (2, 1, 0), 0.5, open=True)),
+               rt.Object(rt.Sphere((0, 0, 3), 1.0)), rt.Object(rt.Sphere((0, 0, 6), 1.0)))
+    plan = make_plan(rt.Scene(camera=rt.Camera(), objects=objects))
+    geo = pack_geometry(plan, jnp.float32)
+    groups = sorted((g.kind, len(g.prims)) for g in geo.groups)
+    assert groups == [("cylinder", 1), ("cylinder", 1), ("sphere", 2)]
+    o, d = jnp.array([0.0, 0.0, -5.0]), jnp.array([0.0, 0.0, 1.0])
+    t, _ = all_crossings(geo, o, d)
+    expected = {0: sorted(np.asarray(objects[0].shape.hits(o, d)[0]).tolist()),
+                2: [7.0, 9.0], 3: [10.0, 12.0]}
+    for prim, want in expected.items():
+        got = sorted(np.asarray(t)[geo.cand_prim == prim].tolist())
+        np.testing.assert_allclose(got, want, rtol=1e-6)
