@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from . import patterns
 from .errors import SceneError, SceneWarning
 from .scene import (
     CSG,
@@ -25,15 +26,13 @@ from .scene import (
     Texture,
     Transform,
 )
+from .scene._lights import light_effects
 from .scene._transform import compose
 
 STRAIGHT_PASSES = 8  # straight (ior 1) surfaces a ray path may cross beyond max_trace_level
 MAX_BRANCHING_DEPTH = 12  # with both reflection and transmission, extra levels stop here
 
-SUPPORTED_PATTERNS = frozenset({"solid", "checker", "gradient", "bozo", "spotted", "bumps", "granite",
-                                "marble", "wood", "agate", "radial", "onion", "leopard", "spherical",
-                                "cylindrical", "planar", "boxed", "ripples", "waves", "wrinkles",
-                                "dents", "hexagon", "brick"})
+SUPPORTED_PATTERNS = patterns.RENDERED  # registered patterns the renderer evaluates
 
 
 # ---------------------------------------------------------------- inside-test trees (static)
@@ -312,10 +311,7 @@ def make_plan(scene: Scene) -> Plan:
         highlights=any(f.phong is not None or f.specular is not None for f in finishes),
         metallic=any(f.metallic is not None for f in finishes),
         fresnel=any(f.reflection is not None and f.reflection.fresnel for f in finishes),
-        fade=any(lt.fade_distance is not None and lt.fade_power is not None for lt in lights),
-        spotlights=any(lt.spot is not None for lt in lights),
-        area_lights=any(lt.area is not None and not lt.shadowless for lt in lights),
-        parallel_lights=any(lt.parallel for lt in lights),
+        **light_effects(lights),  # fade, spotlights, area_lights, parallel_lights: from LIGHT_TYPES
         patterns=tuple(sorted({pig.pattern for pig in pigments})),
         csg=any(p.conditions for p in prims),
         interior_fade=transmission and any(p.interior is not None and p.interior.fade_distance is not None

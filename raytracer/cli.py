@@ -1,6 +1,8 @@
 """The ``raytracer`` command: ``render``, ``info`` and ``validate``.
 
-Scene errors print ``file:line:col: message`` on stderr and exit with status 2 (no traceback).
+Exit status: 0 done; 2 an error in the scene or on the command line (``file:line:col: message`` or
+the option at fault, one line on stderr); 70 an internal error (a bug in raytracer: one line, the
+traceback with ``--debug``); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -10,16 +12,44 @@ import math
 import os
 import sys
 import time
+import traceback
 from collections import Counter
 from pathlib import Path
 
-from .errors import SceneError
+from .errors import InternalError, SceneError, short_numbers
 
-EXIT_SCENE_ERROR = 2
+EXIT_SCENE_ERROR = 2  # also a bad command line, as argparse
+EXIT_INTERNAL_ERROR = 70  # EX_SOFTWARE of sysexits.h: the program failed, not its input
+EXIT_INTERRUPTED = 130
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with its errors on one line (``raytracer render: -W: expected …``), status 2."""
+
+    def error(self, message: str):
+        self.exit(EXIT_SCENE_ERROR, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+        text = repr(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {short_numbers(text)}")
+    return n
+
+
+def _samples_per_pixel(text: str) -> int:
+    n = _positive_int(text)
+    if math.isqrt(n) ** 2 != n:
+        raise argparse.ArgumentTypeError(f"expected a perfect square (1, 4, 9, 16, …), found {n}")
+    return n
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="raytracer",
         description="A differentiable Whitted ray tracer in JAX for POV-Ray scenes.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -28,9 +58,11 @@ def _parser() -> argparse.ArgumentParser:
                        description="Render a POV-Ray scene to a linear EXR or an sRGB PNG.")
     r.add_argument("scene", help="the .pov file")
     r.add_argument("-o", "--output", required=True, help="output image: .exr (linear float32) or .png (sRGB)")
-    r.add_argument("-W", "--width", type=int, default=640, help="image width in pixels (default 640)")
-    r.add_argument("-H", "--height", type=int, default=480, help="image height in pixels (default 480)")
-    r.add_argument("--spp", type=int, default=1,
+    r.add_argument("-W", "--width", type=_positive_int, default=640,
+                   help="image width in pixels (default 640)")
+    r.add_argument("-H", "--height", type=_positive_int, default=480,
+                   help="image height in pixels (default 480)")
+    r.add_argument("--spp", type=_samples_per_pixel, default=1,
                    help="samples per pixel: 1 = pixel centres (as POV-Ray -A), k*k = a k×k grid (default 1)")
     r.add_argument("--png16", action="store_true", help="write a 16-bit PNG instead of 8-bit")
     _common(r)
@@ -38,8 +70,8 @@ def _parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="load a scene and print its objects, lights, camera and render plan",
                        description="Load a scene and print what the renderer will simulate.")
     i.add_argument("scene", help="the .pov file")
-    i.add_argument("-W", "--width", type=int, default=640, help="image_width seen by the scene")
-    i.add_argument("-H", "--height", type=int, default=480, help="image_height seen by the scene")
+    i.add_argument("-W", "--width", type=_positive_int, default=640, help="image_width seen by the scene")
+    i.add_argument("-H", "--height", type=_positive_int, default=480, help="image_height seen by the scene")
     _common(i)
 
     v = sub.add_parser("validate", help="run the validation suite (same as python -m validation)",
@@ -59,6 +91,8 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="animation frame to load (sets clock and frame_number; default: the "
                         "INI's first frame, or no animation)")
     p.add_argument("--x64", action="store_true", help="render in float64 (jax_enable_x64)")
+    p.add_argument("--debug", action="store_true",
+                   help="print the Python traceback of an error (for reporting an internal error)")
     # (compiled programs are cached in $RAYTRACER_CACHE_DIR, default ~/.cache/raytracer/xla; "off" disables)
     p.add_argument("--cpu-devices", type=int, default=None, metavar="N",
                    help="split the CPU into N JAX devices and shard tiles over them "
@@ -162,18 +196,13 @@ def _render(args) -> int:
     from .render import compile_render
 
     out = Path(args.output)
-    if out.suffix.lower() not in (".exr", ".png"):
-        print(f"raytracer: unsupported output format {out.suffix!r}: use .exr or .png", file=sys.stderr)
-        return EXIT_SCENE_ERROR
-    if not out.parent.exists():
-        print(f"raytracer: output folder {str(out.parent)!r} does not exist", file=sys.stderr)
+    problem = _output_problem(out)
+    if problem is not None:
+        print(f"raytracer: cannot write {str(out)!r}: {problem}", file=sys.stderr)
         return EXIT_SCENE_ERROR
     scene, t_parse = _load(args)
     for line in _summary(scene):
         print(line)
-    if math.isqrt(args.spp) ** 2 != args.spp or args.spp < 1:
-        print(f"raytracer: --spp must be a perfect square (1, 4, 9, 16, …), got {args.spp}", file=sys.stderr)
-        return EXIT_SCENE_ERROR
     t0 = time.perf_counter()
     progress = _Progress()
     run = compile_render(scene, width=args.width, height=args.height, spp=args.spp, progress=progress)
@@ -182,12 +211,34 @@ def _render(args) -> int:
     t1 = time.perf_counter()
     image = jax.block_until_ready(run(scene))
     t_render = time.perf_counter() - t1
-    write_image(out, image, bits=16 if args.png16 else 8)
+    try:
+        write_image(out, image, bits=16 if args.png16 else 8)
+    except OSError as e:  # the folder changed since the check, or the disk is full
+        print(f"raytracer: cannot write {str(out)!r}: {e.strerror or e}", file=sys.stderr)
+        return EXIT_SCENE_ERROR
     print(f"resolution: {args.width}x{args.height}, {args.spp} spp, "
           f"{'float64' if jax.config.jax_enable_x64 else 'float32'}, devices: {len(jax.devices())}")
     print(f"times: parse {t_parse:.2f} s, compile {t_compile:.2f} s, render {t_render:.2f} s")
     print(f"wrote {out}")
     return 0
+
+
+def _output_problem(out: Path) -> str | None:
+    """Why the image cannot be written to ``out`` (checked before the scene is parsed), or None."""
+    if out.suffix.lower() not in (".exr", ".png"):
+        return f"unsupported output format {out.suffix!r}: use .exr or .png"
+    if out.is_dir():
+        return "it is a folder; name the image file"
+    folder = out.parent
+    if not folder.exists():
+        return f"the output folder {str(folder)!r} does not exist"
+    if not folder.is_dir():
+        return f"{str(folder)!r} is not a folder"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"the output folder {str(folder)!r} is not writable"
+    if out.exists() and not os.access(out, os.W_OK):
+        return "the file exists and is not writable"
+    return None
 
 
 def _info(args) -> int:
@@ -209,6 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "cpu_devices", None):  # must precede the first import of jax
         flag = f"--xla_force_host_platform_device_count={args.cpu_devices}"
         os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + flag).strip()
+    debug = getattr(args, "debug", False)
     try:
         if args.command == "render":
             return _render(args)
@@ -219,11 +271,21 @@ def main(argv: list[str] | None = None) -> int:
 
             return validate_main(args.args)
     except SceneError as e:
+        if debug:
+            traceback.print_exc()
         print(f"raytracer: {e}", file=sys.stderr)
         return EXIT_SCENE_ERROR
     except KeyboardInterrupt:
         print("raytracer: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except Exception as e:  # a bug (InternalError from the parser, anything from the renderer)
+        if debug:
+            traceback.print_exc()
+        text = str(e) if isinstance(e, InternalError) else \
+            f"internal error (a bug in raytracer, not in the scene): {type(e).__name__}: {e}"
+        hint = "" if debug else " (run with --debug for the traceback)"
+        print(f"raytracer: {text.splitlines()[0] if text else type(e).__name__}{hint}", file=sys.stderr)
+        return EXIT_INTERNAL_ERROR
     return 1
 
 

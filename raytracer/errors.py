@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 
 @dataclasses.dataclass(frozen=True)
@@ -18,7 +19,7 @@ class SourceLoc:
 
 
 class SceneError(Exception):
-    """A scene that cannot be loaded or rendered.
+    """A scene that cannot be loaded or rendered: the scene's fault, with where and why.
 
     The message reads ``file:line:col: what was expected, what was found`` when the error has a
     location, followed by the include chain (``included from file:line:col``) when there is one.
@@ -29,10 +30,45 @@ class SceneError(Exception):
         self.bare_message = message
         self.location = location
         self.include_chain = tuple(include_chain)
-        text = f"{location}: {message}" if location is not None else message
-        for loc in self.include_chain:
-            text += f"\n  included from {loc}"
-        super().__init__(text)
+        super().__init__(_located(message, location, self.include_chain))
+
+
+class InternalError(Exception):
+    """A failure of the renderer itself while it read a scene: a bug to report, not a scene error.
+
+    ``__cause__`` is the original exception (its traceback is kept); ``location`` is where in the
+    scene the interpreter was, when known.
+    """
+
+    def __init__(self, message: str, location: SourceLoc | None = None,
+                 include_chain: tuple[SourceLoc, ...] = ()):
+        self.bare_message = message
+        self.location = location
+        self.include_chain = tuple(include_chain)
+        super().__init__(_located(f"internal error (a bug in raytracer, not in the scene): {message}",
+                                  location, self.include_chain))
+
+
+_CHAIN_SHOWN = 4  # include/call chains longer than twice this show their ends and a count
+_LONG_NUMBER = re.compile(r"\d{21,}")
+
+
+def short_numbers(text: str) -> str:
+    """``text`` with every run of more than 20 digits written as ``d.ddde+N`` (no 300-digit integers)."""
+    return _LONG_NUMBER.sub(lambda m: f"{m[0][0]}.{m[0][1:4]}e+{len(m[0]) - 1}", text)
+
+
+def _located(message: str, location: SourceLoc | None, chain: tuple[SourceLoc, ...]) -> str:
+    message = short_numbers(message)
+    text = f"{location}: {message}" if location is not None else message
+    if len(chain) > 2 * _CHAIN_SHOWN + 1:
+        hidden = len(chain) - 2 * _CHAIN_SHOWN
+        chain_lines = [f"included from {loc}" for loc in chain[:_CHAIN_SHOWN]]
+        chain_lines.append(f"… {hidden} more …")
+        chain_lines += [f"included from {loc}" for loc in chain[-_CHAIN_SHOWN:]]
+    else:
+        chain_lines = [f"included from {loc}" for loc in chain]
+    return text + "".join(f"\n  {line}" for line in chain_lines)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -64,8 +64,66 @@ def test_info_takes_the_animation_frame_from_an_ini(tmp_path, capsys):
     ini = tmp_path / "anim.ini"
     ini.write_text("Initial_Frame=1\nFinal_Frame=2\n")
     assert main(["info", str(scene)]) == 2  # frame_number 0 without animation, as in povray
-    assert "array index -1" in capsys.readouterr().err
+    assert "expected an array index from 0 to 1, found -1" in capsys.readouterr().err
     assert main(["info", str(scene), "--ini", str(ini)]) == 0
     assert "objects: 1 sphere" in capsys.readouterr().out
     assert main(["info", str(scene), "--ini", str(ini), "--frame", "2"]) == 0
     assert "objects: 1 box, 1 sphere" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("options, fragment", [
+    (["-W", "0"], "-W/--width: expected a positive integer, found 0"),
+    (["-W", "-5"], "-W/--width: expected a positive integer, found -5"),
+    (["-H", "0"], "-H/--height: expected a positive integer, found 0"),
+    (["--spp", "-4"], "--spp: expected a positive integer, found -4"),
+    (["--spp", "3"], "--spp: expected a perfect square (1, 4, 9, 16, …), found 3"),
+    (["-H", "-" + "9" * 300], "-H/--height: expected a positive integer, found -9.999e+299"),
+])
+def test_bad_numbers_on_the_command_line_are_one_line_errors(options, fragment, tmp_path, capsys):
+    code = _exit_code(["render", str(SEED), "-o", str(tmp_path / "x.png"), *options])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and fragment in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())
+
+
+def _exit_code(argv) -> int:
+    try:
+        return main(argv)
+    except SystemExit as e:  # argparse exits
+        return e.code
+
+
+@pytest.mark.parametrize("output, fragment", [
+    ("folder.png", "it is a folder"),  # -o naming an existing folder
+    ("a_file.txt/x.png", "is not a folder"),  # a folder that cannot hold it
+    ("missing/x.png", "does not exist"),
+])
+def test_an_output_that_cannot_be_written_is_refused_before_parsing(output, fragment, tmp_path, capsys):
+    (tmp_path / "folder.png").mkdir()
+    (tmp_path / "a_file.txt").write_text("not a folder")
+    before = sorted(tmp_path.rglob("*"))
+    scene = tmp_path / "never_parsed.pov"  # a scene error would show the scene was read first
+    scene.write_text("sphere {")
+    assert main(["render", str(scene), "-o", str(tmp_path / output)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and fragment in err and "Traceback" not in err
+    assert sorted(p for p in tmp_path.rglob("*") if p != scene) == before
+
+
+def test_an_internal_error_exits_70_in_one_line_and_shows_the_traceback_with_debug(monkeypatch, capsys):
+    import raytracer.sdl._interpreter as interpreter
+
+    def broken_camera_builder(p, t):
+        raise TypeError("a bug")
+
+    monkeypatch.setattr(interpreter, "parse_camera", broken_camera_builder)
+    assert main(["info", str(SEED)]) == 70
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"raytracer: {SEED}:" in err and "internal error" in err and "TypeError: a bug" in err
+    assert "--debug" in err
+    assert main(["info", str(SEED), "--debug"]) == 70
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "broken_camera_builder" in err
+    assert err.splitlines()[-1].startswith(f"raytracer: {SEED}:")

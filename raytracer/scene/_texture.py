@@ -12,13 +12,12 @@ import equinox as eqx
 import numpy as np
 from jaxtyping import Array, Float
 
+from .. import patterns
 from .._dtype import as_float, as_float_or_none
 from ._transform import Transform
 
-PATTERNS = ("solid", "checker", "gradient", "bozo", "spotted", "bumps", "granite", "marble", "wood",
-            "agate", "radial", "onion", "leopard", "ripples", "waves", "wrinkles", "dents", "spiral1",
-            "spiral2", "boxed", "spherical", "cylindrical", "planar", "hexagon", "brick")
-WAVES = ("ramp", "triangle", "sine", "scallop", "cubic", "poly")
+PATTERNS = patterns.NAMES  # every registered pattern (some are parsed but not rendered: the plan warns)
+WAVES = patterns.WAVES
 
 
 def _rgbft(c) -> np.ndarray:
@@ -32,13 +31,14 @@ class Pigment(eqx.Module):
     """A pattern evaluated at the hit point and mapped through a colour map (reference §5.2).
 
     Attributes:
-        pattern:     static name, one of ``PATTERNS``.
-        values:      (M,) colour-map positions in [0, 1], ascending.
-        colors:      (M, 5) colour-map entries, RGBFT. A solid pigment has M = 1; ``checker`` has
-                     its two colours at positions 0 and 1.
+        pattern:     static name, a key of ``raytracer.patterns.REGISTRY`` (``PATTERNS``).
+        values:      (M,) colour-map positions, ascending ([0, 1] for continuous patterns).
+        colors:      (M, 5) colour-map entries, RGBFT. A solid pigment has M = 1; a discrete pattern
+                     (checker, hexagon, brick) has its listed colours at positions 0, 1, ….
         transform:   ``world_from_pattern``; the pattern sees the inverse-transformed hit point.
         vector:      (3,) pattern direction (``gradient``'s vector), unused by others.
-        frequency, phase: the value is ``fmod(v·frequency + phase, 1.00001)`` unless frequency is 0.
+        frequency, phase: the value is ``fmod(v·frequency + phase, 1.00001)`` unless frequency is 0
+                     or the pattern is discrete.
         turbulence:  (3,) amount, or None; ``octaves`` (static), ``omega``, ``lambda_``.
         wave:        static wave function name.
         transparent: static: whether any colour carries filter or transmit (enables transmission).

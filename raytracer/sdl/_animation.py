@@ -13,6 +13,7 @@ the scenes index arrays with ``frame_number``.
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from pathlib import Path
 
@@ -78,6 +79,8 @@ class Animation:
                 try:
                     if field == "cyclic":
                         values[field] = text.lower() in ("on", "true", "yes", "1")
+                    elif not math.isfinite(float(text)):
+                        raise ValueError(text)
                     elif field.endswith("frame"):
                         values[field] = int(float(text))
                     else:

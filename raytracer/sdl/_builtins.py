@@ -1,11 +1,18 @@
-"""Built-in constants and functions of the SDL (manual 3.3.1.5–3.3.1.8)."""
+"""Built-in constants and functions of the SDL (manual 3.3.1.5–3.3.1.8).
+
+Each function is ``fn(p, tok)``: ``p`` is the interpreter, positioned after the function's name;
+the function reads its own arguments with ``p.parse_expr_paren()`` (the expression grammar lives in
+``_expr``, which looks functions up here: this module does not import it).
+"""
 
 from __future__ import annotations
 
 import math
 
-from ._expr import as_float, as_vector, parse_expr_paren, type_name
+from ._convert import as_float, as_int, as_vector, fmt_number, type_name
 from ._values import ArrayValue, ObjRec, RandStream, Vec
+
+MAX_FORMAT_WIDTH = 1000  # str()/vstr() width and decimal places: beyond it only padding grows
 
 _CONSTANTS = {
     "pi": math.pi, "tau": 2 * math.pi, "true": 1.0, "yes": 1.0, "on": 1.0, "false": 0.0, "no": 0.0,
@@ -37,9 +44,9 @@ def _args(p, tok, n_min: int, n_max: int | None = None) -> list:
     p.expect_op("(", f"'(' after {tok.value}")
     args = []
     if not p.is_op(")"):
-        args.append(parse_expr_paren(p))
+        args.append(p.parse_expr_paren())
         while p.accept_op(","):
-            args.append(parse_expr_paren(p))
+            args.append(p.parse_expr_paren())
     p.expect_op(")", f"')' to close {tok.value}(")
     hi = n_min if n_max is None else n_max
     if not n_min <= len(args) <= hi:
@@ -58,7 +65,7 @@ def _f1(fn):
         try:
             return float(fn(a))
         except (ValueError, OverflowError, ZeroDivisionError):
-            raise p.error(f"{tok.value}({a:g}) is undefined", tok.loc) from None
+            raise p.error(f"{tok.value}({fmt_number(a)}) is undefined", tok.loc) from None
     return call
 
 
@@ -68,7 +75,7 @@ def _f2(fn):
         try:
             return float(fn(a, b))
         except (ValueError, OverflowError, ZeroDivisionError):
-            raise p.error(f"{tok.value}({a:g}, {b:g}) is undefined", tok.loc) from None
+            raise p.error(f"{tok.value}({fmt_number(a)}, {fmt_number(b)}) is undefined", tok.loc) from None
     return call
 
 
@@ -168,7 +175,7 @@ def _tracer(p):
 
 def _object_arg(p, tok):
     t = p.peek()
-    v = parse_expr_paren(p)
+    v = p.parse_expr_paren()
     if not isinstance(v, ObjRec):
         raise p.error(f"expected an object identifier in {tok.value}(), found {type_name(v)}", t.loc)
     return v
@@ -179,9 +186,9 @@ def _trace(p, tok):
     p.expect_op("(", f"'(' after {tok.value}")
     obj = _object_arg(p, tok)
     p.expect_op(",", "',' after the object in trace()")
-    a = as_vector(p, parse_expr_paren(p), 3, tok.loc)
+    a = as_vector(p, p.parse_expr_paren(), 3, tok.loc)
     p.expect_op(",", "',' after the start point in trace()")
-    b = as_vector(p, parse_expr_paren(p), 3, tok.loc)
+    b = as_vector(p, p.parse_expr_paren(), 3, tok.loc)
     normal_name = None
     if p.accept_op(","):
         normal_name = p.expect_ident("a vector identifier for trace()'s normal").value
@@ -204,7 +211,7 @@ def _inside(p, tok):
     p.expect_op("(", f"'(' after {tok.value}")
     obj = _object_arg(p, tok)
     p.expect_op(",", "',' after the object in inside()")
-    pt = as_vector(p, parse_expr_paren(p), 3, tok.loc)
+    pt = as_vector(p, p.parse_expr_paren(), 3, tok.loc)
     p.expect_op(")", "')' to close inside(")
     return float(_tracer(p).inside(obj, pt))
 
@@ -234,8 +241,13 @@ def _strlen(p, tok):
 
 def _str(p, tok):
     a, w, prec = _args(p, tok, 3)
-    a, w, prec = (as_float(p, v, tok.loc) for v in (a, w, prec))
-    return _format_float(a, int(w), int(prec))
+    return _format_float(as_float(p, a, tok.loc), *_width_and_precision(p, tok, w, prec))
+
+
+def _width_and_precision(p, tok, w, prec) -> tuple[int, int]:
+    n = MAX_FORMAT_WIDTH
+    return (as_int(p, w, tok.loc, f"a width in {tok.value}()", -n, n),
+            as_int(p, prec, tok.loc, f"a number of decimal places in {tok.value}()", -n, n))
 
 
 def _format_float(a: float, w: int, prec: int) -> str:
@@ -250,18 +262,19 @@ def _format_float(a: float, w: int, prec: int) -> str:
 
 def _vstr(p, tok):
     args = _args(p, tok, 5)  # vstr(N, A, S, L, P): N components of vector A (manual)
-    n = int(as_float(p, args[0], tok.loc))
-    if not 2 <= n <= 5:
-        raise p.error(f"expected 2 to 5 components in vstr(), found {n}", tok.loc)
+    n = as_int(p, args[0], tok.loc, "a number of components in vstr()", 2, 5)
     v = as_vector(p, args[1], n, tok.loc)
     sep = _str_arg(p, tok, args[2])
-    w, prec = int(as_float(p, args[3], tok.loc)), int(as_float(p, args[4], tok.loc))
+    w, prec = _width_and_precision(p, tok, args[3], args[4])
     return sep.join(_format_float(c, w, prec) for c in v)
 
 
 def _chr(p, tok):
-    (a,) = _floats(p, tok, 1)
-    return chr(int(a))
+    (a,) = _args(p, tok, 1)
+    code = as_int(p, a, tok.loc, "a Unicode code point in chr()", 0, 0x10FFFF)
+    if 0xD800 <= code <= 0xDFFF:  # UTF-16 surrogates are not characters
+        raise p.error(f"expected a Unicode code point in chr(), found the surrogate {code:#x}", tok.loc)
+    return chr(code)
 
 
 def _asc(p, tok):
@@ -275,7 +288,7 @@ def _val(p, tok):
     s = _str_arg(p, tok, a).strip()
     import re
 
-    m = re.match(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", s)
+    m = re.match(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?", s)  # ASCII digits
     return float(m.group(0)) if m else 0.0
 
 
@@ -287,9 +300,8 @@ def _concat(p, tok):
 def _substr(p, tok):
     s, a, n = _args(p, tok, 3)
     s = _str_arg(p, tok, s)
-    a, n = int(as_float(p, a, tok.loc)), int(as_float(p, n, tok.loc))
-    if a < 1 or n < 0 or a - 1 + n > len(s):
-        raise p.error(f"substr({s!r}, {a}, {n}) is out of range", tok.loc)
+    a = as_int(p, a, tok.loc, "a start position in substr()", 1, len(s) + 1)
+    n = as_int(p, n, tok.loc, "a length in substr()", 0, len(s) - a + 1)
     return s[a - 1:a - 1 + n]
 
 
@@ -319,7 +331,7 @@ def _defined(p, tok):
 
 def _array_arg(p, tok):
     p.expect_op("(")
-    v = parse_expr_paren(p)
+    v = p.parse_expr_paren()
     if not isinstance(v, ArrayValue):
         raise p.error(f"expected an array in {tok.value}(), found {type_name(v)}", tok.loc)
     return v
@@ -334,14 +346,15 @@ def _dimensions(p, tok):
 def _dimension_size(p, tok):
     a = _array_arg(p, tok)
     p.expect_op(",")
-    n = int(as_float(p, parse_expr_paren(p)))
+    n = as_int(p, p.parse_expr_paren(), tok.loc, "a dimension in dimension_size()")
     p.expect_op(")")
     return float(a.dims[n - 1]) if 1 <= n <= len(a.dims) else 0.0
 
 
 def _bitwise(fn):
     def call(p, tok):
-        args = [int(as_float(p, a, tok.loc)) for a in _args(p, tok, 2, 100)]
+        args = [as_int(p, a, tok.loc, f"an integer in {tok.value}()", -(2**53), 2**53)
+                for a in _args(p, tok, 2, 100)]
         out = args[0]
         for a in args[1:]:
             out = fn(out, a)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import re
 
-from ._expr import as_float, index_list, parse_expr, parse_expr_paren, truthy, type_name
+from ._expr import as_float, as_int, finite, index_list, parse_expr, parse_expr_paren, truthy, type_name
 from ._lexer import EOF, ID, OP, STR
 from ._stream import Frame, logger
 from ._values import Alias, ArrayValue, MacroDef, Vec
@@ -172,7 +172,8 @@ class Directives:
         table, value = self.find(name)
         indices = []
         while self.accept_op("["):  # #ifdef (A[i][j]): is that array element initialised?
-            indices.append(int(as_float(self, parse_expr(self))))
+            loc = self.peek().loc
+            indices.append(as_int(self, parse_expr(self), loc, "an array index"))
             self.expect_op("]")
         self.expect_op(")")
         if indices:
@@ -266,7 +267,8 @@ class Directives:
         elif top[0] == "for":
             self._count(top)
             name, end, step = top[4], top[5], top[6]
-            v = as_float(self, self.lookup(name), tok.loc) + step
+            v = finite(self, as_float(self, self.lookup(name), tok.loc) + step, tok.loc,
+                       f"the #for variable {name}")
             self.declare(name, v)
             if (step > 0 and v <= end + 1e-10) or (step < 0 and v >= end - 1e-10):
                 f.pos = top[1]

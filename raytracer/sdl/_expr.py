@@ -10,10 +10,21 @@ from __future__ import annotations
 
 import math
 
+from ._builtins import BUILTIN_FUNCTIONS, constant
+from ._convert import (  # re-exported: the builders read values through this module
+    EPSILON,
+    as_color,
+    as_float,
+    as_int,
+    as_vector,
+    finite,
+    fmt_number,
+    truthy,
+    type_name,
+)
 from ._lexer import ID, NUM, OP, STR
 from ._values import ArrayValue, FunctionValue, SplineValue, Vec
 
-EPSILON = 1e-10
 COLOR_KEYWORDS = ("color", "colour", "rgb", "rgbf", "rgbt", "rgbft", "srgb", "srgbf", "srgbt", "srgbft")
 _COLOR_PARTS = {"red": 0, "green": 1, "blue": 2, "filter": 3, "transmit": 4}
 _DOT = {"x": 0, "u": 0, "red": 0, "y": 1, "v": 1, "green": 1, "z": 2, "blue": 2,
@@ -21,22 +32,6 @@ _DOT = {"x": 0, "u": 0, "red": 0, "y": 1, "v": 1, "green": 1, "z": 2, "blue": 2,
 
 
 # ---- value helpers ---------------------------------------------------------------------------
-def type_name(v) -> str:
-    if isinstance(v, float):
-        return "float"
-    if isinstance(v, Vec):
-        return "vector"
-    if isinstance(v, str):
-        return "string"
-    return _TYPE_NAMES.get(type(v).__name__) or type(v).__name__.replace("Value", "").lower()
-
-
-_TYPE_NAMES = {"PigRec": "pigment", "LayerRec": "texture layer", "TextureRec": "texture",
-               "InteriorRec": "interior", "MaterialRec": "material", "LightRec": "light_source",
-               "ObjRec": "object", "CameraRec": "camera", "TransformRec": "transform",
-               "ArrayValue": "array", "MacroDef": "macro", "RandStream": "seed() stream"}
-
-
 def _num(p, v, loc):
     if isinstance(v, (float, Vec)):
         return v
@@ -56,54 +51,25 @@ def binop(p, op: str, a, b, loc):
 
 def _fop(p, op, x, y, loc) -> float:
     if op == "+":
-        return x + y
-    if op == "-":
-        return x - y
-    if op == "*":
-        return x * y
-    if op == "/":
+        r = x + y
+    elif op == "-":
+        r = x - y
+    elif op == "*":
+        r = x * y
+    elif op == "/":
         if y == 0.0:
             raise p.error("division by zero", loc)
-        return x / y
-    if op == "^":
+        r = x / y
+    elif op == "^":
         try:
             return float(math.pow(x, y))
         except (ValueError, OverflowError):
-            raise p.error(f"cannot raise {x:g} to the power {y:g}", loc) from None
-    raise p.error(f"unknown operator {op}", loc)
-
-
-def as_float(p, v, loc=None) -> float:
-    if isinstance(v, float):
-        return v
-    if isinstance(v, bool | int):
-        return float(v)
-    if isinstance(v, Vec):
-        return v.c[0]
-    raise p.error(f"expected a float, found {type_name(v)}", loc)
-
-
-def as_vector(p, v, n: int = 3, loc=None) -> tuple:
-    if isinstance(v, float):
-        return (v,) * n
-    if isinstance(v, Vec):
-        return v.padded(n)
-    raise p.error(f"expected a vector, found {type_name(v)}", loc)
-
-
-def as_color(p, v, loc=None) -> Vec:
-    """A value used as a colour: a float fills all five channels (reference §2.2)."""
-    if isinstance(v, float):
-        return Vec((v,) * 5, True)
-    if isinstance(v, Vec):
-        c = v.as_color()
-        c.ft = v.ft or c.c[3] != 0.0 or c.c[4] != 0.0
-        return c
-    raise p.error(f"expected a colour, found {type_name(v)}", loc)
-
-
-def truthy(p, v, loc=None) -> bool:
-    return abs(as_float(p, v, loc)) > EPSILON
+            raise p.error(f"cannot raise {fmt_number(x)} to the power {fmt_number(y)}", loc) from None
+    else:
+        raise p.error(f"unknown operator {op}", loc)
+    if r - r == 0.0:  # finite (the inputs are finite: only an overflow makes an infinity)
+        return r
+    return finite(p, r, loc, f"{fmt_number(x)} {op} {fmt_number(y)}")
 
 
 # ---- grammar ---------------------------------------------------------------------------------
@@ -219,10 +185,12 @@ def dot(p, v, name: str, loc):
 
 
 def index_list(p) -> list[int]:
+    """``[i][j]…`` after an array name being assigned (``#declare A[i] = …``)."""
     idx = []
     while _is(p, "["):
         p.next()
-        idx.append(int(as_float(p, parse_expr_paren(p))))
+        loc = p.peek().loc
+        idx.append(as_int(p, parse_expr_paren(p), loc, "an array index", 0))
         p.expect_op("]")
     return idx
 
@@ -232,7 +200,10 @@ def _index(p, arr: ArrayValue):
     idx = []
     while _is(p, "[") and len(idx) < len(arr.dims):
         p.next()
-        idx.append(int(math.floor(as_float(p, parse_expr_paren(p)) + 1e-9)))
+        i_loc = p.peek().loc
+        i = as_float(p, parse_expr_paren(p), i_loc)
+        # an index a hair below an integer (0.1*30 = 2.9999…) means that integer (i is finite)
+        idx.append(as_int(p, math.floor(i + 1e-9), i_loc, "an array index", 0, arr.dims[len(idx)] - 1))
         p.expect_op("]")
     if len(idx) < len(arr.dims):
         # a sub-array: copy the slice
@@ -241,10 +212,7 @@ def _index(p, arr: ArrayValue):
             size *= d
         start = arr.flat_index(idx + [0] * (len(arr.dims) - len(idx)))
         return ArrayValue(arr.dims[len(idx):], arr.data[start:start + size])
-    try:
-        v = arr.data[arr.flat_index(idx)]
-    except IndexError as e:
-        raise p.error(str(e), loc) from None
+    v = arr.data[arr.flat_index(idx)]
     if v is None:
         raise p.error(f"array element {idx} was never initialised", loc)
     return v
@@ -312,17 +280,27 @@ def _identifier(p, t):
         return v
     if name in COLOR_KEYWORDS:
         return parse_color(p)
-    fn = _builtins.BUILTIN_FUNCTIONS.get(name)
+    fn = BUILTIN_FUNCTIONS.get(name)
     if fn is not None:
         p.next()
-        return fn(p, t)
-    c = _builtins.constant(p, name)
+        return _finite_result(p, fn(p, t), t)
+    c = constant(p, name)
     if c is not None:
         p.next()
         return c
     if name == "function":
         return p.parse_function()
     raise p.error(f"expected a value, found undeclared identifier '{name}'", t.loc)
+
+
+def _finite_result(p, v, t):
+    """A built-in's result, refused when it left the float range (degrees(1e308), vlength …)."""
+    if isinstance(v, float):
+        return finite(p, v, t.loc, f"the result of {t.value}()")
+    if isinstance(v, Vec):
+        for c in v.c:
+            finite(p, c, t.loc, f"the result of {t.value}()")
+    return v
 
 
 # ---- colours ---------------------------------------------------------------------------------
@@ -369,7 +347,3 @@ def _keyword_color(p, kw: str, v, loc) -> Vec:
     if kw == "rgbt":
         return Vec(comps[:3] + [0.0, comps[3]], True)
     return Vec(comps, True)
-
-
-# at the end: _builtins imports this module's names (a cycle resolved at call time)
-from . import _builtins  # noqa: E402

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from ._convert import fmt_number
 from ._directives import Directives, skip_block
-from ._expr import as_float, parse_expr, parse_expr_paren, type_name
+from ._expr import as_float, as_int, binop, parse_expr, parse_expr_paren, type_name
 from ._keywords import KEYWORDS
 from ._lexer import EOF, ID, OP, STR
 from ._objects import (
@@ -126,20 +127,26 @@ class Interpreter(Stream, Directives):
                 return handler(self, t)
         return parse_expr(self)
 
+    def parse_expr_paren(self):
+        """An expression inside ( ), [ ] or an argument list: how the built-ins read arguments."""
+        return parse_expr_paren(self)
+
     # ---- arrays ----------------------------------------------------------------------------
     def parse_array(self, t):
         dims = []
         while self._peek_op_is("["):
             self.next()
-            dims.append(int(as_float(self, parse_expr_paren(self), t.loc)))
+            loc = self.peek().loc
+            dims.append(as_int(self, parse_expr_paren(self), loc, "an array size", 1))
             self.expect_op("]")
         if not dims:
             raise self.error("expected '[' size ']' after array", t.loc)
         size = 1
         for d in dims:
-            if d <= 0:
-                raise self.error(f"expected a positive array size, found {d}", t.loc)
             size *= d
+        if size > self.limits.max_array_elements:
+            raise self.error(f"expected at most {self.limits.max_array_elements} array elements "
+                             f"(Limits.max_array_elements), found {fmt_number(float(size))}", t.loc)
         arr = ArrayValue(dims, [None] * size)
         if self._peek_op_is("{"):
             flat = []
@@ -250,8 +257,6 @@ class Interpreter(Stream, Directives):
         return SplineValue(sorted(pts, key=lambda kv: kv[0]), kind)
 
     def call_spline(self, s: SplineValue, t):
-        from ._expr import binop
-
         self.expect_op("(")
         x = as_float(self, parse_expr_paren(self), t.loc)
         if self.accept_op(","):

@@ -16,8 +16,11 @@ NUM, STR, ID, OP, EOF = "num", "str", "id", "op", "eof"
 # two-character operators first
 _OPS2 = ("<=", ">=", "!=")
 _OPS1 = set("{}()[]<>,;=+-*/?:.!&|#^")
-_NUMBER = re.compile(r"(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+_NUMBER = re.compile(r"([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+# ASCII only, as POV-Ray: str.isdigit/isalpha accept "٣" and "Ø", which the patterns do not match
+_DIGITS = frozenset("0123456789")
+_IDENT_START = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_")
 _ESCAPES = {"n": "\n", "t": "\t", "r": "\r", "\\": "\\", '"': '"', "'": "'", "a": "\a", "b": "\b",
             "f": "\f", "v": "\v"}
 
@@ -41,6 +44,15 @@ class Token(NamedTuple):
 
 def _fmt(v) -> str:
     return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _number(text: str, loc: SourceLoc) -> float:
+    """A number literal's value; one beyond the double range (1e309) is an error, not infinity."""
+    v = float(text)
+    if v == float("inf"):
+        shown = text if len(text) <= 24 else f"{text[:12]}…{text[-8:]} ({len(text)} characters)"
+        raise SceneError(f"expected a number within the float range (up to 1.8e308), found {shown}", loc)
+    return v
 
 
 class _Cursor:
@@ -126,11 +138,11 @@ def tokenize(text: str, file: str = "<string>") -> list[Token]:
             toks.append(Token(EOF, None, c.loc()))
             return toks
         ch = text[c.i]
-        if ch.isdigit() or (ch == "." and c.i + 1 < n and text[c.i + 1].isdigit()):
+        if ch in _DIGITS or (ch == "." and c.i + 1 < n and text[c.i + 1] in _DIGITS):
             m = _NUMBER.match(text, c.i)
-            toks.append(Token(NUM, float(m.group(0)), c.loc()))
+            toks.append(Token(NUM, _number(m.group(0), c.loc()), c.loc()))
             c.advance_to(m.end())
-        elif ch.isalpha() or ch == "_":
+        elif ch in _IDENT_START:
             m = _IDENT.match(text, c.i)
             toks.append(Token(ID, m.group(0), c.loc()))
             c.advance_to(m.end())
@@ -143,4 +155,5 @@ def tokenize(text: str, file: str = "<string>") -> list[Token]:
             toks.append(Token(OP, ch, c.loc()))
             c.advance_to(c.i + 1)
         else:
-            raise SceneError(f"expected a token, found character {ch!r}", c.loc())
+            why = " (identifiers and numbers are ASCII: A-Z, a-z, 0-9, _)" if ch.isalnum() else ""
+            raise SceneError(f"expected a token, found character {ch!r}{why}", c.loc())

@@ -6,7 +6,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..errors import SceneError
+from ..errors import InternalError, SceneError
 from ._animation import Animation
 from ._interpreter import Interpreter
 from ._lexer import tokenize
@@ -40,11 +40,14 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
 
     Raises:
         SceneError: for any scene that cannot be loaded, with ``file:line:col``.
+        InternalError: when the parser itself fails (a bug), chained to the original exception,
+            with the scene location the interpreter had reached.
     """
     p = Interpreter(include_paths=include_paths, strict=strict, limits=limits,
                     width=width or 160, height=height or 120, animation=animation)
     old_limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(old_limit, 20000))
+    lowering = False
     try:
         if _is_path(path_or_text):
             path = str(path_or_text)
@@ -57,13 +60,18 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
             p.push_main(tokenize(str(path_or_text), "<string>"), None)
         p.run()
         _check_open_blocks(p)
+        lowering = True
         return lower_scene(p)
     except SceneError:
         raise
-    except RecursionError:
+    except RecursionError:  # a scene nested deeper than Python's stack (((((…))))), not a bug
         raise p.error("the scene nests too deeply (recursion limit)") from None
-    except (ValueError, TypeError, IndexError, KeyError, ArithmeticError, AttributeError) as e:
-        raise p.error(f"cannot evaluate the scene here: {type(e).__name__}: {e}") from e
+    except Exception as e:
+        # the one boundary between the parser and its callers: whatever is not a SceneError is
+        # ours, and says so (the scene errors are raised where the input is read)
+        where = "while building the scene" if lowering else "while reading the scene"
+        loc, chain = (None, ()) if lowering else (p.here(), p.chain())
+        raise InternalError(f"{type(e).__name__}: {e} ({where})", loc, chain) from e
     finally:
         sys.setrecursionlimit(old_limit)
 

@@ -30,12 +30,14 @@ class Limits:
         max_macro_depth:     nested macro (and function) calls.
         max_include_depth:   nested ``#include`` files.
         max_tokens:          tokens read in total (a budget for the whole scene).
+        max_array_elements:  elements of one array (``array[1000000000]`` would need 8 GB).
     """
 
     max_loop_iterations: int = 1_000_000
     max_macro_depth: int = 150
     max_include_depth: int = 64
     max_tokens: int = 50_000_000
+    max_array_elements: int = 16_777_216
 
 
 @dataclasses.dataclass

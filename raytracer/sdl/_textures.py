@@ -6,24 +6,18 @@ import dataclasses
 
 import numpy as np
 
+from .. import patterns
 from ..scene._transform import pov_matrix, rotation_matrix, scale_matrix, translation_matrix
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
 from ._lexer import ID, NUM, OP
 from ._values import InteriorRec, LayerRec, MaterialRec, PigRec, TextureRec, TransformRec, Vec
 
 TRANSFORM_KEYWORDS = ("translate", "rotate", "scale", "matrix", "transform")
-PATTERN_NAMES = ("checker", "gradient", "bozo", "spotted", "bumps", "granite", "marble", "wood",
-                 "agate", "radial", "onion", "leopard", "ripples", "waves", "wrinkles", "dents",
-                 "spiral1", "spiral2", "boxed", "spherical", "cylindrical", "planar", "hexagon", "brick")
-UNSUPPORTED_PATTERNS = ("crackle", "cells", "quilted", "mandel", "julia", "magnet", "facets",
-                        "average", "tiling", "pavement", "slope", "aoi", "density_file",
-                        "image_pattern", "object", "function", "pigment_pattern", "fractal",
-                        "cubic", "square", "triangular", "granite_", "noise_pigment", "image_map",
-                        "bump_map", "material_map", "spherical_", "toroidal")
-WAVE_KEYWORDS = {"ramp_wave": "ramp", "triangle_wave": "triangle", "sine_wave": "sine",
-                 "scallop_wave": "scallop", "cubic_wave": "cubic", "poly_wave": "poly"}
-BLUE, GREEN = Vec((0, 0, 1, 0, 0)), Vec((0, 1, 0, 0, 0))
-BLACK, WHITE = Vec((0, 0, 0, 0, 0)), Vec((1, 1, 1, 0, 0))
+# Pattern keywords, arguments, default maps and waves come from ``raytracer.patterns.REGISTRY``.
+WAVE_KEYWORDS = {f"{wave}_wave": wave for wave in patterns.WAVES}
+# texture-level patterns (``checker texture {…} texture {…}``, ``texture_map``): approximated
+TEXTURE_PATTERNS = patterns.SDL_KEYWORDS | {"texture_map", "tiles"}
+NEUTRAL = Vec((0.5, 0.5, 0.5, 0, 0))  # the colour of a pattern we do not render
 
 
 def vector3(p, loc=None) -> tuple:
@@ -126,17 +120,8 @@ def parse_color_map(p) -> list:
     return entries
 
 
-def _default_map(pattern: str) -> list:
-    if pattern == "checker":
-        return [(0.0, BLUE), (1.0, GREEN)]
-    if pattern == "bozo":
-        w, g, b, r = WHITE, GREEN, BLUE, Vec((1, 0, 0, 0, 0))
-        return [(0.0, w), (0.4, w), (0.4, g), (0.6, g), (0.6, b), (0.8, b), (0.8, r), (1.0, r)]
-    if pattern == "hexagon":
-        return [(0.0, BLUE), (0.5, GREEN), (1.0, Vec((1, 0, 0, 0, 0)))]
-    if pattern == "brick":
-        return [(0.0, WHITE), (1.0, Vec((1, 0, 0, 0, 0)))]
-    return [(0.0, BLACK), (1.0, WHITE)]
+def _default_map(record: patterns.Pattern) -> list:
+    return [(v, Vec(c)) for v, c in record.default_map]
 
 
 # ---- pigments --------------------------------------------------------------------------------
@@ -181,9 +166,9 @@ def pigment_item(p, pig: PigRec) -> PigRec:
     kw = t.value
     if kw in COLOR_KEYWORDS or kw in ("red", "green", "blue", "filter", "transmit"):
         return _solid(parse_color(p))
-    if kw in PATTERN_NAMES:
+    if kw in patterns.SDL_KEYWORDS:
         p.next()
-        return _pattern(p, kw, pig)
+        return _pattern(p, patterns.REGISTRY[kw], pig, t.loc)
     if kw in ("color_map", "colour_map"):
         p.next()
         cmap = parse_color_map(p)
@@ -203,17 +188,15 @@ def pigment_item(p, pig: PigRec) -> PigRec:
     if kw in ("pigment_map", "texture_map", "normal_map", "slope_map"):
         p.next()
         return _pigment_map(p, kw, pig, t.loc)
-    if kw in ("warp", "quick_color", "quick_colour", "noise_generator", "agate_turb", "brick_size",
-              "mortar", "arms", "form", "metric", "offset", "solid", "exponent", "interior",
+    if kw in patterns.MODIFIERS or kw in (
+              "warp", "quick_color", "quick_colour", "noise_generator",
+              "arms", "form", "metric", "offset", "solid", "exponent", "interior",
               "exterior", "control0", "control1", "coords", "size", "orientation", "dist_exp",
               "major_radius", "repeat", "flip", "black_hole", "falloff", "uv_mapping", "interpolate",
               "map_type", "once", "gamma", "premultiplied", "accuracy", "return", "turb_depth",
               "use_color", "use_colour", "use_index", "use_alpha"):
         p.next()
         return _ignored_modifier(p, kw, pig, t.loc)
-    if kw in UNSUPPORTED_PATTERNS:
-        p.next()
-        return _unsupported_pattern(p, kw, pig, t.loc)
     raise p.error(f"expected a pigment item, found {t.describe()}", t.loc)
 
 
@@ -239,13 +222,17 @@ def _starts_value(p) -> bool:
     return isinstance(p.lookup(t.value), (float, Vec))
 
 
-def _pattern(p, kw: str, pig: PigRec) -> PigRec:
-    new = PigRec(kw, _default_map(kw), transform=pig.transform, turbulence=pig.turbulence,
-                 wave="triangle" if kw in ("marble", "wood") else None)
-    if kw in ("checker", "hexagon", "brick"):
+def _pattern(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:
+    """A pattern keyword (consumed) and its arguments, as its registry record declares them."""
+    kw = record.name
+    if not record.rendered:
+        return _unsupported_pattern(p, record, loc)
+    new = PigRec(kw, _default_map(record), transform=pig.transform, turbulence=pig.turbulence,
+                 wave=record.default_wave if record.default_wave != "ramp" else None)
+    if record.discrete:
         new.frequency = 0.0
         colors = []
-        n = {"checker": 2, "hexagon": 3, "brick": 2}[kw]
+        n = record.colours
         while len(colors) < n and (_starts_color(p) or p.is_id("pigment")):
             if p.accept_id("pigment"):
                 p.warn("pigment list", f"{kw} with pigments is approximated by their first colours",
@@ -257,16 +244,12 @@ def _pattern(p, kw: str, pig: PigRec) -> PigRec:
         if colors:
             defaults = [c for _, c in new.cmap]
             colors += defaults[len(colors):]
-            values = [0.0, 1.0] if n == 2 else [0.0, 0.5, 1.0]
-            new.cmap = list(zip(values, colors, strict=True))
+            # the value of a discrete pattern is the index of its colour
+            new.cmap = [(float(i), c) for i, c in enumerate(colors)]
             new.cmap_given = True
             new.ft = _map_ft(new.cmap)
-    elif kw == "gradient":
+    if record.argument == "vector":
         new.vector = vector3(p)
-    elif kw in ("spiral1", "spiral2"):
-        new.vector = (float_(p), 0.0, 0.0)
-    elif kw == "agate":
-        pass
     return new
 
 
@@ -314,21 +297,15 @@ def _ignored_modifier(p, kw, pig, loc):
     return pig
 
 
-def _unsupported_pattern(p, kw, pig, loc):
-    p.warn(kw, f"pattern '{kw}' is not supported; a neutral colour is used", loc)
-    if kw in ("image_map", "bump_map", "material_map", "image_pattern", "object", "function",
-              "pigment_pattern", "density_file", "slope"):
-        if kw == "density_file":
-            p.next()  # df3
-            parse_expr(p)
-        elif p.is_op("{"):
-            skip_braces(p)
-        else:
-            _skip_args(p)
+def _unsupported_pattern(p, record: patterns.Pattern, loc):
+    """A pattern we parse but do not render: its arguments are skipped, a neutral colour is used."""
+    p.warn(record.name, f"pattern '{record.name}' is not supported; a neutral colour is used", loc)
+    if record.argument == "file":
+        p.next()  # the file type (df3)
+        parse_expr(p)
     else:
         _skip_args(p)
-    cmap = [(0.0, Vec((0.5, 0.5, 0.5, 0, 0)))]
-    return PigRec("solid", cmap, cmap_given=True)
+    return PigRec("solid", [(0.0, NEUTRAL)], cmap_given=True)
 
 
 def _pigment_map(p, kw, pig, loc):
@@ -551,13 +528,7 @@ def texture_item(p, t, layers, default):
     if kw in TRANSFORM_KEYWORDS:
         m = parse_transform_item(p, t)
         return [layer.transformed(m) for layer in layers]
-    if kw in ("checker", "hexagon", "brick", "gradient", "bozo", "spotted", "marble", "wood",
-              "agate", "granite", "radial", "onion", "leopard", "tiling", "crackle", "cells",
-              "wrinkles", "ripples", "waves", "dents", "bumps", "boxed", "spherical", "cylindrical",
-              "planar", "image_map", "material_map", "object", "function", "slope", "spiral1",
-              "spiral2", "average", "texture_map", "tiles", "quilted", "mandel", "pavement",
-              "tiling", "facets", "julia", "magnet", "pigment_pattern", "image_pattern",
-              "density_file"):
+    if kw in TEXTURE_PATTERNS:
         return _patterned_texture(p, t, layers, default)
     if kw in ("uv_mapping", "interior_texture"):
         return layers

@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import SourceLoc
+from ..scene._lights import LIGHT_DEFAULTS, SPOT_DEFAULTS
 
 
 class Vec:
@@ -196,17 +197,20 @@ class MaterialRec:
 
 @dataclasses.dataclass
 class LightRec:
+    """A light source as parsed; defaults are POV-Ray's, from ``raytracer.scene._lights``."""
+
     position: np.ndarray
-    color: Vec = dataclasses.field(default_factory=lambda: Vec((1, 1, 1, 0, 0)))
-    point_at: np.ndarray = dataclasses.field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
-    kind: str = "point"  # point, spotlight, cylinder
+    color: Vec = dataclasses.field(default_factory=lambda: Vec(LIGHT_DEFAULTS["color"]).as_color())
+    point_at: np.ndarray = dataclasses.field(
+        default_factory=lambda: np.array(LIGHT_DEFAULTS["point_at"], dtype=np.float64))
+    kind: str = "point"  # a non-modifier entry of LIGHT_TYPES: point, spotlight, cylinder
     parallel: bool = False
     shadowless: bool = False
     fade_distance: float | None = None
     fade_power: float | None = None
-    radius: float = 30.0
-    falloff: float = 45.0
-    tightness: float = 0.0
+    radius: float = SPOT_DEFAULTS["radius"]
+    falloff: float = SPOT_DEFAULTS["falloff"]
+    tightness: float = SPOT_DEFAULTS["tightness"]
     area: tuple | None = None  # (axis1, axis2, n1, n2)
     circular: bool = False
     orient: bool = False

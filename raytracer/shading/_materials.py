@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import patterns
 from .._plan import Plan
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
 from ..scene._transform import inverse_affine
@@ -149,28 +150,29 @@ def pigment_at(mats: PackedMaterials, prim, p):
     point ``p`` (3,)."""
     if len(mats.pattern_names) == 1 and mats.pattern_names[0] == "solid":
         return mats.colors[prim, 0]
-    from . import patterns as pat  # noqa: PLC0415 - only scenes with patterns need it
-
     m = mats.pattern_from_world[prim]
     q = m[:3, :3] @ p + m[:3, 3]
     pid = jnp.asarray(mats.pattern_id)[prim]
     v = jnp.zeros((), p.dtype)
     for k, name in enumerate(mats.pattern_names):
-        if name == "solid":
+        # a solid colour is its map's only entry; a pattern we do not render (the plan warned)
+        # shows its first colour
+        if name == "solid" or not patterns.REGISTRY[name].rendered:
             continue
         turb = mats.turbulence[prim] if mats.turbulent[k] else None
-        vk = pat.pattern_value(name, q, mats.vector[prim], turb, mats.octaves[name],
-                               mats.omega[prim], mats.lambda_[prim])
+        vk = patterns.pattern_value(name, q, mats.vector[prim], turb, mats.octaves[name],
+                                    mats.omega[prim], mats.lambda_[prim])
         v = jnp.where(pid == k, vk, v)
-    # frequency / phase with POV's 1.00001 wrap (§5.2 step 3); discrete patterns have frequency 0
+    # frequency / phase with POV's 1.00001 wrap (§5.2 step 3); a discrete pattern's value is the
+    # index of its colour and is never wrapped
     freq, phase = mats.frequency[prim], mats.phase[prim]
     w = jnp.fmod(v * freq + phase, 1.00001)
     w = jnp.where(w < 0, w - jnp.floor(w), w)
-    discrete = jnp.asarray([name in pat.DISCRETE_PATTERNS for name in mats.pattern_names])[pid]
+    discrete = jnp.asarray([patterns.REGISTRY[name].discrete for name in mats.pattern_names])[pid]
     v = jnp.where((freq != 0) & ~discrete, w, v)
     wave = jnp.asarray(mats.waves)[prim]
     if np.any(mats.waves != 0):
-        waved = jnp.stack([pat.apply_wave(v, name) for name in WAVES])
+        waved = jnp.stack([patterns.apply_wave(v, name) for name in WAVES])
         v = waved[wave]
     c = _color_map(v, mats.values[prim], mats.colors[prim])
     return jnp.where(pid == _solid_index(mats), mats.colors[prim, 0], c)

@@ -52,7 +52,7 @@ def test_a_bad_number_in_the_ini_has_its_location(tmp_path):
 
 def test_an_animated_scene_indexes_its_arrays_with_frame_number():
     text = "#declare R = array[3] {1, 2, 3}\nsphere { 0, R[frame_number - 1] }"
-    with pytest.raises(SceneError, match="array index -1"):
+    with pytest.raises(SceneError, match="expected an array index from 0 to 2, found -1"):
         load_scene(text)  # as in povray without its INI: frame_number is 0
     s = load_scene(text, animation=Animation(frame=3, initial_frame=1, final_frame=3))
     assert float(s.objects[0].shape.radius) == 3.0

@@ -1,8 +1,10 @@
 """Errors carry exact locations; runaway scenes stop with a SceneError."""
 
+import re
+
 import pytest
 
-from raytracer.errors import SceneError, SourceLoc
+from raytracer.errors import InternalError, SceneError, SourceLoc
 from raytracer.sdl import Limits, load_scene
 
 
@@ -113,3 +115,74 @@ def test_standard_textures_include_is_quiet_until_a_bumpy_texture_is_used():
 def test_nonexistent_path_is_a_scene_error():
     e = error_of("/no/such/scene.pov")
     assert "no file" in str(e)
+
+
+@pytest.mark.parametrize("text, col, fragment", [
+    # letters and digits outside ASCII (str.isalpha/isdigit accept them, SDL does not)
+    ("sphere{0,1 Ø}", 12, "expected a token, found character 'Ø'"),
+    ("#declare A = 1٣;", 15, "expected a token, found character '٣'"),
+    # counts and sizes that were infinite, or too large for an index
+    ("global_settings { max_trace_level 1e309 }", 35, "expected a number within the float range"),
+    ("#declare A = array[1e309];", 20, "expected a number within the float range (up to 1.8e308), "
+                                       "found 1e309"),
+    ("light_source { 0, 1 area_light x,z,1e309,2 }", 36, "expected a number within the float range"),
+    ("mesh2 { vertex_vectors { 1e309, <0,0,0> } face_indices { 1, <0,0,0> } }", 26,
+     "expected a number within the float range"),
+    ("#declare S = str(1,1e309,0);", 20, "expected a number within the float range"),
+    ("#declare A = array[1e308];", 20, "expected an array size from 1 to 2147483647, found 1e+308"),
+    ("#declare A = array[100000][100000];", 14,
+     "expected at most 16777216 array elements (Limits.max_array_elements), found 10000000000"),
+    ("#declare A = array[2];\n#declare B = A[1e300];", 16,
+     "expected an array index from 0 to 1, found 1e+300"),
+    ("#declare S = chr(1114112);", 14, "expected a Unicode code point in chr() from 0 to 1114111, "
+                                       "found 1114112"),
+    ("#declare S = str(1, 1e308, 0);", 14, "expected a width in str() from -1000 to 1000, found 1e+308"),
+    ("#declare S = str(5, -2147483649, 2);", 14, "expected a width in str() from -1000 to 1000"),
+    ('#declare S = substr("abc", 2, 3);', 14, "expected a length in substr() from 0 to 2, found 3"),
+    # arithmetic and built-ins that leave the float range (a later count would be infinite)
+    ("#declare B = 1e300 * 1e300;", 20, "1e+300 * 1e+300 is outside the float range"),
+    ("#declare D = degrees(1e308);", 14, "the result of degrees() is outside the float range"),
+    ('#declare D = val("1e400");', 14, "the result of val() is outside the float range"),
+])
+def test_hostile_numbers_and_characters_are_scene_errors_with_their_location(text, col, fragment):
+    e = error_of(text)
+    line = text.count("\n") + 1
+    assert e.location == SourceLoc("<string>", line, col)
+    assert fragment in str(e)
+
+
+def test_a_count_is_truncated_toward_zero_and_checked_after_truncation(sdl_value):
+    assert sdl_value("#declare A = array[1.9]\n#declare R = dimension_size(A, 1);") == 1.0
+    assert sdl_value('#declare R = concat(str(7, -2.5, 0.9), chr(65.7));') == "07A"  # str(7, -2, 0), chr(65)
+    assert sdl_value("#declare A = array[2] {1, 2}\n#declare R = A[0.9999999999];") == 2.0  # a hair below 1
+    e = error_of("#declare A = array[0.5];")
+    assert "expected an array size from 1 to 2147483647, found 0.5" in str(e)
+
+
+def test_messages_shorten_long_integers_and_long_call_chains():
+    e = SceneError(f"array index {10**300} out of range", SourceLoc("f.pov", 1, 2))
+    assert "array index 1.000e+300 out of range" in str(e)
+    assert not re.search(r"\d{21}", str(e))
+    e = error_of("#macro M(N)\n  M(N + 1)\n#end\nM(0)")
+    lines = str(e).splitlines()
+    assert lines[0] == "<string>:2:3: macro calls nested deeper than 150 (runaway recursion in M?)"
+    assert lines[1:5] == ["  included from <string>:2:3"] * 4  # the innermost calls
+    assert lines[5] == f"  … {len(e.include_chain) - 8} more …"
+    assert lines[-1] == "  included from <string>:4:1"  # the outermost: the call in the file
+    assert len(lines) == 10 and len(e.include_chain) >= 150
+
+
+def test_an_internal_failure_is_an_internal_error_with_the_scene_location(monkeypatch):
+    import raytracer.sdl._interpreter as interpreter
+
+    def broken_camera_builder(p, t):
+        raise TypeError("unsupported operand type(s) for +: 'NoneType' and 'float'")
+
+    monkeypatch.setattr(interpreter, "parse_camera", broken_camera_builder)
+    with pytest.raises(InternalError) as e:
+        load_scene("sphere { 0, 1 }\ncamera { location -5*z }")
+    assert not isinstance(e.value, SceneError)
+    assert isinstance(e.value.__cause__, TypeError)  # chained: the traceback is the bug's own
+    assert e.value.location == SourceLoc("<string>", 2, 1)
+    assert str(e.value).startswith("<string>:2:1: internal error (a bug in raytracer, not in the scene): "
+                                   "TypeError: unsupported operand")

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from jax.test_util import check_grads
 
-from raytracer.shading import patterns as P
+import raytracer.patterns as P
 
 needs_povray = pytest.mark.skipif(shutil.which("povray") is None, reason="needs the povray binary")
 GREY_MAP = "color_map { [0 rgb 0] [1 rgb 1] }"
@@ -116,11 +116,11 @@ def test_poly_wave_exponent():
     assert float(P.apply_wave(jnp.float32(0.5), "poly", exponent=2.0)) == pytest.approx(0.25)
 
 
-def test_tables_name_the_discrete_and_triangle_patterns():
-    assert {"checker", "hexagon", "brick"} == P.DISCRETE_PATTERNS
-    assert P.DEFAULT_WAVE["marble"] == P.DEFAULT_WAVE["wood"] == "triangle"
-    assert P.DEFAULT_WAVE["gradient"] == P.DEFAULT_WAVE["bozo"] == "ramp"
-    assert set(P.DEFAULT_WAVE) == P.PATTERNS
+def test_registry_names_the_discrete_and_triangle_patterns():
+    assert {"checker", "hexagon", "brick"} == P.DISCRETE
+    assert P.REGISTRY["marble"].default_wave == P.REGISTRY["wood"].default_wave == "triangle"
+    assert P.REGISTRY["gradient"].default_wave == P.REGISTRY["bozo"].default_wave == "ramp"
+    assert P.DISCRETE <= P.RENDERED <= set(P.REGISTRY)
 
 
 def test_marble_and_wood_without_turbulence_are_plain_distances():
@@ -208,14 +208,14 @@ def _values_and_gradients(names, turbulence):
 
 def test_values_and_gradients_are_finite_at_degenerate_points():
     # origin (sqrt, atan2, norms), lattice points, integer faces, a zero gradient vector
-    names = sorted(P.PATTERNS - {"granite", "wrinkles", "agate", "dents", "spotted", "bumps", "waves"})
+    names = sorted(P.RENDERED - {"granite", "wrinkles", "agate", "dents", "spotted", "bumps", "waves"})
     out = _values_and_gradients(names, None)
     bad = [n for n, ok in zip(names, np.isfinite(out).all(axis=(0, 2)), strict=True) if not ok]
     assert not bad
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", sorted(P.PATTERNS))
+@pytest.mark.parametrize("name", sorted(P.RENDERED))
 @pytest.mark.parametrize("turbulence", [None, (0.4, 0.3, 0.2)])
 def test_values_and_gradients_are_finite_for_every_pattern_and_turbulence(name, turbulence):
     assert np.isfinite(_values_and_gradients([name], turbulence)).all()
@@ -243,7 +243,7 @@ def test_gradients_match_finite_differences_in_float64(name):
 def test_float32_stays_float32_and_vmap_matches_the_loop():
     pts = _random_points(4, seed=3, scale=3.0)
     vec = jnp.array([1.0, 2.0, 0.5], jnp.float32)
-    names = sorted(P.PATTERNS - {"granite", "wrinkles", "agate"})
+    names = sorted(P.RENDERED - {"granite", "wrinkles", "agate"})
 
     def f(p):
         return jnp.stack([P.pattern_value(n, p, vec, None, 2, 0.5, 2.0) for n in names])

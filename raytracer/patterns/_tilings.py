@@ -1,0 +1,80 @@
+"""Discrete patterns: each point chooses one entry of a list (exact POV-Ray 3.7: the manual's
+definitions and, where it is silent — orientation of hexagon, where brick mortar sits — what POV-Ray
+3.7.0.10 renders; ``tests/shading/test_patterns.py`` compares with POV-Ray renders)."""
+
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+
+from ._common import frac
+from ._record import BLUE, GREEN, RED, WHITE, Pattern
+
+_CHECKER_OFFSET = 1e-10  # POV nudges each coordinate so that integer faces fall into the upper cell
+_SQRT3 = math.sqrt(3.0)
+
+
+def _face_offset(p):
+    """POV's 1e-10 in float64; 32 ulps of the coordinate's magnitude (at least 1e-6) in float32."""
+    if p.dtype == jnp.float64:
+        return _CHECKER_OFFSET
+    return jnp.maximum(1e-6, 32 * jnp.finfo(p.dtype).eps * jnp.abs(p))
+
+
+def checker(p, inputs):
+    """0 = first colour, 1 = second colour: the parity of the cell's integer coordinates."""
+    # POV's 1e-10 nudge assumes float64 hit points; a float32 hit on the face y = -1 lands ±1e-7 off
+    # it, so the nudge scales with the dtype's precision (a face at an integer coordinate must fall
+    # into one cell, not flicker between two).
+    k = jnp.sum(jnp.floor(p + _face_offset(p)))
+    return k - 2.0 * jnp.floor(0.5 * k)
+
+
+def hexagon(p, inputs):
+    """Hexagonal rods along y, side 1, vertices on ±x, tiled in the x-z plane.
+
+    Centres are c(i, j) = (1.5 i, √3 (j + i/2)); the value is (j - i) mod 3: 0 = COLOR_1 (the hexagon at
+    the origin), 1 = COLOR_2 (the neighbour in +z), 2 = COLOR_3 (the neighbours at (1.5, ±√3/2)
+    alternate 2 and 1 going round; POV-Ray's "COLOR_3 to either side").
+    """
+    x, z = p[0], p[2]
+    i0 = jnp.floor(x / 1.5)
+    best_d2, best_colour = None, None
+    for di in (0.0, 1.0):  # the nearest centre lies in one of the two bracketing columns
+        i = i0 + di
+        j = jnp.round(z / _SQRT3 - 0.5 * i)
+        d2 = (x - 1.5 * i) ** 2 + (z - _SQRT3 * (j + 0.5 * i)) ** 2
+        colour = jnp.mod(j - i, 3.0)
+        if best_d2 is None:
+            best_d2, best_colour = d2, colour
+        else:
+            closer = d2 < best_d2
+            best_colour = jnp.where(closer, colour, best_colour)
+            best_d2 = jnp.where(closer, d2, best_d2)
+    return best_colour
+
+
+def brick(p, inputs, *, brick_size, mortar):
+    """1 = brick (COLOR_2), 0 = mortar (COLOR_1).
+
+    Rows of height size.y; odd rows are shifted by half a brick in x, even rows by half a brick in z;
+    the mortar occupies the last ``mortar`` of each cell along every axis (as POV-Ray 3.7 renders it).
+    """
+    bx, by, bz = brick_size
+    row = jnp.floor(p[1] / by)
+    odd = (row - 2.0 * jnp.floor(0.5 * row)) > 0.5
+    fx = frac((p[0] + jnp.where(odd, 0.5 * bx, 0.0)) / bx) * bx
+    fy = frac(p[1] / by) * by
+    fz = frac((p[2] + jnp.where(odd, 0.0, 0.5 * bz)) / bz) * bz
+    inside = (fx < bx - mortar) & (fy < by - mortar) & (fz < bz - mortar)
+    return inside.astype(p.dtype)
+
+
+PATTERNS = (
+    Pattern("checker", checker, colours=2, default_map=((0.0, BLUE), (1.0, GREEN))),
+    Pattern("hexagon", hexagon, colours=3, default_map=((0.0, BLUE), (1.0, GREEN), (2.0, RED))),
+    Pattern("brick", brick, colours=2, default_map=((0.0, WHITE), (1.0, RED)),
+            # POV-Ray's defaults: brick + mortar per axis, and the mortar's width
+            modifiers={"brick_size": (8.0, 3.0, 4.5), "mortar": 0.5}),
+)

@@ -1,0 +1,72 @@
+"""The light-type list is the single source of the render plan's light effects and of the defaults:
+each type (and modifier) turns on exactly the effects it declares, and the parser, the scene model
+and the spotlight cone share POV-Ray's defaults."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import raytracer as rt
+from raytracer._plan import Effects
+from raytracer.scene._lights import LIGHT_EFFECTS, LIGHT_TYPES, light_effects
+from raytracer.sdl import load_scene
+
+# One SDL light per entry of LIGHT_TYPES (a new light type adds its line here).
+SDL_LIGHT = {
+    "point": "light_source { <0, 5, -5> rgb 1 }",
+    "spotlight": "light_source { <0, 5, -5> rgb 1 spotlight point_at 0 }",
+    "cylinder": "light_source { <0, 5, -5> rgb 1 cylinder point_at 0 }",
+    "parallel": "light_source { <0, 5, -5> rgb 1 parallel point_at 0 }",
+    "area_light": "light_source { <0, 5, -5> rgb 1 area_light x, z, 2, 2 }",
+    "fade": "light_source { <0, 5, -5> rgb 1 fade_distance 3 fade_power 2 }",
+    "shadowless": "light_source { <0, 5, -5> rgb 1 shadowless }",
+}
+
+
+def _scene(light: str):
+    return load_scene(f"camera {{ location <0, 1, -4> look_at 0 }}\n{light}\n"
+                      "sphere { 0, 1 pigment { rgb 1 } }\nplane { y, -1 pigment { rgb 1 } }\n")
+
+
+def test_every_light_type_has_a_scene_and_every_light_effect_a_type():
+    assert set(SDL_LIGHT) == {t.name for t in LIGHT_TYPES}
+    effect_fields = {f.name for f in dataclasses.fields(Effects)}
+    assert set(LIGHT_EFFECTS) == {"fade", "spotlights", "area_lights", "parallel_lights"} <= effect_fields
+
+
+@pytest.mark.parametrize("light_type", LIGHT_TYPES, ids=lambda t: t.name)
+def test_a_light_turns_on_exactly_the_effects_its_type_declares(light_type):
+    scene = _scene(SDL_LIGHT[light_type.name])
+    (light,) = scene.lights
+    assert light_type.present(light)
+    effects = rt.plan(scene).effects
+    assert {e for e in LIGHT_EFFECTS if getattr(effects, e)} == set(light_type.effects)
+    assert light_effects(scene.lights) == {e: e in light_type.effects for e in LIGHT_EFFECTS}
+    if light_type.rendered_as is not None:
+        assert [w.feature for w in scene.warnings] == [f"{light_type.name} light"]
+
+
+def test_a_shadowless_area_light_needs_no_area_sampling():
+    scene = _scene("light_source { <0, 5, -5> rgb 1 area_light x, z, 2, 2 shadowless }")
+    assert light_effects(scene.lights)["area_lights"] is False
+
+
+def test_effects_of_several_lights_are_the_union_of_their_types():
+    lights = (_scene(SDL_LIGHT["spotlight"]).lights + _scene(SDL_LIGHT["fade"]).lights)
+    assert light_effects(lights) == {"fade": True, "spotlights": True, "area_lights": False,
+                                     "parallel_lights": False}
+    assert light_effects(()) == dict.fromkeys(LIGHT_EFFECTS, False)
+
+
+def test_defaults_are_povray_s_in_the_parser_and_the_scene_model():
+    # POV-Ray 3.7 manual, "Spotlights" and "Point Lights": radius 30, falloff 45, tightness 0 (degrees);
+    # white; point_at <0, 0, 1>
+    (spot,) = _scene("light_source { <0, 5, -5> spotlight }").lights
+    for light in (spot, rt.Light(position=(0.0, 5.0, -5.0), spot=rt.Spot())):
+        np.testing.assert_array_equal(light.color, [1.0, 1.0, 1.0])
+        np.testing.assert_array_equal(light.point_at, [0.0, 0.0, 1.0])
+        assert (float(light.spot.radius_degrees), float(light.spot.falloff_degrees),
+                float(light.spot.tightness)) == (30.0, 45.0, 0.0)
