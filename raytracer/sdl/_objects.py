@@ -28,9 +28,11 @@ from ._values import CameraRec, LayerRec, LightRec, ObjRec, TextureRec, Vec
 
 PRIMITIVES = tuple(SDL_KEYWORDS)
 CSG_KEYWORDS = ("union", "intersection", "difference", "merge")
-UNSUPPORTED_OBJECTS = ("lathe", "sor", "prism", "sphere_sweep", "blob", "superellipsoid",
-                       "height_field", "text", "isosurface", "parametric", "julia_fractal",
-                       "bicubic_patch", "ovus", "lemon", "poly", "cubic", "quartic")
+# POV-Ray's object keywords; those without a registered shape are parsed, warned and left out
+POV_OBJECTS = ("lathe", "sor", "prism", "sphere_sweep", "blob", "superellipsoid", "height_field", "text",
+               "isosurface", "parametric", "julia_fractal", "bicubic_patch", "ovus", "lemon", "poly",
+               "cubic", "quartic")
+UNSUPPORTED_OBJECTS = tuple(kw for kw in POV_OBJECTS if kw not in SDL_KEYWORDS)
 OBJECT_KEYWORDS = PRIMITIVES + CSG_KEYWORDS + UNSUPPORTED_OBJECTS + ("object", "light_source",
                                                                      "light_group")
 FLAGS = ("no_shadow", "no_image", "no_reflection", "double_illuminate")
