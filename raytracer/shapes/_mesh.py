@@ -143,15 +143,23 @@ def _parse_mesh2(args) -> dict:
             nidx = [tuple(int(c) for c in v) for v in _count_list(args, kw, 3)]
     if verts is None or faces is None:
         raise args.error("expected vertex_vectors and face_indices in mesh2", loc)
-    try:
-        tris = [tuple(verts[i] for i in f) for f in faces]
-        norms = None
-        if normals is not None:
-            idx = nidx if nidx is not None else faces
-            norms = [tuple(normals[i] for i in f) for f in idx]
-    except IndexError:
-        raise args.error("mesh2 index out of range", loc) from None
+    _check_indices(args, faces, len(verts), "face_indices", "vertex_vectors", loc)
+    tris = [tuple(verts[i] for i in f) for f in faces]
+    norms = None
+    if normals is not None:
+        idx = nidx if nidx is not None else faces
+        _check_indices(args, idx, len(normals), "normal_indices" if nidx is not None else "face_indices",
+                       "normal_vectors", loc)
+        norms = [tuple(normals[i] for i in f) for f in idx]
     return _mesh_fields(args, tris, norms or [None] * len(tris), norms is not None)
+
+
+def _check_indices(args, faces, n: int, what: str, into: str, loc) -> None:
+    """Every index within ``into`` (a negative one would silently pick from the end)."""
+    for face in faces:
+        for i in face:
+            if not 0 <= i < n:
+                raise args.error(f"expected {what} from 0 to {n - 1} (the {into} entries), found {i}", loc)
 
 
 def _mesh_fields(args, tris, norms, smooth) -> dict:

@@ -2,7 +2,9 @@
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
+import raytracer as rt
 from raytracer.shapes import Mesh, Triangle
 
 from ._case import Case
@@ -42,3 +44,22 @@ def test_mesh_crossings_are_its_triangles_crossings():
         if np.isfinite(ti[0]):
             np.testing.assert_allclose(n[i], ni[0], atol=1e-6)
     assert np.sum(np.isfinite(np.asarray(t))) == 2  # a line through a closed convex mesh: in and out
+
+
+@pytest.mark.parametrize("faces", ["<0,1,-1>", "<0,1,3>"])
+def test_mesh2_indices_outside_the_vertex_list_are_scene_errors(tmp_path, faces):
+    scene = tmp_path / "m.pov"
+    scene.write_text("mesh2 {\n vertex_vectors { 3, <0,0,0>, <1,0,0>, <0,1,0> }\n"
+                     f" face_indices {{ 1, {faces} }}\n}}\n")
+    with pytest.raises(rt.SceneError, match="face_indices from 0 to 2") as e:
+        rt.load_scene(scene)
+    assert e.value.location.line == 2
+
+
+def test_mesh2_builds_the_triangles_it_indexes(tmp_path):
+    scene = tmp_path / "m.pov"
+    scene.write_text("mesh2 { vertex_vectors { 4, <0,0,0>, <1,0,0>, <0,1,0>, <0,0,1> }\n"
+                     " face_indices { 2, <0,1,2>, <0,2,3> } }\n")
+    shape = rt.load_scene(scene).objects[0].shape
+    np.testing.assert_array_equal(shape.triangles, [[[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+                                                    [[0, 0, 0], [0, 1, 0], [0, 0, 1]]])
