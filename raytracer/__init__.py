@@ -6,6 +6,7 @@ differentiable), ``plan`` (what the compiled program simulates), and image I/O.
 """
 
 from . import params as params
+from .errors import InternalError as InternalError
 from .errors import SceneError as SceneError
 from .errors import SceneWarning as SceneWarning
 from .errors import SourceLoc as SourceLoc
