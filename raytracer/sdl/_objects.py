@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..shapes import SDL_KEYWORDS
+from ._convert import as_int
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
 from ._lexer import EOF, ID, OP
 from ._textures import (
@@ -266,10 +267,7 @@ class _ShapeArgs:
     def count(self, what: str) -> int:
         p = self._p
         loc = p.peek().loc
-        v = float_(p)
-        if not (0 <= v <= MAX_COUNT):  # also NaN and ±inf
-            raise p.error(f"expected a number of {what} from 0 to {MAX_COUNT:,}, found {v:.6g}", loc)
-        return int(v)
+        return as_int(p, parse_expr(p), loc, f"a number of {what}", 0, MAX_COUNT)
 
     def comma(self) -> None:
         opt_comma(self._p)
@@ -343,6 +341,16 @@ def parse_light(p, t) -> LightRec:
     return rec
 
 
+MAX_AREA_LIGHT_SIZE = 4096  # samples along one axis of an area light (POV-Ray's own cap is larger)
+
+
+def _area_size(p) -> int:
+    """One axis of ``area_light``'s sample grid: POV-Ray treats sizes below 1 as 1."""
+    loc = p.peek().loc
+    n = as_int(p, parse_expr(p), loc, "an area_light size", -MAX_AREA_LIGHT_SIZE, MAX_AREA_LIGHT_SIZE)
+    return max(1, n)
+
+
 def _light_color_follows(p) -> bool:
     t = p.peek()
     if t.kind == ID and (t.value in COLOR_KEYWORDS or t.value in ("red", "green", "blue")):
@@ -383,9 +391,9 @@ def _light_item(p, rec, t):
         opt_comma(p)
         a2 = vector3(p)
         opt_comma(p)
-        n1 = int(float_(p))
+        n1 = _area_size(p)
         opt_comma(p)
-        rec.area = (a1, a2, max(1, n1), max(1, int(float_(p))))
+        rec.area = (a1, a2, n1, _area_size(p))
     elif kw in ("adaptive", "jitter", "area_illumination"):
         if _starts_value(p):
             float_(p)
@@ -476,7 +484,8 @@ def parse_global_settings(p, t) -> None:
         if kw == "assumed_gamma":
             p.assumed_gamma = float_(p)
         elif kw == "max_trace_level":
-            p.settings["max_trace_level"] = int(float_(p))
+            loc = p.peek().loc
+            p.settings["max_trace_level"] = as_int(p, parse_expr(p), loc, "max_trace_level")
         elif kw == "adc_bailout":
             p.settings["adc_bailout"] = float_(p)
         elif kw == "ambient_light":
