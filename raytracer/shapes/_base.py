@@ -14,6 +14,7 @@ fields the static variants) that also carries, as methods and class variables:
 ``bounds()``                  object-space ``(lo, hi)`` corners of a box holding the surface, or
                               None for unbounded shapes (planes, most quadrics)
 ``sdl_keywords``              the SDL keywords that make it (``mesh``, ``mesh2``)
+``sdl_arguments``             its comma-separated arguments, in order, as ``(field, "vector" | "float")``
 ``sdl_flags``                 bare object-modifier keywords that set a bool field (``open``)
 ``parse_sdl(keyword, args)``  reads its arguments after ``keyword {`` through :class:`ShapeArgs`
 ``from_sdl(fields)``          builds the shape from what ``parse_sdl`` returned
@@ -126,6 +127,9 @@ class ShapeArgs(Protocol):
         """The object is dropped from the scene (with a warning naming it)."""
 
 
+SdlArguments = tuple[tuple[str, str], ...]  # (field, "vector" | "float"), in order
+
+
 def array_module(*xs):
     """``jax.numpy`` if any input is a JAX array or tracer, else ``numpy`` (bounds stay cheap)."""
     return jnp if any(isinstance(x, jax.Array) for x in xs) else np
@@ -143,6 +147,7 @@ class AbstractShape(eqx.Module):
         """Surfaces a straight line can cross (bounds the straight ior-1 passes of the plan)."""
         return type(self).crossings
     sdl_keywords: ClassVar[tuple[str, ...]] = ()
+    sdl_arguments: ClassVar[SdlArguments] = ()  # (field, "vector" | "float") in order
     sdl_flags: ClassVar[tuple[str, ...]] = ()
 
     def n_crossings(self) -> int:
@@ -162,9 +167,15 @@ class AbstractShape(eqx.Module):
         return None
 
     @classmethod
-    @abc.abstractmethod
     def parse_sdl(cls, keyword: str, args: ShapeArgs) -> dict:
-        """The fields read after ``keyword {`` (up to the object modifiers)."""
+        """The fields read after ``keyword {`` (up to the object modifiers): by default the
+        comma-separated ``sdl_arguments``; shapes with other syntax override this."""
+        fields = {}
+        for i, (name, kind) in enumerate(cls.sdl_arguments):
+            if i:
+                args.comma()
+            fields[name] = args.vector() if kind == "vector" else args.float()
+        return fields
 
     @classmethod
     def from_sdl(cls, fields: dict) -> AbstractShape:

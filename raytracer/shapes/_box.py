@@ -14,6 +14,7 @@ from ._base import (
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
+    SdlArguments,
     affine,
     array_module,
 )
@@ -77,6 +78,7 @@ class Box(AbstractShape):
     kind: ClassVar[str] = "box"
     crossings: ClassVar[int] = BOX_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("box",)
+    sdl_arguments: ClassVar[SdlArguments] = (("corner1", "vector"), ("corner2", "vector"))
     corner1: Float[Array, "3"] = eqx.field(converter=as_float)
     corner2: Float[Array, "3"] = eqx.field(converter=as_float)
 
@@ -90,11 +92,6 @@ class Box(AbstractShape):
         xp = array_module(self.corner1, self.corner2)
         return xp.minimum(self.corner1, self.corner2), xp.maximum(self.corner1, self.corner2)
 
-    @classmethod
-    def parse_sdl(cls, keyword, args):
-        a = args.vector()
-        args.comma()
-        return {"corner1": a, "corner2": args.vector()}
 
     def to_mitsuba(self, m, camera_origin):
         m = np.asarray(m, np.float64)

@@ -19,6 +19,7 @@ from ._base import (
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
+    SdlArguments,
     affine,
     apply_point,
     array_module,
@@ -169,6 +170,7 @@ class Cylinder(AbstractShape):
     kind: ClassVar[str] = "cylinder"
     crossings: ClassVar[int] = CYLINDER_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("cylinder",)
+    sdl_arguments: ClassVar[SdlArguments] = (("base", "vector"), ("cap", "vector"), ("radius", "float"))
     sdl_flags: ClassVar[tuple[str, ...]] = ("open",)
     base: Float[Array, "3"] = eqx.field(converter=as_float)
     cap: Float[Array, "3"] = eqx.field(converter=as_float)
@@ -186,13 +188,6 @@ class Cylinder(AbstractShape):
     def bounds(self):
         return _segment_bounds(self.base, self.cap, self.radius, self.radius)
 
-    @classmethod
-    def parse_sdl(cls, keyword, args):
-        a = args.vector()
-        args.comma()
-        b = args.vector()
-        args.comma()
-        return {"base": a, "cap": b, "radius": args.float()}
 
     def to_mitsuba(self, m, camera_origin):
         s = similarity_scale(m)
@@ -215,6 +210,8 @@ class Cone(AbstractShape):
     kind: ClassVar[str] = "cone"
     crossings: ClassVar[int] = CONE_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("cone",)
+    sdl_arguments: ClassVar[SdlArguments] = (
+        ("base", "vector"), ("base_radius", "float"), ("cap", "vector"), ("cap_radius", "float"))
     sdl_flags: ClassVar[tuple[str, ...]] = ("open",)
     base: Float[Array, "3"] = eqx.field(converter=as_float)
     base_radius: Float[Array, ""] = eqx.field(converter=as_float)
@@ -232,15 +229,6 @@ class Cone(AbstractShape):
     def bounds(self):
         return _segment_bounds(self.base, self.cap, self.base_radius, self.cap_radius)
 
-    @classmethod
-    def parse_sdl(cls, keyword, args):
-        a = args.vector()
-        args.comma()
-        r0 = args.float()
-        args.comma()
-        b = args.vector()
-        args.comma()
-        return {"base": a, "base_radius": r0, "cap": b, "cap_radius": args.float()}
 
 
 def _segment_bounds(base, cap, r0, r1):

@@ -14,6 +14,7 @@ from ._base import (
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
+    SdlArguments,
     affine,
     apply_point,
     array_module,
@@ -75,6 +76,7 @@ class Disc(AbstractShape):
     kind: ClassVar[str] = "disc"
     crossings: ClassVar[int] = DISC_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("disc",)
+    sdl_arguments: ClassVar[SdlArguments] = (("center", "vector"), ("normal", "vector"), ("radius", "float"))
     center: Float[Array, "3"] = eqx.field(converter=as_float)
     normal: Float[Array, "3"] = eqx.field(converter=as_float)
     radius: Float[Array, ""] = eqx.field(converter=as_float)
@@ -92,13 +94,9 @@ class Disc(AbstractShape):
 
     @classmethod
     def parse_sdl(cls, keyword, args):
-        c = args.vector()
-        args.comma()
-        n = args.vector()
-        args.comma()
-        r = args.float()
-        hole = args.float() if args.accept(",") else 0.0
-        return {"center": c, "normal": n, "radius": r, "hole_radius": hole}
+        fields = super().parse_sdl(keyword, args)
+        fields["hole_radius"] = args.float() if args.accept(",") else 0.0
+        return fields
 
     def to_mitsuba(self, m, camera_origin):
         if float(self.hole_radius) != 0.0:

@@ -14,6 +14,7 @@ from ._base import (
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
+    SdlArguments,
     apply_point,
     array_module,
     similarity_scale,
@@ -72,6 +73,7 @@ class Sphere(AbstractShape):
     kind: ClassVar[str] = "sphere"
     crossings: ClassVar[int] = SPHERE_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("sphere",)
+    sdl_arguments: ClassVar[SdlArguments] = (("center", "vector"), ("radius", "float"))
     center: Float[Array, "3"] = eqx.field(converter=as_float)
     radius: Float[Array, ""] = eqx.field(converter=as_float)
 
@@ -85,11 +87,6 @@ class Sphere(AbstractShape):
         r = array_module(self.radius).abs(self.radius)
         return self.center - r, self.center + r
 
-    @classmethod
-    def parse_sdl(cls, keyword, args):
-        center = args.vector()
-        args.comma()
-        return {"center": center, "radius": args.float()}
 
     def to_mitsuba(self, m, camera_origin):
         s = similarity_scale(m)

@@ -20,6 +20,7 @@ from ..kernels._common import masked_hits
 from ..kernels._numerics import as_float_arrays, differentiable_root, safe_mask, safe_normalize, solve_quartic
 from ._base import (
     AbstractShape,
+    SdlArguments,
     array_module,
 )
 
@@ -138,6 +139,7 @@ class Torus(AbstractShape):
     kind: ClassVar[str] = "torus"
     crossings: ClassVar[int] = TORUS_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("torus",)
+    sdl_arguments: ClassVar[SdlArguments] = (("major", "float"), ("minor", "float"))
     major: Float[Array, ""] = eqx.field(converter=as_float)
     minor: Float[Array, ""] = eqx.field(converter=as_float)
 
@@ -154,8 +156,3 @@ class Torus(AbstractShape):
         hi = xp.stack([big, r, big])
         return -hi, hi
 
-    @classmethod
-    def parse_sdl(cls, keyword, args):
-        a = args.float()
-        args.comma()
-        return {"major": a, "minor": args.float()}

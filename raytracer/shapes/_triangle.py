@@ -16,7 +16,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._dtype import as_float
 from ..kernels._numerics import as_float_arrays, eps_of, safe_mask, safe_normalize
-from ._base import AbstractShape, MitsubaShape, array_module, mesh_entry
+from ._base import AbstractShape, MitsubaShape, SdlArguments, array_module, mesh_entry
 
 TRIANGLE_K = 1
 SMOOTH_TRIANGLE_K = 1
@@ -104,6 +104,7 @@ class Triangle(AbstractShape):
     crossings: ClassVar[int] = TRIANGLE_K
     solid: ClassVar[bool] = False
     sdl_keywords: ClassVar[tuple[str, ...]] = ("triangle",)
+    sdl_arguments: ClassVar[SdlArguments] = (("p1", "vector"), ("p2", "vector"), ("p3", "vector"))
     p1: Float[Array, "3"] = eqx.field(converter=as_float)
     p2: Float[Array, "3"] = eqx.field(converter=as_float)
     p3: Float[Array, "3"] = eqx.field(converter=as_float)
@@ -114,13 +115,6 @@ class Triangle(AbstractShape):
     def bounds(self):
         return _vertex_bounds(self.p1, self.p2, self.p3)
 
-    @classmethod
-    def parse_sdl(cls, keyword, args):
-        a = args.vector()
-        args.comma()
-        b = args.vector()
-        args.comma()
-        return {"p1": a, "p2": b, "p3": args.vector()}
 
     def to_mitsuba(self, m, camera_origin):
         tris = np.stack([np.asarray(v, np.float64) for v in (self.p1, self.p2, self.p3)])[None]
@@ -134,6 +128,9 @@ class SmoothTriangle(AbstractShape):
     crossings: ClassVar[int] = SMOOTH_TRIANGLE_K
     solid: ClassVar[bool] = False
     sdl_keywords: ClassVar[tuple[str, ...]] = ("smooth_triangle",)
+    sdl_arguments: ClassVar[SdlArguments] = (
+        ("p1", "vector"), ("n1", "vector"), ("p2", "vector"), ("n2", "vector"),
+        ("p3", "vector"), ("n3", "vector"))
     p1: Float[Array, "3"] = eqx.field(converter=as_float)
     p2: Float[Array, "3"] = eqx.field(converter=as_float)
     p3: Float[Array, "3"] = eqx.field(converter=as_float)
@@ -147,14 +144,6 @@ class SmoothTriangle(AbstractShape):
     def bounds(self):
         return _vertex_bounds(self.p1, self.p2, self.p3)
 
-    @classmethod
-    def parse_sdl(cls, keyword, args):
-        vals = []
-        for i in range(6):
-            if i:
-                args.comma()
-            vals.append(args.vector())
-        return {"p1": vals[0], "n1": vals[1], "p2": vals[2], "n2": vals[3], "p3": vals[4], "n3": vals[5]}
 
     def to_mitsuba(self, m, camera_origin):
         tris = np.stack([np.asarray(v, np.float64) for v in (self.p1, self.p2, self.p3)])[None]
