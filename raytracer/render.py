@@ -8,7 +8,6 @@ the forward render nor its gradient holds more than one tile's rays at a time.
 
 from __future__ import annotations
 
-import functools
 import math
 
 import equinox as eqx
@@ -20,11 +19,13 @@ from .scene import Scene
 from .shading._geometry import pack_geometry
 from .shading._materials import pack_materials
 from .shading.camera import camera_rays, image_coords
-from .shading.whitted import make_context, trace
+from .shading.whitted import make_context, slots_per_camera_ray, trace
 
 RAYS_PER_TILE = 1 << 18  # ray slots in the widest level of one tile's Whitted tree (memory bound)
 MAX_TILE = 1 << 13  # camera rays per tile
 CHUNKS_PER_TILE = 4  # secondary rays are shaded in chunks of tile/4 rays; chunks with no live ray are skipped
+FORWARD_CAPACITY = 4  # live-ray slots per camera ray and level when rendering values (grown if short)
+PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
 
 
 def plan(scene: Scene) -> Plan:
@@ -32,13 +33,9 @@ def plan(scene: Scene) -> Plan:
     return make_plan(scene)
 
 
-def _tile_size(p: Plan, n_rays: int, capacity: int | None = None) -> int:
+def _tile_size(scene_plan: Plan, n_rays: int, capacity: int | None = None) -> int:
     """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE``."""
-    eff = p.effects
-    branch = int(eff.reflection) + int(eff.transmission)
-    width = branch ** (eff.depth - 1) if branch > 1 else 1
-    if capacity is not None:
-        width = min(width, capacity)
+    width = slots_per_camera_ray(scene_plan.effects, capacity)
     size = max(64, min(MAX_TILE, RAYS_PER_TILE // width)) // CHUNKS_PER_TILE * CHUNKS_PER_TILE
     return min(size, -(-n_rays // CHUNKS_PER_TILE) * CHUNKS_PER_TILE)
 
@@ -53,17 +50,17 @@ def _output_transfer(img, settings):
     return jnp.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
-def _context(scene: Scene):
-    p = make_plan(scene)
+def _context(scene: Scene, scene_plan: Plan):
     dtype = scene.camera.location.dtype
-    geo = pack_geometry(p, dtype)
-    mats = pack_materials(p, dtype)
-    return make_context(p, geo, mats, scene.lights, scene.settings, scene.background, dtype)
+    geo = pack_geometry(scene_plan, dtype)
+    mats = pack_materials(scene_plan, dtype)
+    return make_context(scene_plan, geo, mats, scene.lights, scene.settings, scene.background, dtype)
 
 
-def _trace_tiles(scene: Scene, origins, dirs, tile: int, capacity: int | None):
-    """Colours of a stack of tiles (T, tile, 3), one tile at a time, and the dropped-ray count."""
-    ctx = _context(scene)
+def _trace_tiles(scene: Scene, scene_plan: Plan, origins, dirs, tile: int, capacity: int | None):
+    """Colours of a stack of tiles (T, tile, 3), one tile at a time, and the dropped-ray count.
+    ``scene_plan`` is ``make_plan(scene)`` of this very ``scene`` (its arrays are this trace's)."""
+    ctx = _context(scene, scene_plan)
 
     @jax.checkpoint
     def one_tile(args):
@@ -74,46 +71,55 @@ def _trace_tiles(scene: Scene, origins, dirs, tile: int, capacity: int | None):
     return colours, jnp.sum(dropped)[None]
 
 
-def _layout(p: Plan, n: int, n_parts: int, capacity: int | None) -> tuple[int, int, int]:
+def _layout(scene_plan: Plan, n: int, n_parts: int, capacity: int | None) -> tuple[int, int, int]:
     """``(tile, tiles per part, devices)`` for ``n`` camera rays split into ``n_parts`` parts."""
-    tile = _tile_size(p, n, capacity)
+    tile = _tile_size(scene_plan, n, capacity)
     n_dev = len(jax.devices()) if math.ceil(n / tile) >= len(jax.devices()) * n_parts else 1
     per_part = -(-math.ceil(n / tile) // (n_dev * n_parts)) * n_dev
     return tile, per_part, n_dev
 
 
-@functools.partial(eqx.filter_jit)
+@eqx.filter_jit
 def _render_part(scene: Scene, width: int, height: int, k: int, n_parts: int, part,
                  capacity: int | None = None):
     """Colours (tiles, tile, 3) of part ``part`` (traced) of the image's tiles, in ``n_parts`` parts,
     and the number of rays dropped for lack of ``capacity`` (see ``whitted.trace``)."""
-    p = make_plan(scene)
+    return _render_tiles(scene, make_plan(scene), width, height, k, n_parts, part, capacity)
+
+
+def _render_tiles(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, n_parts: int, part,
+                  capacity: int | None):
+    """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(scene)``."""
     dtype = scene.camera.location.dtype
     x0, y0 = image_coords(width, height, k, dtype)
     origins, dirs = camera_rays(scene.camera, x0, y0)
     n = width * height * k * k
-    tile, per_part, n_dev = _layout(p, n, n_parts, capacity)
+    tile, per_part, n_dev = _layout(scene_plan, n, n_parts, capacity)
     total = per_part * n_parts * tile
     origins = jnp.concatenate([origins.reshape(n, 3), jnp.zeros((total - n, 3), dtype)])
     dirs = jnp.concatenate([dirs.reshape(n, 3), jnp.broadcast_to(jnp.asarray([0, 0, 1], dtype),
                                                                  (total - n, 3))])
     origins = jax.lax.dynamic_slice_in_dim(origins.reshape(-1, tile, 3), part * per_part, per_part)
     dirs = jax.lax.dynamic_slice_in_dim(dirs.reshape(-1, tile, 3), part * per_part, per_part)
-    trace_tiles = functools.partial(_trace_tiles, tile=tile, capacity=capacity)
     if n_dev > 1:
         # tiles are independent: shard them over the devices (CPU devices with
-        # --xla_force_host_platform_device_count, or GPUs); the scene is replicated
+        # --xla_force_host_platform_device_count, or GPUs); the scene is replicated, and the plan
+        # is made again inside from the replicated scene (the outer plan's arrays belong to the
+        # outer trace)
+        def trace_shard(s, o, d):
+            return _trace_tiles(s, make_plan(s), o, d, tile=tile, capacity=capacity)
+
         mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.devices(),
                              axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-        colours, dropped = jax.shard_map(trace_tiles, mesh=mesh, in_specs=(replicated, spec, spec),
+        colours, dropped = jax.shard_map(trace_shard, mesh=mesh, in_specs=(replicated, spec, spec),
                                          out_specs=(spec, spec), check_vma=False)(scene, origins, dirs)
         return colours, jnp.sum(dropped)
-    colours, dropped = trace_tiles(scene, origins, dirs)
+    colours, dropped = _trace_tiles(scene, scene_plan, origins, dirs, tile=tile, capacity=capacity)
     return colours, jnp.sum(dropped)
 
 
-@functools.partial(eqx.filter_jit)
+@eqx.filter_jit
 def _assemble(scene: Scene, parts, width: int, height: int, k: int):
     n = width * height * k * k
     colours = jnp.concatenate([c.reshape(-1, 3) for c in parts])[:n]
@@ -127,12 +133,13 @@ def _background_only(scene: Scene, width: int, height: int):
     return _output_transfer(img, scene.settings)
 
 
-@functools.partial(eqx.filter_jit)
+@eqx.filter_jit
 def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None = None):
     """The image and the number of rays dropped for lack of ``capacity`` (0 when None)."""
-    if not any(prim.rendered for prim in make_plan(scene).prims):  # every ray sees the background
+    scene_plan = make_plan(scene)
+    if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background
         return _background_only(scene, width, height), jnp.zeros((), jnp.int32)
-    colours, dropped = _render_part(scene, width, height, k, 1, 0, capacity)
+    colours, dropped = _render_tiles(scene, scene_plan, width, height, k, 1, 0, capacity)
     return _assemble(scene, [colours], width, height, k), dropped
 
 
@@ -172,9 +179,6 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1) -> jax.Array:
             return image
         capacity *= 4
 
-
-PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
-FORWARD_CAPACITY = 4  # compile_render: live-ray slots per camera ray and level (grown if short)
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,

@@ -1,0 +1,445 @@
+"""POV-Ray's shading model for ONE ray: what it hits, the colour it sees there, the rays it spawns.
+
+``shade(ctx, ray)`` takes one ray and returns a :class:`Shading`: the local colour at the hit and
+the children the hit spawns (:class:`Child`: the child ray with the coefficient and exponent its
+colour is combined with). It knows nothing of pools, levels, chunks or compaction: the scheduler
+(``_scheduler.py``) calls it under ``vmap`` and assembles the tree.
+
+What one hit computes:
+  * every texture layer, top first (§2.3): each layer's ambient + emission + diffuse + highlights
+    (phong, specular, metallic tint; none from shadowless lights), scaled by the layer's opacity
+    ``1 - filter - transmit`` and filtered by the layers above it; a layer is skipped once the
+    layers above let less than ``adc_bailout`` through. The layers' reflection colours add up
+    (the mirror ray's weight is the largest); with ``conserve_energy`` a layer's filter is reduced
+    by its reflection. The transmitted ray sees through the product of all layers' filters;
+  * light arrival per light (§2.4, §2.5): fade with distance, spotlight cone, shadow rays that
+    opaque objects block and transparent ones filter (every layer of a crossed object filters,
+    and an exit crossing fades by the interior crossed), area lights as a grid of shadow rays
+    with POV's corner-averaging weights;
+  * reflectivity (§2.6): reflection min/max with falloff, fresnel, metallic tint;
+  * the children: the transmitted ray (refracted, or straight through where the ior is 1; the
+    totally internally reflected ray in its place under TIR), attenuated by the interior it
+    leaves; and the mirror ray, weighted by the summed reflection colour.
+
+Only the children the scene can spawn exist: the mirror ray only if some finish reflects, the
+transmitted ray only if some pigment can be transparent (§2.3, §2.7).
+
+Modelling shortcuts (stated, not hidden):
+  * the layers' reflections are summed and traced along ONE mirror ray, with the top layer's
+    ``exponent`` (the plan warns when more than one layer of a texture reflects);
+  * entering/leaving an object is decided from the geometric normal (the ray is assumed to come
+    from air when entering, and to leave into air), rather than POV's per-ray interior list —
+    identical for non-nested objects, including POV's quirk-free cases (§2.7);
+  * shadow rays go straight through transparent objects (no refraction, no caustics), as POV's;
+  * straight transmission (ior 1) does not use up a trace level (as in POV-Ray), but a ray path may
+    pass at most ``Effects.straight_passes`` straight surfaces beyond ``max_trace_level`` levels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._plan import Effects, Plan
+from ..kernels import safe_normalize, safe_pow
+from ..scene import Light, Settings
+from . import lighting
+from ._geometry import PackedGeometry, all_crossings, closest_hit, csg_mask, static_prim_mask
+from ._materials import PackedMaterials, pigment_at
+
+
+class Rays(NamedTuple):
+    """Rays, one per leading index (or a single ray: no leading axis).
+
+    origin:     (..., 3) start point, world space.
+    direction:  (..., 3) unit direction of travel.
+    weight:     (...,)   POV-Ray's ray weight: the largest factor by which this ray's colour can
+                         reach the pixel (compared with ``adc_bailout``).
+    alive:      (...,)   bool; a dead ray hits nothing and sees black (an empty slot of the tree).
+    reflection: (...,)   bool; the ray is a mirror ray (``no_reflection`` objects hide from it).
+    level:      (...,)   int32 POV-Ray trace level (1 for camera rays).
+    """
+
+    origin: jax.Array
+    direction: jax.Array
+    weight: jax.Array
+    alive: jax.Array
+    reflection: jax.Array
+    level: jax.Array
+
+
+class Child(NamedTuple):
+    """A ray spawned by a hit and how its colour ``c`` comes back: ``coef · c^power``.
+
+    ray:   the child ray (``alive`` False where the hit spawns none).
+    coef:  (..., 3) colour coefficient.
+    power: (...,) exponent applied to the child's colour (the mirror ray's ``1/exponent``), or
+           None where there is none (the transmitted ray): static, not a value of 1.
+    """
+
+    ray: Rays
+    coef: jax.Array
+    power: jax.Array | None
+
+
+class Shading(NamedTuple):
+    """What one ray sees: its local colour (..., 3) and its children, in a fixed static order
+    (:func:`child_slots`): the mirror ray, then the transmitted ray, each only if the scene has it."""
+
+    local: jax.Array
+    children: tuple[Child, ...]
+
+
+def child_slots(effects: Effects) -> int:
+    """How many children a hit can spawn in this scene (0, 1 or 2: see :class:`Shading`)."""
+    return int(effects.reflection) + int(effects.transmission)
+
+
+def camera_rays(origin, direction) -> Rays:
+    """Camera rays (N, 3): alive, weight 1, trace level 1 (POV counts the camera ray as level 1)."""
+    n = origin.shape[0]
+    return Rays(origin=origin, direction=direction, weight=jnp.ones(n, origin.dtype),
+                alive=jnp.ones(n, bool), reflection=jnp.zeros(n, bool), level=jnp.ones(n, jnp.int32))
+
+
+@dataclasses.dataclass
+class TraceContext:
+    """The scene as the shading model sees it (packed arrays and static masks over candidates)."""
+
+    plan: Plan
+    geo: PackedGeometry
+    mats: PackedMaterials
+    lights: tuple[Light, ...]
+    settings: Settings
+    background: jax.Array
+    dtype: object
+    eps: float  # relative spawn offset (times 1 + |p|)
+    vis_camera: np.ndarray  # (C,) visible to camera and transmitted rays
+    vis_reflect: np.ndarray  # (C,) visible to reflected rays
+    casts_shadow: np.ndarray  # (C,)
+    transparent_cands: np.ndarray  # (C,) candidate belongs to a transparent-capable prim
+    inverse_sign: np.ndarray  # (C,) -1 where the prim is inverted
+    fading_cands: np.ndarray  # candidate slots of transparent prims whose interior may fade
+
+
+def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
+                 background, dtype) -> TraceContext:
+    prims = plan.prims
+    return TraceContext(
+        plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
+        background=background.astype(dtype), dtype=dtype,
+        eps=2e-5 if dtype == jnp.float32 else 1e-9,
+        vis_camera=static_prim_mask(geo, lambda i: prims[i].rendered and "no_image" not in prims[i].flags),
+        vis_reflect=static_prim_mask(geo, lambda i: prims[i].rendered
+                                     and "no_reflection" not in prims[i].flags),
+        casts_shadow=static_prim_mask(geo, lambda i: prims[i].rendered
+                                      and "no_shadow" not in prims[i].flags),
+        transparent_cands=static_prim_mask(geo, lambda i: bool(mats.transparent[i])),
+        inverse_sign=np.where(static_prim_mask(geo, lambda i: prims[i].inverse), -1.0, 1.0),
+        fading_cands=np.flatnonzero(static_prim_mask(
+            geo, lambda i: bool(mats.transparent[i]) and prims[i].interior is not None
+            and prims[i].interior.fade_distance is not None
+            and prims[i].interior.fade_power is not None)),
+    )
+
+
+# ---------------------------------------------------------------- shadows
+def _shadow_filter(ctx: TraceContext, o, l, dist):
+    """RGB transmittance of the segment ``o → o + dist·l`` (§2.5): opaque crossings block,
+    transparent ones multiply by ``f·P + t`` at each crossing; refraction is ignored."""
+    t, n = all_crossings(ctx.geo, o, l)
+    scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+    ok = jnp.asarray(ctx.casts_shadow) & jnp.isfinite(t) & (t > scale) & (t < dist - scale)
+    ok = ok & csg_mask(ctx.geo, ctx.plan, o, l, t)
+    one = jnp.ones(3, ctx.dtype)
+    if not ctx.plan.effects.filtered_shadows:
+        return jnp.where(jnp.any(ok), 0.0, 1.0) * one
+    opaque = ok & ~jnp.asarray(ctx.transparent_cands)
+    filt = one
+    safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
+    n_layers = ctx.mats.n_layers
+    for c in np.flatnonzero(ctx.transparent_cands):
+        prim = int(ctx.geo.cand_prim[c])
+        for k in np.flatnonzero(ctx.mats.layer_present[prim]):  # every layer filters (§2.5)
+            pig = pigment_at(ctx.mats, prim * n_layers + int(k), o + safe_t[c] * l)
+            f = pig[3] * pig[:3] + pig[4]
+            filt = filt * jnp.where(ok[c], f, 1.0)
+    fading = ctx.fading_cands
+    if ctx.plan.effects.interior_fade and fading.size:
+        # interior fade at every exit crossing, over the depth since the previous crossing (or
+        # the shadow ray's start): the shadow ray continues from each hit (§2.4; povray 3.7
+        # measured: a fading sphere attenuates a shadow by its chord, not by the air before it)
+        accepted = jnp.where(ok, t, -jnp.inf)
+        tc = accepted[fading]
+        prev = jnp.max(jnp.where(accepted[None, :] < tc[:, None], accepted[None, :], 0.0), axis=1)
+        prims = ctx.geo.cand_prim[fading]
+        exiting = ok[fading] & (jnp.einsum("ri,i->r", n[fading], l)
+                                * jnp.asarray(ctx.inverse_sign[fading], n.dtype) > 0)
+        m = ctx.mats
+        att = lighting.interior_fade(jnp.where(exiting, tc - prev, 0.0)[:, None],
+                                     m.fade_distance[prims][:, None], m.fade_power[prims][:, None],
+                                     m.fade_color[prims], on=exiting[:, None])
+        filt = filt * jnp.prod(att, axis=0)
+    return jnp.where(jnp.any(opaque), 0.0, 1.0) * filt
+
+
+def _area_weights(n: int) -> np.ndarray:
+    """POV's recursive corner-averaging weights along one area-light axis (§2.5):
+    3 samples → ¼ ½ ¼, 5 → ⅛ ¼ ¼ ¼ ⅛, 4 → uniform."""
+    w = np.zeros(n)
+
+    def rec(a, b, weight):
+        if b - a <= 1:
+            w[a] += weight / 2
+            w[b] += weight / 2
+            return
+        m = (a + b) / 2
+        rec(a, int(np.floor(m)), weight / 2)
+        rec(int(np.ceil(m)), b, weight / 2)
+
+    if n == 1:
+        w[0] = 1.0
+    else:
+        rec(0, n - 1, 1.0)
+    return w
+
+
+def _light_geometry(light: Light, p):
+    """Unit direction to the light, its distance (for fading), and the shadow-ray length."""
+    if light.parallel:
+        l = safe_normalize(light.position - light.point_at)
+        to_light = light.position - p
+        dist = jnp.sqrt(jnp.maximum(jnp.dot(to_light, to_light), 1e-30))
+        return l, dist, jnp.dot(l, to_light)  # objects beyond the light's plane cast no shadow
+    v = light.position - p
+    dist = jnp.sqrt(jnp.maximum(jnp.dot(v, v), 1e-30))
+    return v / dist, dist, dist
+
+
+def _light_visibility(ctx: TraceContext, light: Light, p_spawn, l, shadow_len):
+    if light.shadowless or not ctx.plan.effects.shadows:
+        return jnp.ones(3, ctx.dtype)
+    if light.area is None:
+        return _shadow_filter(ctx, p_spawn, l, shadow_len)
+    a = light.area
+    w1, w2 = _area_weights(a.size1), _area_weights(a.size2)
+    # grid point (i, j) at centre + axis1 (i/(n1-1) - ½) + axis2 (j/(n2-1) - ½); one shadow ray
+    # each, vmapped (compile time does not grow with the grid)
+    f1 = np.zeros(1) if a.size1 == 1 else np.arange(a.size1) / (a.size1 - 1) - 0.5
+    f2 = np.zeros(1) if a.size2 == 1 else np.arange(a.size2) / (a.size2 - 1) - 0.5
+    fu, fv = (g.reshape(-1) for g in np.meshgrid(f1, f2, indexing="ij"))
+    weights = jnp.asarray(np.outer(w1, w2).reshape(-1), ctx.dtype)
+    positions = (light.position[None, :] + jnp.asarray(fu, ctx.dtype)[:, None] * a.axis1[None, :]
+                 + jnp.asarray(fv, ctx.dtype)[:, None] * a.axis2[None, :])
+
+    def one(pos):
+        v = pos - p_spawn
+        dist = jnp.sqrt(jnp.maximum(jnp.dot(v, v), 1e-30))
+        return _shadow_filter(ctx, p_spawn, v / dist, dist)
+
+    return jnp.sum(weights[:, None] * jax.vmap(one)(positions), axis=0)
+
+
+# ---------------------------------------------------------------- local shading
+class _Arrival(NamedTuple):
+    """One light as it arrives at the shading point."""
+
+    l: jax.Array  # (3,) unit direction towards the light
+    color: jax.Array  # (3,) after fade, spot cone and shadow filter
+    cos_nl: jax.Array  # () n·l
+    lit: jax.Array  # () bool: the light is on the viewer's side of the surface
+
+
+def _light_arrival(ctx: TraceContext, light: Light, p, p_spawn, n) -> _Arrival:
+    """Direction to the light, the colour arriving (fade, spot cone, shadow filter) and whether the
+    light is on the viewer's side of the surface (``n·l > 1e-10``, §2.4)."""
+    l, dist, shadow_len = _light_geometry(light, p)
+    c = light.color.astype(ctx.dtype)
+    if light.fade_distance is not None and light.fade_power is not None:
+        c = c * lighting.fade(dist, light.fade_distance, light.fade_power)
+    if light.spot is not None:
+        axis = safe_normalize(light.point_at - light.position)
+        c = c * lighting.spot(jnp.dot(-l, axis), light.spot.radius_degrees, light.spot.falloff_degrees,
+                              light.spot.tightness)
+    cos_nl = jnp.dot(n, l)
+    c = c * _light_visibility(ctx, light, p_spawn, l, shadow_len)
+    return _Arrival(l, c, cos_nl, cos_nl > lighting.NL_EPSILON)
+
+
+def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, att, d, n):
+    """Diffuse and highlight terms of one texture layer (material ``row``) for one light."""
+    l, c, cos_nl, lit = arrival
+    fin = ctx.mats.finish
+    out = lighting.diffuse(att, fin["diffuse"][row], fin["brilliance"][row], cos_nl, rgb) * c
+    eff = ctx.plan.effects
+    if eff.highlights and not light.shadowless:
+        h = lighting.phong(fin["phong"][row], fin["phong_size"][row], d, n, l)
+        h = h + lighting.specular(fin["specular"][row], fin["roughness"][row], d, n, l)
+        tint = lighting.metallic_tint(fin["metallic"][row], cos_nl, rgb) if eff.metallic else 1.0
+        out = out + h * c * tint
+    return jnp.where(lit, out, 0.0)
+
+
+def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
+    """Reflection colour (§2.6) and its ray weight."""
+    fin, mats = ctx.mats.finish, ctx.mats
+    rmin, rmax = fin["refl_min"][row], fin["refl_max"][row]
+    frac = safe_pow(1.0 - cos_i, fin["refl_falloff"][row])
+    reflec = frac * rmax + (1 - frac) * rmin
+    weight = jnp.maximum(jnp.max(rmax), jnp.max(rmin))
+    if ctx.plan.effects.fresnel:
+        f, total = lighting.fresnel(cos_i, eta_rel)
+        fres = jnp.where(total, rmax, f * rmax + (1 - f) * rmin)
+        is_f = jnp.asarray(mats.fresnel)[row]
+        reflec = jnp.where(is_f, fres, reflec)
+        weight = jnp.where(is_f, jnp.max(reflec), weight)
+    if ctx.plan.effects.metallic:
+        reflec = reflec * lighting.metallic_tint(fin["refl_metallic"][row], cos_i, rgb)
+    return reflec, weight
+
+
+class _Surface(NamedTuple):
+    """The hit of one ray, seen from the ray's side."""
+
+    found: jax.Array  # () bool: the (live) ray hit a visible surface
+    missed: jax.Array  # () bool: the live ray hit nothing (it sees the background)
+    t: jax.Array  # () distance along the ray
+    prim: jax.Array  # () int primitive index
+    p: jax.Array  # (3,) hit point
+    n: jax.Array  # (3,) unit normal facing the incoming ray
+    entering: jax.Array  # () bool: the geometric normal faces the ray (entering the object)
+    p_out: jax.Array  # (3,) spawn point on the ray's side of the surface
+    p_in: jax.Array  # (3,) spawn point beyond the surface
+
+
+def _surface(ctx: TraceContext, ray: Rays) -> _Surface:
+    o, d = ray.origin, ray.direction
+    vis = jnp.where(ray.reflection, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
+    scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+    hit = closest_hit(ctx.geo, ctx.plan, o, d, scale, vis, ctx.inverse_sign)
+    p = o + hit.t * d
+    entering = jnp.dot(hit.normal, d) < 0
+    n = jnp.where(entering, hit.normal, -hit.normal)  # faces the incoming ray
+    offset = ctx.eps * (1.0 + jnp.max(jnp.abs(p)))
+    return _Surface(found=hit.found & ray.alive, missed=ray.alive & ~hit.found, t=hit.t, prim=hit.prim,
+                    p=p, n=n, entering=entering, p_out=p + offset * n, p_in=p - offset * n)
+
+
+class _Layers(NamedTuple):
+    """The texture layers at a hit, summed top to bottom."""
+
+    local: jax.Array  # (3,) local colour
+    fil: jax.Array  # (3,) filter of all layers (what the transmitted ray's colour is multiplied by)
+    trans: jax.Array  # () grey of ``fil``, at most 1
+    reflec: jax.Array  # (3,) summed reflection colour
+    r_weight: jax.Array  # () weight of the mirror ray relative to this ray's
+
+
+def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel) -> _Layers:
+    """Texture layers, top first (§2.3): each adds its local colour filtered by the layers above;
+    the loop stops once the layers above let less than adc_bailout through."""
+    mats, fin = ctx.mats, ctx.mats.finish
+    d, n, prim = ray.direction, s.n, s.prim
+    arrivals = [_light_arrival(ctx, light, s.p, s.p_out, n) for light in ctx.lights]
+    fil = jnp.ones(3, ctx.dtype)
+    trans = jnp.ones((), ctx.dtype)
+    local = jnp.zeros(3, ctx.dtype)
+    reflec = jnp.zeros(3, ctx.dtype)
+    r_weight = jnp.zeros((), ctx.dtype)
+    n_layers = mats.n_layers
+    for k in range(n_layers):
+        row = prim * n_layers + k
+        active = jnp.asarray(mats.layer_present)[prim, k] & ((trans > ctx.settings.adc_bailout) | (k == 0))
+        pig = pigment_at(mats, row, s.p)
+        rgb, f, t = pig[:3], pig[3], pig[4]
+        att = 1.0 - f - t
+        tmp = att * rgb * (fin["ambient"][row] * ctx.settings.ambient_light + fin["emission"][row])
+        for light, arrival in zip(ctx.lights, arrivals, strict=True):
+            tmp = tmp + _layer_light(ctx, light, arrival, row, rgb, att, d, n)
+        local = local + jnp.where(active, fil * tmp, 0.0)
+        layer_fil = f * rgb + t
+        if ctx.plan.effects.reflection:
+            reflec_k, w_k = _reflectivity(ctx, row, cos_i, eta_rel, rgb)
+            reflec = reflec + jnp.where(active, reflec_k, 0.0)  # layers' reflections add up
+            r_weight = jnp.maximum(r_weight, jnp.where(active, trans * w_k, 0.0))
+            conserve = jnp.asarray(mats.conserve_energy)[row]
+            layer_fil = jnp.where(conserve, layer_fil * jnp.minimum(1.0, 1.0 - reflec_k), layer_fil)
+        fil = jnp.where(active, fil * layer_fil, fil)
+        trans = jnp.minimum(1.0, jnp.abs(lighting.grey(fil)))
+    return _Layers(local, fil, trans, reflec, r_weight)
+
+
+# ---------------------------------------------------------------- children
+def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
+                 eta_rel) -> tuple[Child, jax.Array]:
+    """The transmitted ray (refracted, or straight on where ior is 1), or under total internal
+    reflection the reflected ray in its place; its colour is filtered by the layers and faded by
+    the interior it leaves (distance travelled inside = this segment's length). Also returns
+    whether this is the TIR ray (which then replaces the mirror ray)."""
+    eff, mats, settings = ctx.plan.effects, ctx.mats, ctx.settings
+    d, prim, level, weight = ray.direction, s.prim, ray.level, ray.weight
+    fil = layers.fil
+    tir = jnp.asarray(False)
+    if eff.refraction:
+        d_t, tir = lighting.refract(d, s.n, 1.0 / eta_rel)
+    else:
+        d_t = d
+    fd, fp = mats.fade_distance[prim], mats.fade_power[prim]
+    if eff.interior_fade:
+        att_col = lighting.interior_fade(s.t, fd, fp, mats.fade_color[prim], on=~s.entering)
+    else:
+        att_col = jnp.ones(3, ctx.dtype)
+    t_weight = weight * jnp.max(jnp.abs(fil))
+    t_alive = s.found & (layers.trans > settings.adc_bailout) & (t_weight >= settings.adc_bailout)
+    t_alive = t_alive & jnp.asarray(mats.transparent)[prim]  # opaque pigments never transmit
+    # TIR is found by the refraction step, so it only replaces the mirror ray where that step
+    # runs; a conserve_energy + fresnel surface under TIR has fil = 0 and reflects instead (§2.3)
+    tir = tir & t_alive
+    straight = jnp.abs(eta_rel - 1.0) < 1e-10
+    t_level = jnp.where(straight & ~tir, level, level + 1)
+    child = Rays(origin=jnp.where(tir, s.p_out, s.p_in), direction=d_t,
+                 weight=jnp.where(tir, weight, t_weight),
+                 alive=t_alive & (level < settings.max_trace_level), reflection=jnp.asarray(False),
+                 level=t_level)
+    return Child(ray=child, coef=jnp.where(tir, att_col, att_col * fil), power=None), tir
+
+
+def _mirror(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers, tir) -> Child:
+    """The mirror ray, with the layers' summed reflection colour and the top layer's exponent."""
+    settings = ctx.settings
+    w = ray.weight * layers.r_weight
+    r_alive = s.found & jnp.any(layers.reflec != 0) & ~tir & (w >= settings.adc_bailout)
+    expo = ctx.mats.finish["refl_exponent"][s.prim * ctx.mats.n_layers]  # top layer's
+    child = Rays(origin=s.p_out, direction=lighting.reflect(ray.direction, s.n), weight=w,
+                 alive=r_alive & (ray.level < settings.max_trace_level), reflection=jnp.asarray(True),
+                 level=ray.level + 1)
+    return Child(ray=child, coef=layers.reflec, power=1.0 / expo)
+
+
+def shade(ctx: TraceContext, ray: Rays) -> Shading:
+    """Shades one ray (no leading axis): its local colour and the children its hit spawns.
+
+    A dead ray sees black and spawns nothing; a live ray that misses sees the background. A ray
+    spawns children only if its level is below ``max_trace_level``; straight transmission (ior 1)
+    keeps the level (§2.7).
+    """
+    eff = ctx.plan.effects
+    s = _surface(ctx, ray)
+    cos_i = -jnp.dot(ray.direction, s.n)
+    ior = ctx.mats.ior[s.prim]
+    eta_rel = jnp.where(s.entering, ior, 1.0 / ior)  # n_t / n_i
+    layers = _layers(ctx, ray, s, cos_i, eta_rel)
+    children = []
+    transmitted, tir = None, jnp.asarray(False)
+    if eff.transmission:
+        transmitted, tir = _transmitted(ctx, ray, s, layers, eta_rel)
+    if eff.reflection:
+        children.append(_mirror(ctx, ray, s, layers, tir))
+    if transmitted is not None:
+        children.append(transmitted)
+    local = jnp.where(s.found, layers.local, jnp.where(s.missed, ctx.background, 0.0))
+    return Shading(local=local, children=tuple(children))

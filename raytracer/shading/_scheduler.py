@@ -1,0 +1,215 @@
+"""The ray scheduler: a tree of rays traced level by level, as one ``lax.scan``, then combined.
+
+It knows rays only as :class:`~._model.Rays` and hits only through one function,
+``shade_one(ray) -> Shading`` (the local colour seen by one ray and the children it spawns, each
+with the ``coef`` and ``power`` its colour comes back with). It knows nothing of lights, textures
+or surfaces. What it does:
+
+  * levels: each level of the ray tree lives in a pool of ray slots; one ``lax.scan`` step shades
+    the whole pool and writes the children into the next level's pool, so the shading body is
+    traced once and compile time does not grow with the depth;
+  * chunks: a pool is shaded (``vmap``) in chunks with the live rays moved to the front; blocks
+    of chunks and chunks with no live ray are skipped with ``lax.cond``, so the empty slots of the
+    tree cost almost nothing;
+  * pools: either as wide as the tree's widest level (exact), or ``capacity`` slots per camera
+    ray with the live children compacted into them (children that do not fit are counted);
+  * the combine: a reverse scan computes ``colour = local + Σ coef · colour(child)^power`` from
+    the deepest level up.
+
+Scan and cond differentiate like any JAX function (reverse mode included); nothing here is a
+``while_loop``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ..kernels import safe_pow
+from ._model import Rays, Shading
+
+
+class Link(NamedTuple):
+    """How one child slot of a pool comes back to its parents: ``coef · colour[dest]^power``.
+
+    coef:  (P, 3) colour coefficient.
+    power: (P,) exponent, or None (no exponent; static).
+    alive: (P,) bool: the child was traced (it exists and it found room in the next pool).
+    dest:  (P,) int32 the child's slot in the next level's pool.
+    """
+
+    coef: jax.Array
+    power: jax.Array | None
+    alive: jax.Array
+    dest: jax.Array
+
+
+class LevelRecord(NamedTuple):
+    """What the reverse combine needs from one level: the local colours (P, 3) of its pool and one
+    :class:`Link` per child slot (``lax.scan`` stacks these over the levels)."""
+
+    local: jax.Array
+    links: tuple[Link, ...]
+
+
+def slots_per_ray(branch: int, depth: int, capacity: int | None = None) -> int:
+    """Pool slots per camera ray: the widest level of a tree of ``depth`` levels where each ray has
+    ``branch`` child slots, ``branch^(depth-1)``, or ``capacity`` when live rays are compacted
+    (never more than the full width)."""
+    full = branch ** (depth - 1) if branch > 1 else 1
+    return full if capacity is None else min(full, capacity)
+
+
+def _partition(alive):
+    """A permutation putting live rays first (stable), and its inverse, in O(n) (no sort)."""
+    n = alive.shape[0]
+    live = alive.astype(jnp.int32)
+    n_live = jnp.sum(live)
+    pos = jnp.where(alive, jnp.cumsum(live) - 1, n_live + jnp.cumsum(1 - live) - 1)
+    order = jnp.zeros(n, jnp.int32).at[pos].set(jnp.arange(n, dtype=jnp.int32))
+    return order, pos
+
+
+def _divisor_near(n: int, target: int) -> int:
+    """The divisor of ``n`` closest to ``target`` (at least 1)."""
+    divisors = [k for k in range(1, n + 1) if n % k == 0]
+    return min(divisors, key=lambda k: abs(k - max(1, target)))
+
+
+def _shade_pool(shade_one: Callable[[Rays], Shading], rays: Rays, chunk: int) -> Shading:
+    """``shade_one`` over a pool, in chunks of ``chunk`` rays with the live rays moved to the front;
+    chunks with no live ray are skipped (``lax.cond`` runs only the taken branch and differentiates
+    like any branch), so the empty slots of the tree cost almost nothing."""
+    shade_all = jax.vmap(shade_one)
+    n = rays.origin.shape[0]
+    if chunk >= n:
+        return shade_all(rays)
+    order, inverse = _partition(rays.alive)
+    n_chunks = n // chunk
+    # two levels of skipping: blocks of chunks, then chunks, so a sparse level costs
+    # O(blocks + chunks of one block) loop steps rather than O(chunks)
+    per_block = _divisor_near(n_chunks, int(n_chunks ** 0.5))
+    blocks = jax.tree.map(lambda a: a[order].reshape((n_chunks // per_block, per_block, chunk) + a.shape[1:]),
+                          rays)
+    shapes = jax.eval_shape(shade_all, jax.tree.map(lambda a: a[0, 0], blocks))
+
+    def zeros(lead=()):
+        return jax.tree.map(lambda x: jnp.zeros(lead + x.shape, x.dtype), shapes)
+
+    def one_chunk(r: Rays) -> Shading:
+        return jax.lax.cond(jnp.any(r.alive), lambda: shade_all(r), zeros)
+
+    def one_block(r: Rays) -> Shading:
+        return jax.lax.cond(jnp.any(r.alive), lambda: jax.lax.map(one_chunk, r), lambda: zeros((per_block,)))
+
+    out = jax.lax.map(one_block, blocks)
+    return jax.tree.map(lambda x: x.reshape((n,) + x.shape[3:])[inverse], out)
+
+
+def _pad(rays: Rays, size: int) -> Rays:
+    """``rays`` followed by dead slots up to ``size`` (a unit direction keeps their masked maths finite)."""
+    pad = size - rays.origin.shape[0]
+    dtype = rays.origin.dtype
+    dead = Rays(origin=jnp.zeros((pad, 3), dtype),
+                direction=jnp.broadcast_to(jnp.asarray([0.0, 0.0, 1.0], dtype), (pad, 3)),
+                weight=jnp.zeros(pad, dtype), alive=jnp.zeros(pad, bool), reflection=jnp.zeros(pad, bool),
+                level=jnp.ones(pad, jnp.int32))
+    return jax.tree.map(lambda a, b: jnp.concatenate([a, b]), rays, dead)
+
+
+def _compacted(children: tuple, live: list, size: int):
+    """The next pool with the live children packed, in slot order, into its first slots; where
+    each child went; whether it fit; and how many did not."""
+    every = jnp.concatenate(live)
+    pos = jnp.cumsum(every.astype(jnp.int32)) - 1
+    keep = every & (pos < size)
+    dest_all = jnp.where(keep, pos, size)  # size: out of range, the scatter drops it
+    nxt = jax.tree.map(lambda *xs: jnp.zeros((size,) + xs[0].shape[1:], xs[0].dtype)
+                       .at[dest_all].set(jnp.concatenate(xs), mode="drop"), *(c.ray for c in children))
+    nxt = nxt._replace(alive=jnp.zeros(size, bool).at[dest_all].set(keep, mode="drop"))
+    dest = [dest_all[i * size:(i + 1) * size] for i in range(len(children))]
+    fits = [keep[i * size:(i + 1) * size] for i in range(len(children))]
+    return nxt, dest, fits, jnp.sum(every) - jnp.sum(keep)
+
+
+def _full_width(children: tuple, live: list, width, has_next):
+    """The next pool of the exact layout: the children of slot i go to slots i + width·s (s = the
+    child slot), where ``width`` is the number of slots the current level uses."""
+    index = jnp.arange(children[0].ray.alive.shape[0])
+    dest = [index + width * i for i in range(len(children))]
+    if len(children) == 1:
+        return children[0].ray._replace(alive=live[0]), dest
+    if len(children) != 2:
+        raise NotImplementedError("the exact pool layout handles one or two child slots")
+    second = index >= width
+    src = jnp.where(second, index - width, index)
+
+    def pick(a, b):
+        sel = second.reshape(second.shape + (1,) * (a.ndim - 1))
+        return jnp.where(sel, b[src], a[src])
+
+    nxt = jax.tree.map(pick, children[0].ray, children[1].ray)
+    return nxt._replace(alive=nxt.alive & (index < 2 * width) & has_next), dest
+
+
+def _combine(colour_next, rec: LevelRecord):
+    """One level of the reverse combine: ``local + Σ coef · colour(child)^power``."""
+    out = rec.local
+    for link in rec.links:
+        c = colour_next[link.dest]
+        if link.power is not None:
+            # c^power written as c · c^(power-1): exact at power 1 (the default), where
+            # d/dpower = c·log c must survive (a where(power == 1, c, …) shortcut would drop it)
+            c = c * safe_pow(c, link.power[:, None] - 1.0)
+        out = out + jnp.where(link.alive[:, None], link.coef * c, 0.0)
+    return out, None
+
+
+def trace_tree(shade_one: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
+               capacity: int | None = None) -> tuple[jax.Array, jax.Array]:
+    """Colours (N, 3) of the trees of N root rays, ``depth`` levels deep, one scan step per level.
+
+    Args:
+        shade_one: one ray → its :class:`Shading` with ``branch`` children (a static count).
+        rays:      the N root rays.
+        depth:     levels of the tree (1: only the root rays are shaded).
+        branch:    child slots per ray.
+        chunk:     rays shaded per ``vmap`` call; chunks without a live ray are skipped.
+        capacity:  ``None`` (exact): the pool is as wide as the tree's widest level
+                   (``N·branch^(depth-1)``) and the children of slot i go to slots i + width·s.
+                   ``c``: the pool has ``N·c`` slots and the live children are compacted into it,
+                   far cheaper for deep trees where few of the ``branch^k`` slots hold a ray;
+                   children beyond the capacity are dropped and counted.
+
+    Returns:
+        ``(colours (N, 3), dropped)``: ``dropped`` counts children that did not fit (always 0
+        without a capacity); a caller that needs the exact image re-renders with more capacity.
+    """
+    n = rays.origin.shape[0]
+    size = n * slots_per_ray(branch, depth, capacity)
+    compact = capacity is not None and size < n * slots_per_ray(branch, depth)
+    pool = _pad(rays, size)
+    if depth == 1:
+        return _shade_pool(shade_one, pool, chunk).local[:n], jnp.zeros((), jnp.int32)
+
+    def level(pool: Rays, k):
+        shading = _shade_pool(shade_one, pool, chunk)
+        children = shading.children
+        has_next = k + 1 < depth
+        live = [c.ray.alive & has_next for c in children]
+        if compact:
+            nxt, dest, live, dropped = _compacted(children, live, size)
+        else:
+            width = n * jnp.power(len(children), k)  # slots this level uses: [0, width)
+            nxt, dest = _full_width(children, live, width, has_next)
+            dropped = jnp.zeros((), jnp.int32)
+        links = tuple(Link(coef=c.coef, power=c.power, alive=a, dest=jnp.minimum(d, size - 1))
+                      for c, a, d in zip(children, live, dest, strict=True))
+        return nxt, (LevelRecord(local=shading.local, links=links), dropped)
+
+    _, (records, dropped) = jax.lax.scan(level, pool, jnp.arange(depth))
+    colour, _ = jax.lax.scan(_combine, jnp.zeros((size, 3), rays.origin.dtype), records, reverse=True)
+    return colour[:n], jnp.sum(dropped)

@@ -1,0 +1,73 @@
+"""The ray scheduler on its own: toy shading functions whose trees have closed-form colours.
+
+Each toy ray sees a local colour and spawns ``branch`` children with a fixed coefficient until its
+level reaches the depth, so the root's colour is a geometric sum, independent of how the scheduler
+lays out pools, skips chunks or compacts.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from raytracer.shading._model import Child, Rays, Shading, camera_rays
+from raytracer.shading._scheduler import slots_per_ray, trace_tree
+
+
+def toy_shader(branch: int, depth: int, local: float, coef: float, power: float | None = None):
+    def shade_one(ray: Rays) -> Shading:
+        child = Rays(origin=ray.origin, direction=ray.direction, weight=ray.weight * coef,
+                     alive=ray.alive & (ray.level < depth), reflection=ray.reflection, level=ray.level + 1)
+        p = None if power is None else jnp.asarray(power, ray.weight.dtype)
+        children = tuple(Child(ray=child, coef=jnp.full(3, coef, ray.weight.dtype), power=p)
+                         for _ in range(branch))
+        return Shading(local=jnp.where(ray.alive, local, 0.0) * jnp.ones(3, ray.weight.dtype),
+                       children=children)
+
+    return shade_one
+
+
+def roots(n: int) -> Rays:
+    origin = jnp.zeros((n, 3), jnp.float32)
+    direction = jnp.broadcast_to(jnp.asarray([0.0, 0.0, 1.0], jnp.float32), (n, 3))
+    return camera_rays(origin, direction)
+
+
+@pytest.mark.parametrize("capacity", [None, 2, 8])
+@pytest.mark.parametrize("chunk", [2, 8])
+def test_binary_tree_sums_local_colour_over_every_level(capacity, chunk):
+    # local 1, two children of coefficient ½ per ray: each level adds 2^k · ½^k · 1 = 1. Half the
+    # roots are dead, so 2 slots per root (compacted) hold every live ray of the widest level
+    depth, n = 3, 8
+    rays = roots(n)._replace(alive=jnp.arange(n) % 2 == 0)
+    colour, dropped = trace_tree(toy_shader(2, depth, 1.0, 0.5), rays, depth=depth, branch=2,
+                                 chunk=chunk, capacity=capacity)
+    expected = np.where(np.arange(n) % 2 == 0, float(depth), 0.0)[:, None] * np.ones(3)
+    np.testing.assert_allclose(np.asarray(colour), expected, rtol=1e-6)
+    assert int(dropped) == 0
+
+
+def test_children_beyond_the_capacity_are_dropped_and_counted():
+    # depth 3, branch 2: level 3 holds 4 rays per root; with 3 slots per root one in four is dropped
+    depth, n = 3, 8
+    assert slots_per_ray(2, depth) == 4 and slots_per_ray(2, depth, 3) == 3
+    colour, dropped = trace_tree(toy_shader(2, depth, 1.0, 0.5), roots(n), depth=depth, branch=2,
+                                 chunk=n, capacity=3)
+    assert int(dropped) == n
+    assert float(jnp.sum(colour[:, 0])) == pytest.approx(n * depth - n * 0.25, rel=1e-6)
+
+
+def test_dead_roots_see_black_and_chunks_of_them_are_skipped():
+    depth, n = 4, 16
+    rays = roots(n)
+    rays = rays._replace(alive=jnp.arange(n) < 3)  # one live chunk of four, three dead ones
+    colour, _ = trace_tree(toy_shader(1, depth, 1.0, 0.5), rays, depth=depth, branch=1, chunk=4)
+    expected = np.where(np.arange(n) < 3, 1 + 0.5 + 0.25 + 0.125, 0.0)
+    np.testing.assert_allclose(np.asarray(colour[:, 1]), expected, rtol=1e-6)
+
+
+def test_child_colour_is_raised_to_its_power():
+    # root: 0.5 + 1 · child^2 with child = 0.5 (a leaf) → 0.75
+    colour, _ = trace_tree(toy_shader(1, 2, 0.5, 1.0, power=2.0), roots(4), depth=2, branch=1, chunk=4)
+    np.testing.assert_allclose(np.asarray(colour), np.full((4, 3), 0.75), rtol=1e-6)
