@@ -20,8 +20,8 @@ def test_every_example_is_compared_with_povray_by_the_suite_at_40_db_or_better()
     """Replaces the former per-example POV-Ray test (the same render, size and spp, PSNR ≥ 40 dB),
     which repeated the suite's ``pov/`` comparisons: a new example scene fails here until it has
     its suite entry. ``seed`` is owned and tested by the parser/renderer tests."""
-    examples = {p.stem for p in SCENES.glob("*.pov")} - {"seed"}
-    entries = {s.path.stem: s for s in suite.SCENES if s.path.parent == SCENES}
+    examples = {p.stem for p in suite.EXAMPLES_DIR.glob("*.pov")} - {"seed"}
+    entries = {s.path.stem: s for s in suite.SCENES if s.path.parent == suite.EXAMPLES_DIR}
     assert set(entries) == examples
     assert (suite.WIDTH, suite.HEIGHT) == (160, 120)
     for name, s in entries.items():
