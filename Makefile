@@ -17,13 +17,15 @@ demo: setup
 	$(VENV)/bin/raytracer render examples/scenes/seed.pov -o $(OUT)/seed.png -W 640 -H 480
 	$(VENV)/bin/raytracer render examples/scenes/seed.pov -o $(OUT)/seed.exr -W 640 -H 480
 
-# The full suite, slow tests included (this is what CI runs).
+# The full suite, slow tests included (this is what CI runs). worksteal: an idle worker takes tests
+# from a busy one, so no file's long tests pin the run to one core; tests/conftest.py gives the run
+# one JAX compilation cache that both workers share.
 test: setup
-	$(PY) -m pytest -q -n 2 --dist loadfile -p no:cacheprovider
+	$(PY) -m pytest -q -n 2 --dist worksteal -p no:cacheprovider
 
 # Everything but the tests marked slow.
 test-fast: setup
-	$(PY) -m pytest -q -m "not slow" -p no:cacheprovider
+	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" -p no:cacheprovider
 
 validate: setup
 	$(PY) -m validation --report $(OUT)/validation

@@ -1,6 +1,17 @@
-"""Shared test configuration: strict JAX numerics, CPU only, and an opt-in float64 fixture."""
+"""Shared test configuration: strict JAX numerics, CPU only, one compilation cache per test run, the
+float64 fixture, and the ``povray`` marker's skip.
+
+* ``x64``: float64 for the duration of one test (parameters created inside it are float64).
+* ``@pytest.mark.povray``: the test runs the ``povray`` binary; it is skipped where POV-Ray is not
+  installed (``validation.povray.povray_executable``, which honours ``$POVRAY``).
+* JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
+  workers (``$RAYTRACER_TEST_JAX_CACHE`` overrides it and is then kept), so a program that two
+  workers or two tests build compiles once. A fresh clone starts with an empty cache.
+"""
 
 import os
+import shutil
+import tempfile
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
@@ -8,6 +19,36 @@ import jax  # noqa: E402
 import pytest  # noqa: E402
 
 jax.config.update("jax_numpy_rank_promotion", "raise")
+
+_CACHE_ENV = "RAYTRACER_TEST_JAX_CACHE"
+
+
+def pytest_configure(config):
+    # The controller (or a run without xdist) makes the folder; xdist workers, started after this
+    # hook, inherit the variable. A folder given from outside is left in place at the end.
+    if _CACHE_ENV not in os.environ:
+        os.environ[_CACHE_ENV] = tempfile.mkdtemp(prefix="raytracer-jax-cache-")
+        config._raytracer_owned_jax_cache = os.environ[_CACHE_ENV]
+    jax.config.update("jax_compilation_cache_dir", os.environ[_CACHE_ENV])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+def pytest_unconfigure(config):
+    owned = getattr(config, "_raytracer_owned_jax_cache", None)
+    if owned is not None:
+        shutil.rmtree(owned, ignore_errors=True)
+        os.environ.pop(_CACHE_ENV, None)
+
+
+def pytest_collection_modifyitems(config, items):
+    from validation.povray import povray_executable
+
+    if povray_executable() is None:
+        skip = pytest.mark.skip(reason="povray is not installed")
+        for item in items:
+            if item.get_closest_marker("povray") is not None:
+                item.add_marker(skip)
 
 
 @pytest.fixture

@@ -6,15 +6,12 @@ Nothing here checks a time: speed is measured by ``benchmarks/``, never asserted
 from __future__ import annotations
 
 import json
-import shutil
 
 import numpy as np
 import pytest
 
 from benchmarks import accuracy, speed
 from benchmarks._common import SCENES, md_table, scene_variant
-
-needs_povray = pytest.mark.skipif(shutil.which("povray") is None, reason="needs the povray binary")
 
 
 def test_benchmark_scenes_exist_and_load():
@@ -81,7 +78,7 @@ def test_plot_and_tables_from_rows(tmp_path):
     assert md.count("| ours |") == 6
 
 
-@needs_povray
+@pytest.mark.povray
 def test_speed_entry_point_writes_json_and_markdown(tmp_path):
     assert speed.main(["--out", str(tmp_path), "--scenes", "seed", "--scale", "0.05", "--repeats", "1"]) == 0
     doc = json.loads((tmp_path / "speed.json").read_text())
@@ -94,7 +91,7 @@ def test_speed_entry_point_writes_json_and_markdown(tmp_path):
     assert "| seed | 32×24 |" in (tmp_path / "speed.md").read_text()
 
 
-@needs_povray
+@pytest.mark.povray
 def test_accuracy_entry_point_writes_json_markdown_and_plot(tmp_path):
     assert accuracy.main(["--tiny", "--scenes", "seed", "--repeats", "1", "--out", str(tmp_path)]) == 0
     doc = json.loads((tmp_path / "accuracy.json").read_text())

@@ -18,6 +18,7 @@ finite differences (zero tangent), so no separate forward program is compiled.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import glob
 import math
 from pathlib import Path
@@ -300,20 +301,77 @@ def test_reflection_exponent_derivative_at_one():
 
 
 EXAMPLE_SCENES = sorted(glob.glob(str(ROOT / "examples" / "scenes" / "*.pov")))
+GRAD_W, GRAD_H = 8, 6
+GRAD_MAX_TRACE_LEVEL = 3  # compile time grows with depth; deeper levels repeat the same code
 
 
-@pytest.mark.slow  # one reverse-mode program per scene structure: 30–170 s of compile each
-@pytest.mark.parametrize("path", EXAMPLE_SCENES, ids=lambda p: Path(p).stem)
+def _capped_example(path: str) -> rt.Scene:
+    scene = rt.load_scene(path, width=GRAD_W, height=GRAD_H)
+    return eqx.tree_at(lambda s: s.settings, scene, dataclasses.replace(
+        scene.settings, max_trace_level=min(scene.settings.max_trace_level, GRAD_MAX_TRACE_LEVEL)))
+
+
+def _shading_signature(scene: rt.Scene):
+    """What the compiled program simulates besides its primitive kernels and patterns:
+    ``plan(scene).effects`` without ``kinds`` and ``patterns``."""
+    return dataclasses.replace(rt.plan(scene).effects, kinds=(), patterns=())
+
+
+@functools.cache
+def _differentiated_examples() -> tuple[str, ...]:
+    """The example scenes whose reverse mode is compiled: the examples grouped by shading signature
+    (at the capped depth); in each group, greedily, the scene adding the most primitive kinds and
+    patterns not yet differentiated in that group (then by name), until the group's kinds and
+    patterns are all covered. So every shading signature, and within it every primitive kind and
+    pattern of the examples, goes through reverse mode in the whole renderer."""
+    groups: dict = {}
+    for path in EXAMPLE_SCENES:
+        scene = _capped_example(path)
+        eff = rt.plan(scene).effects
+        features = {("kind", k) for k in eff.kinds} | {("pattern", q) for q in eff.patterns}
+        groups.setdefault(_shading_signature(scene), []).append((Path(path).stem, path, features))
+    chosen = []
+    for members in groups.values():
+        wanted = set().union(*(f for _, _, f in members))
+        while wanted:
+            name, path, features = min(members, key=lambda m: (-len(m[2] & wanted), m[0]))
+            chosen.append(path)
+            wanted -= features
+    return tuple(sorted(chosen))
+
+
+def test_differentiated_examples_cover_every_shading_signature_kind_and_pattern():
+    """The scenes left out of the reverse-mode test below add nothing to it that the examples in
+    it do not have: same shading signature, primitive kinds and patterns already in the test."""
+    chosen = _differentiated_examples()
+    assert set(chosen) <= set(EXAMPLE_SCENES)
+
+    def features(path):
+        scene = _capped_example(path)
+        eff = rt.plan(scene).effects
+        return _shading_signature(scene), set(eff.kinds), set(eff.patterns)
+
+    covered = [features(p) for p in chosen]
+    for path in EXAMPLE_SCENES:
+        sig, kinds, patterns = features(path)
+        same = [(k, q) for s, k, q in covered if s == sig]
+        assert same, f"{Path(path).name}: its shading signature is not differentiated"
+        assert kinds <= set().union(*(k for k, _ in same)), Path(path).name
+        assert patterns <= set().union(*(q for _, q in same)), Path(path).name
+
+
+@pytest.mark.slow  # one reverse-mode program per scene: 10–60 s of compile each
+@pytest.mark.parametrize("path", _differentiated_examples(), ids=lambda p: Path(p).stem)
 def test_grad_is_finite_for_every_example_scene(path):
     """Reverse mode through the whole renderer (every parameter of the scene) is finite at every
-    pixel. (Grouping several scenes into one program compiles far slower than one per scene.)"""
-    w, h = 8, 6
-    # depth capped at 3: compile time is linear in depth and deeper levels repeat the same code
-    scene = rt.load_scene(path, width=w, height=h)
-    scene = eqx.tree_at(lambda s: s.settings, scene, dataclasses.replace(
-        scene.settings, max_trace_level=min(scene.settings.max_trace_level, 3)))
+    pixel, for every example scene that adds a shading signature, primitive kind or pattern (see
+    the test above; the others run the same code). (Grouping several scenes into one program
+    compiles far slower than one per scene.) Every example's forward render is compared with
+    POV-Ray, so finite, by the suite's ``pov/`` entries."""
+    scene = _capped_example(path)
     p, rest = eqx.partition(scene, eqx.is_inexact_array)
-    g = jax.jit(jax.grad(lambda p: jnp.mean(rt.render(eqx.combine(p, rest), width=w, height=h) ** 2)))(p)
+    g = jax.jit(jax.grad(lambda p: jnp.mean(rt.render(eqx.combine(p, rest), width=GRAD_W,
+                                                      height=GRAD_H) ** 2)))(p)
     bad = [n for n, x in params.parameters(g).items() if not bool(jnp.isfinite(x).all())]
     assert not bad, f"{Path(path).name}: non-finite gradient for {bad}"
 

@@ -230,6 +230,7 @@ def _finite_value_and_grad(scene, width=6, height=4):
     return value, grads
 
 
+@pytest.mark.slow  # a reverse-mode program through glass at depth 5: ~45 s of compile
 @pytest.mark.parametrize("precision", ["float32", "float64"])
 def test_camera_inside_a_glass_sphere_gives_finite_image_and_gradients(precision):
     with jax.enable_x64(precision == "float64"):
@@ -241,6 +242,7 @@ def test_camera_inside_a_glass_sphere_gives_finite_image_and_gradients(precision
         _finite_value_and_grad(scene)
 
 
+@pytest.mark.slow  # two forward and two reverse-mode programs: ~30 s of compile
 @pytest.mark.parametrize("precision", ["float32", "float64"])
 def test_huge_and_tiny_scales_render_without_acne(precision):
     with jax.enable_x64(precision == "float64"):

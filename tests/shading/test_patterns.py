@@ -9,7 +9,6 @@ pattern at the pixel centre, which we evaluate directly and push through POV's c
 from __future__ import annotations
 
 import math
-import shutil
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +18,6 @@ from jax.test_util import check_grads
 
 import raytracer.patterns as P
 
-needs_povray = pytest.mark.skipif(shutil.which("povray") is None, reason="needs the povray binary")
 GREY_MAP = "color_map { [0 rgb 0] [1 rgb 1] }"
 EXR_FLOOR = 5e-4  # half-float EXR precision, reference §3.2
 
@@ -318,7 +316,6 @@ EXACT_CASES = [
 ]
 
 
-@needs_povray
 @pytest.mark.povray
 @pytest.mark.parametrize(("name", "pigment", "plane", "centre", "vector", "chain"), EXACT_CASES,
                          ids=[f"{c[0]}-{i}" for i, c in enumerate(EXACT_CASES)])
@@ -367,7 +364,6 @@ STAT_CASES = [
 ]
 
 
-@needs_povray
 @pytest.mark.povray
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "pigment", "turb", "tol"), STAT_CASES, ids=[c[1] for c in STAT_CASES])

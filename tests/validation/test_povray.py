@@ -3,11 +3,7 @@
 import numpy as np
 import pytest
 
-from validation.povray import PovrayError, PovrayUnavailable, povray_executable, render_povray, run_povray
-
-pytestmark = pytest.mark.povray
-
-needs_povray = pytest.mark.skipif(povray_executable() is None, reason="povray is not installed")
+from validation.povray import PovrayError, PovrayUnavailable, render_povray, run_povray
 
 # a sphere that only glows (ambient 1, diffuse 0) covers the centre; the background fills the corners
 GLOW = """#version 3.7;
@@ -18,7 +14,7 @@ sphere { <0, 0, 0>, 1 pigment { rgb <0.75, 0.375, 0.5> } finish { ambient 1 diff
 """
 
 
-@needs_povray
+@pytest.mark.povray
 def test_glowing_sphere_and_background_are_exact_linear_values():
     r = run_povray(GLOW, 32, 24)
     assert r.image.shape == (24, 32, 3) and r.image.dtype == np.float32
@@ -28,7 +24,7 @@ def test_glowing_sphere_and_background_are_exact_linear_values():
     assert "-A" in r.command and "+FE" in r.command
 
 
-@needs_povray
+@pytest.mark.povray
 def test_scene_file_with_an_include_from_its_own_folder(tmp_path):
     (tmp_path / "colours.inc").write_text("#declare Glow = rgb <0.5, 0.25, 1>;\n")
     scene = tmp_path / "scene.pov"
@@ -38,7 +34,7 @@ def test_scene_file_with_an_include_from_its_own_folder(tmp_path):
     np.testing.assert_array_equal(image[12, 16], [0.5, 0.25, 1.0])
 
 
-@needs_povray
+@pytest.mark.povray
 def test_supersampling_averages_centre_and_grid_at_a_silhouette():
     aliased = render_povray(GLOW, 32, 24)
     smooth = run_povray(GLOW, 32, 24, antialias=(0.0, 3))
@@ -48,7 +44,7 @@ def test_supersampling_averages_centre_and_grid_at_a_silhouette():
     assert np.any(np.abs(smooth.image - aliased).max(axis=-1) > 0.01)
 
 
-@needs_povray
+@pytest.mark.povray
 def test_parse_error_raises_with_povray_message():
     with pytest.raises(PovrayError, match="Parse Error"):
         render_povray("#version 3.7;\nsphere { 0, 1 \n", 8, 8)

@@ -6,9 +6,6 @@ import sys
 import pytest
 
 from validation import suite
-from validation.povray import povray_executable
-
-needs_povray = pytest.mark.skipif(povray_executable() is None, reason="povray is not installed")
 
 # Measured failures of our renderer, as {suite name: reason}; strict xfails (remove an entry when
 # its cause is fixed). Empty since e9b7544 (checker on planes, polygon and CSG cylinder fixes).
@@ -39,7 +36,6 @@ def test_cli_lists_scenes_and_rejects_unknown_names(capsys):
 MITSUBA_SCENES = [pytest.param(s, id=s.name) for s in suite.SCENES if s.mitsuba is not None]
 
 
-@needs_povray
 @pytest.mark.slow
 @pytest.mark.mitsuba
 @pytest.mark.povray
@@ -68,7 +64,7 @@ def _our_cases():
             yield pytest.param(s, reference, id=f"{s.name}-{reference}", marks=marks)
 
 
-@needs_povray
+@pytest.mark.povray
 @pytest.mark.parametrize("scene, reference", list(_our_cases()))
 def test_our_renderer_passes_the_suite(scene, reference):
     (result,) = suite.run([scene], (reference,))
@@ -84,7 +80,7 @@ def fresh_jit():
     jax.clear_caches()
 
 
-@needs_povray
+@pytest.mark.povray
 @pytest.mark.slow
 @pytest.mark.mitsuba
 def test_a_mirrored_camera_makes_the_suite_fail(monkeypatch, fresh_jit):
