@@ -166,7 +166,7 @@ def part_one(out: Path) -> float:
 
 
 def lambert_scene(width: int, height: int, rho) -> rt.Scene:
-    """A Lambert sphere on a grey ground under one parallel light: Mitsuba-matchable (reference §6)."""
+    """A Lambert sphere on a grey ground under one parallel light: Mitsuba-matchable (semantics §6)."""
     cam = rt.Camera(location=(0.13, 1.63, -5.11), look_at=(0.02, 0.61, 0.0), right=(width / height, 0, 0),
                     angle_degrees=50.0)
     diffuse = 0.9

@@ -45,7 +45,7 @@ def _output_transfer(img, settings):
         return img
     if settings.output_transfer == "gamma":
         return jnp.where(img > 0, jnp.abs(img) ** settings.assumed_gamma, 0.0)
-    # pre-3.7 scenes: POV writes sRGB⁻¹(value) to EXR (§3.1)
+    # pre-3.7 scenes: POV writes sRGB⁻¹(value) to EXR (semantics §3.1)
     x = jnp.clip(img, 0.0, None)
     return jnp.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 

@@ -1,4 +1,4 @@
-"""Whole-renderer tests against closed forms of POV-Ray's lighting model (reference §2).
+"""Whole-renderer tests against closed forms of POV-Ray's lighting model (semantics §2).
 
 Each scene is built so that one pixel's radiance can be written down by hand: a 1×1 image's
 only ray goes exactly along the camera direction, so hit points, normals and light directions
@@ -284,7 +284,7 @@ def test_look_at_parallel_to_sky_is_a_clear_error():
 
 
 def test_camera_frame_follows_povs_look_at_rules():
-    # reference §1.1: |D|, |R|, |U| kept; D̂ = normalize(look_at − location); R̂ = normalize(sky × D̂);
+    # semantics §1.1: |D|, |R|, |U| kept; D̂ = normalize(look_at − location); R̂ = normalize(sky × D̂);
     # Û = D̂ × R̂; angle α sets |D| = |R| / (2 tan(α/2)) before look_at
     cam = rt.Camera(location=(1, 2, -3), look_at=(0, 0, 0), right=(1.5, 0, 0), angle_degrees=60.0)
     loc, d, r, u = (np.asarray(v, np.float64) for v in cam.frame())

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from raytracer import scene as S
-from raytracer._dtype import as_float, default_float
 from raytracer._build import build
+from raytracer._dtype import as_float, default_float
 
 CASES = [
     (S.Sphere, dict(center=(1.0, 2.0, 3.0), radius=0.5)),

@@ -1,4 +1,4 @@
-"""Our gradients against Mitsuba 3's automatic differentiation (reference §7).
+"""Our gradients against Mitsuba 3's automatic differentiation (semantics §7).
 
 For a Mitsuba-matchable scene (parallel lights, Lambert diffuse, spheres and planes; see
 :mod:`validation.mitsuba`), both renderers evaluate the same image loss

@@ -1,6 +1,6 @@
 """A ``raytracer.Scene`` as a Mitsuba 3 scene, rendered through pixel centres or to a box-filtered film.
 
-Mapping (reference §6; every entry is exact up to float precision unless marked Monte Carlo):
+Mapping (semantics §6; every entry is exact up to float precision unless marked Monte Carlo):
 
 ==========================================  =====================================================
 POV-Ray                                     Mitsuba 3
@@ -37,7 +37,7 @@ inter-reflection that POV-Ray (without radiosity) does not compute. The scene th
 intersection, BSDFs and emitters: at each hit it adds the surface's emitter (POV's ambient),
 next-event estimation from every ``directional`` emitter (POV's parallel lights) with shadow rays
 that pass through clear dielectrics (POV's shadow rays ignore refraction and glass with
-``filter/transmit 1`` casts no shadow, reference §2.5), and it continues only along *delta* BSDF
+``filter/transmit 1`` casts no shadow, semantics §2.5), and it continues only along *delta* BSDF
 lobes (mirror reflection and refraction), for at most ``max_depth`` segments; escaping rays see the
 environment (POV's background). On scenes without specular surfaces and emitters it equals
 Mitsuba's ``direct`` integrator, and with emissive surfaces seen via mirrors it equals ``path``
@@ -61,7 +61,7 @@ __all__ = ["NotMatchable", "MitsubaDict", "load", "mitsuba", "render_mitsuba_cen
            "to_mitsuba", "variant"]
 
 PLANE_HALF_SIZE = 1.0e4  # rectangle standing in for an infinite plane (times the camera height if larger)
-FAR_CLIP = 1.0e7  # POV-Ray ignores hits farther than 1e7 (reference §2.9)
+FAR_CLIP = 1.0e7  # POV-Ray ignores hits farther than 1e7 (semantics §2.9)
 _LLVM_GLOBS = ("/usr/lib/x86_64-linux-gnu/libLLVM*.so*", "/usr/lib/aarch64-linux-gnu/libLLVM*.so*",
                "/usr/lib/llvm-*/lib/libLLVM*.so*", "/usr/lib64/libLLVM*.so*", "/usr/lib/libLLVM*.so*",
                "/usr/local/lib/libLLVM*.so*")
@@ -550,7 +550,7 @@ class _Converter:
             raise NotMatchable("adc_bailout > 0 with reflection or refraction", "use adc_bailout 0")
         if self.has_glass and self._inside_plane:
             raise NotMatchable("camera inside a plane's half-space with refraction",
-                               "POV's ComputeRelativeIOR quirk gives F = 0 at exits (reference §2.7)")
+                               "POV's ComputeRelativeIOR quirk gives F = 0 at exits (semantics §2.7)")
         self.out["integrator"] = {"type": "pov_whitted", "max_depth": int(self.settings.max_trace_level)}
         return self.out
 
@@ -585,7 +585,7 @@ def _film_size(mi_scene) -> tuple[int, int]:
 def render_mitsuba_centres(scene, width: int | None = None, height: int | None = None, spp: int = 1, *,
                            seed: int = 0, integrator=None, max_lanes: int = 1 << 23,
                            sampler_type: str = "stratified") -> np.ndarray:
-    """Renders with every ray through a pixel centre, as POV-Ray ``-A`` and our ``spp=1`` do (§6.1).
+    """Renders with every ray through a pixel centre, as POV-Ray ``-A`` and our ``spp=1`` do (semantics §6.1).
 
     Each pixel averages ``spp`` estimates along the same centre ray (only useful for Monte Carlo
     materials such as glass). ``integrator`` (an ``mi.Integrator`` or a dict) replaces the scene's.

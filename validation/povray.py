@@ -1,6 +1,6 @@
 """Run the real POV-Ray 3.7 binary and read its output back as a linear float image.
 
-POV-Ray is the reference for what a ``.pov`` file means (reference §3.5): we render with
+POV-Ray is the reference for what a ``.pov`` file means (semantics §3.5): we render with
 ``-D -A +FE`` (one ray through each pixel centre, written as a half-float linear OpenEXR) or, for
 comparisons with box-filtered films, ``+A0.0 +AM1 +R<n> -J`` (every pixel supersampled on a
 deterministic n×n grid plus the centre). Debian's ``povray.conf`` restricts file I/O to the

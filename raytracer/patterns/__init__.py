@@ -14,7 +14,7 @@ patterns that are not :attr:`Pattern.rendered`, the shader dispatches on :func:`
 default waves from the records. Adding a pattern is one record (and its evaluator) in its family's
 module, plus its test; a new family is one module added to ``_FAMILIES``.
 
-The renderer evaluates a pigment as (reference §5.2)::
+The renderer evaluates a pigment as (semantics §5.2)::
 
     v = pattern_value(name, p, ...)            # p is already in pattern space
     v = fmod(v * frequency + phase, 1.00001)   # skipped for discrete patterns

@@ -29,7 +29,8 @@ def gradient(p, inputs):
 
 
 def radial(p, inputs):
-    """0 at +x, 0.25 at -z, 0.5 at -x, 0.75 at +z (manual §3.4.7.1.22; checked against renders)."""
+    """0 at +x, 0.25 at -z, 0.5 at -x, 0.75 at +z (POV-Ray manual, Pattern > General Patterns >
+    Radial Pattern; checked against renders)."""
     v = safe_atan2(-p[2], p[0]) * (0.5 / math.pi)
     return jnp.where(v < 0.0, v + 1.0, v)
 

@@ -104,7 +104,7 @@ def dnoise(p):
 
 
 def turbulence(p, octaves: int = 6, omega=0.5, lambda_=2.0):
-    """Scalar turbulence, POV's generator-2 formula (reference §5.3) on our noise.
+    """Scalar turbulence, POV's generator-2 formula (semantics §5.3) on our noise.
 
     ``clamp(2N(p) - 0.5, 0, 1) + Σ_{i=1}^{octaves-1} ωⁱ (2N(λⁱ p) - 0.5)``; ``octaves`` is static.
     """
@@ -119,7 +119,7 @@ def turbulence(p, octaves: int = 6, omega=0.5, lambda_=2.0):
 
 
 def dturbulence(p, octaves: int = 6, omega=0.5, lambda_=2.0):
-    """Vector turbulence ``Σ_{i=0}^{octaves-1} ωⁱ DNoise(λⁱ p)`` (reference §5.3); (3,)."""
+    """Vector turbulence ``Σ_{i=0}^{octaves-1} ωⁱ DNoise(λⁱ p)`` (semantics §5.3); (3,)."""
     p = jnp.asarray(p)
     value = dnoise(p)
     amplitude, scale = 1.0, 1.0

@@ -22,7 +22,7 @@ def dents(p, inputs):
 
 
 def granite(p, inputs):
-    # Σ_{i=0..5} min(|1 - 2N(4·2ⁱ p)|, 0.5) / 2ⁱ  (reference §5.3, generator 2)
+    # Σ_{i=0..5} min(|1 - 2N(4·2ⁱ p)|, 0.5) / 2ⁱ  (semantics §5.3, generator 2)
     value = jnp.zeros((), p.dtype)
     for i in range(6):
         n = noise((4.0 * 2.0**i) * p)
@@ -71,7 +71,7 @@ def waves(p, inputs):
     return _superposed(p, "waves")
 
 
-# marble, wood and agate use their turbulence themselves instead of warping the point (reference §5.3)
+# marble, wood and agate use their turbulence themselves instead of warping the point (semantics §5.3)
 def marble(p, inputs):
     if inputs.turbulence is None:
         return p[0]

@@ -2,7 +2,7 @@
 
 The user-facing fields are the modifiers as written (``location``, ``look_at``, ``angle``…); the
 final ``direction``/``right``/``up`` vectors are computed in JAX by :meth:`Camera.frame` following
-POV-Ray 3.5+'s fixed modifier order (reference §1.1), so every modifier is differentiable.
+POV-Ray 3.5+'s fixed modifier order (semantics §1.1), so every modifier is differentiable.
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ class Camera(eqx.Module):
                              "(give a different sky vector)")
 
     def frame(self):
-        """Final ``(origin, D, R, U)`` (each (3,)) as POV-Ray computes them (reference §1.1–1.2).
+        """Final ``(origin, D, R, U)`` (each (3,)) as POV-Ray computes them (semantics §1.1–1.2).
 
         The ray through image coordinates ``x0, y0 ∈ [-½, ½]`` is ``D + x0 R + y0 U`` from ``origin``
         (perspective) or ``D`` from ``origin + x0 R + y0 U`` (orthographic).

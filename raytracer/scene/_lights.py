@@ -2,7 +2,7 @@
 and the one list of light types (:data:`LIGHT_TYPES`) from which the render plan's light effects
 and every default are derived.
 
-Colours are used as irradiance directly: no 1/π and no inverse-square falloff (reference §2.4).
+Colours are used as irradiance directly: no 1/π and no inverse-square falloff (semantics §2.4).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ SPOT_DEFAULTS: Mapping[str, Any] = {"radius": 30.0, "falloff": 45.0, "tightness"
 
 
 class Spot(eqx.Module):
-    """Spotlight cone (reference §2.4): ``cosθ^tightness · smoothstep(cos falloff, cos radius, cosθ)``.
+    """Spotlight cone (semantics §2.4): ``cosθ^tightness · smoothstep(cos falloff, cos radius, cosθ)``.
 
     Attributes: angles in degrees, measured from the axis ``position → point_at``.
     """
@@ -36,7 +36,7 @@ class AreaLight(eqx.Module):
     """A rectangular grid of ``size1 × size2`` shadow samples spanning ``axis1`` and ``axis2``.
 
     Only the shadow is area-sampled (diffuse and highlights use the centre), with POV-Ray's
-    recursive corner-averaging weights (reference §2.5). ``jitter`` is not simulated (deterministic
+    recursive corner-averaging weights (semantics §2.5). ``jitter`` is not simulated (deterministic
     grid), and ``adaptive`` is treated as full subdivision.
     """
 

@@ -1,4 +1,4 @@
-"""Objects (a shape with a transform, texture and interior) and CSG trees of them (reference §4.2)."""
+"""Objects (a shape with a transform, texture and interior) and CSG trees of them (semantics §4.2)."""
 
 from __future__ import annotations
 

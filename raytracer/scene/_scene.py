@@ -15,7 +15,7 @@ OUTPUT_TRANSFERS = ("linear", "gamma", "srgb_decode")
 
 
 class Settings(eqx.Module):
-    """``global_settings`` and the output transfer implied by ``#version``/``assumed_gamma`` (§3.1).
+    """``global_settings`` and the output transfer implied by ``#version``/``assumed_gamma`` (semantics §3.1).
 
     Attributes:
         ambient_light:   (3,) multiplies every finish's ambient, default white.

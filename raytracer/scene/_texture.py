@@ -28,7 +28,7 @@ def _rgbft(c) -> np.ndarray:
 
 
 class Pigment(eqx.Module):
-    """A pattern evaluated at the hit point and mapped through a colour map (reference §5.2).
+    """A pattern evaluated at the hit point and mapped through a colour map (semantics §5.2).
 
     Attributes:
         pattern:     static name, a key of ``raytracer.patterns.REGISTRY`` (``PATTERNS``).
@@ -92,7 +92,7 @@ class Pigment(eqx.Module):
 
 
 class Reflection(eqx.Module):
-    """``reflection { min, max [fresnel] falloff exponent metallic }`` (reference §2.6)."""
+    """``reflection { min, max [fresnel] falloff exponent metallic }`` (semantics §2.6)."""
 
     min: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
     max: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
@@ -103,7 +103,7 @@ class Reflection(eqx.Module):
 
 
 class Finish(eqx.Module):
-    """POV-Ray ``finish`` (defaults from reference §2.1). Highlight terms are absent when None."""
+    """POV-Ray ``finish`` (defaults from semantics §2.1). Highlight terms are absent when None."""
 
     ambient: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.1, 0.1, 0.1))
     emission: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
@@ -119,7 +119,7 @@ class Finish(eqx.Module):
 
 
 class Interior(eqx.Module):
-    """``interior``: index of refraction (None = 1, straight transmission) and fading (§2.7)."""
+    """``interior``: index of refraction (None = 1, straight transmission) and fading (semantics §2.7)."""
 
     ior: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
     fade_distance: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)

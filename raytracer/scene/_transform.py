@@ -29,7 +29,7 @@ def scale_matrix(v) -> np.ndarray:
 
 
 def rotation_matrix(angles_degrees) -> np.ndarray:
-    """POV-Ray ``rotate <a, b, c>``: about x by a, then y by b, then z by c (reference §4.3).
+    """POV-Ray ``rotate <a, b, c>``: about x by a, then y by b, then z by c (semantics §4.3).
 
     Column-vector form ``Rz(c) @ Ry(b) @ Rx(a)`` with the standard right-handed matrices; in POV's
     left-handed frame this is the "left-hand rule" rotation.

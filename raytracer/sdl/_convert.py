@@ -80,7 +80,7 @@ def as_vector(p, v, n: int = 3, loc=None) -> tuple:
 
 
 def as_color(p, v, loc=None) -> Vec:
-    """A value used as a colour: a float fills all five channels (reference §2.2)."""
+    """A value used as a colour: a float fills all five channels (semantics §2.2)."""
     if isinstance(v, float):
         return Vec((v,) * 5, True)
     if isinstance(v, Vec):

@@ -164,7 +164,7 @@ def _fix_degenerate_sky(kw: dict, warn) -> None:
 
 
 def output_transfer(p) -> tuple[str, float]:
-    """§3.1: the transfer from working values to linear output."""
+    """semantics §3.1: the transfer from working values to linear output."""
     if p.assumed_gamma is not None and p.assumed_gamma != 1.0:
         return "gamma", float(p.assumed_gamma)
     # POV-Ray 3.7 also turns gamma handling off for a scene with no #version at all ("assumed_gamma

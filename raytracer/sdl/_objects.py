@@ -512,7 +512,7 @@ def parse_background(p, t) -> None:
     p.expect_op("{", "'{' after background")
     c = parse_color(p)
     p.expect_op("}", "'}' to close background")
-    # POV 3.7 pre-multiplies the background by (1 - transmit) at parse time (reference §2.2)
+    # POV 3.7 pre-multiplies the background by (1 - transmit) at parse time (semantics §2.2)
     p.background = tuple(v * (1.0 - c.c[4]) for v in c.c[:3])
 
 

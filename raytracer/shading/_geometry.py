@@ -4,8 +4,8 @@ and shadow transmittance — all for ONE ray (the caller vmaps over rays).
 Primitives of one kind (and one static variant, e.g. open or closed cylinders) are stacked into
 struct-of-arrays *groups*; a ray is inverse-transformed into each instance's object space and the
 kind's kernel is vmapped over the instances. Every kernel reports all ``K`` crossings of the line,
-so CSG (keep a crossing only where it lies inside/outside the other operands, reference §4.2),
-``clipped_by`` and filtered shadows (multiply the filter of every crossing, §2.5) are masks over
+so CSG (keep a crossing only where it lies inside/outside the other operands, semantics §4.2),
+``clipped_by`` and filtered shadows (multiply the filter of every crossing, semantics §2.5) are masks over
 the same candidates.
 """
 

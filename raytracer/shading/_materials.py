@@ -1,5 +1,5 @@
 """Per-primitive material arrays (top texture layer, finish, interior), packed inside the jit trace
-so gradients reach the user's objects, and pigment evaluation at a hit point (reference §5.2)."""
+so gradients reach the user's objects, and pigment evaluation at a hit point (semantics §5.2)."""
 
 from __future__ import annotations
 
@@ -133,7 +133,7 @@ def pat_wave_index(pg: Pigment) -> int:
 
 
 def _color_map(v, values, colors):
-    """Linear interpolation of all five channels; clamps outside the first/last entries (§5.2)."""
+    """Linear interpolation of all five channels; clamps outside the first/last entries (semantics §5.2)."""
     i = jnp.clip(jnp.searchsorted(values, v, side="right"), 1, values.shape[0] - 1)
     v0, v1 = values[i - 1], values[i]
     span = v1 - v0
@@ -163,7 +163,7 @@ def pigment_at(mats: PackedMaterials, prim, p):
         vk = patterns.pattern_value(name, q, mats.vector[prim], turb, mats.octaves[name],
                                     mats.omega[prim], mats.lambda_[prim])
         v = jnp.where(pid == k, vk, v)
-    # frequency / phase with POV's 1.00001 wrap (§5.2 step 3); a discrete pattern's value is the
+    # frequency / phase with POV's 1.00001 wrap (semantics §5.2 step 3); a discrete pattern's value is the
     # index of its colour and is never wrapped
     freq, phase = mats.frequency[prim], mats.phase[prim]
     w = jnp.fmod(v * freq + phase, 1.00001)

@@ -6,30 +6,30 @@ colour is combined with). It knows nothing of pools, levels, chunks or compactio
 (``_scheduler.py``) calls it under ``vmap`` and assembles the tree.
 
 What one hit computes:
-  * every texture layer, top first (§2.3): each layer's ambient + emission + diffuse + highlights
+  * every texture layer, top first (semantics §2.3): each layer's ambient + emission + diffuse + highlights
     (phong, specular, metallic tint; none from shadowless lights), scaled by the layer's opacity
     ``1 - filter - transmit`` and filtered by the layers above it; a layer is skipped once the
     layers above let less than ``adc_bailout`` through. The layers' reflection colours add up
     (the mirror ray's weight is the largest); with ``conserve_energy`` a layer's filter is reduced
     by its reflection. The transmitted ray sees through the product of all layers' filters;
-  * light arrival per light (§2.4, §2.5): fade with distance, spotlight cone, shadow rays that
+  * light arrival per light (semantics §2.4, §2.5): fade with distance, spotlight cone, shadow rays that
     opaque objects block and transparent ones filter (every layer of a crossed object filters,
     and an exit crossing fades by the interior crossed), area lights as a grid of shadow rays
     with POV's corner-averaging weights;
-  * reflectivity (§2.6): reflection min/max with falloff, fresnel, metallic tint;
+  * reflectivity (semantics §2.6): reflection min/max with falloff, fresnel, metallic tint;
   * the children: the transmitted ray (refracted, or straight through where the ior is 1; the
     totally internally reflected ray in its place under TIR), attenuated by the interior it
     leaves; and the mirror ray, weighted by the summed reflection colour.
 
 Only the children the scene can spawn exist: the mirror ray only if some finish reflects, the
-transmitted ray only if some pigment can be transparent (§2.3, §2.7).
+transmitted ray only if some pigment can be transparent (semantics §2.3, semantics §2.7).
 
 Modelling shortcuts (stated, not hidden):
   * the layers' reflections are summed and traced along ONE mirror ray, with the top layer's
     ``exponent`` (the plan warns when more than one layer of a texture reflects);
   * entering/leaving an object is decided from the geometric normal (the ray is assumed to come
     from air when entering, and to leave into air), rather than POV's per-ray interior list —
-    identical for non-nested objects, including POV's quirk-free cases (§2.7);
+    identical for non-nested objects, including POV's quirk-free cases (semantics §2.7);
   * shadow rays go straight through transparent objects (no refraction, no caustics), as POV's;
   * straight transmission (ior 1) does not use up a trace level (as in POV-Ray), but a ray path may
     pass at most ``Effects.straight_passes`` straight surfaces beyond ``max_trace_level`` levels.
@@ -149,7 +149,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
 
 # ---------------------------------------------------------------- shadows
 def _shadow_filter(ctx: TraceContext, o, l, dist):
-    """RGB transmittance of the segment ``o → o + dist·l`` (§2.5): opaque crossings block,
+    """RGB transmittance of the segment ``o → o + dist·l`` (semantics §2.5): opaque crossings block,
     transparent ones multiply by ``f·P + t`` at each crossing; refraction is ignored."""
     t, n = all_crossings(ctx.geo, o, l)
     scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
@@ -164,14 +164,14 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     n_layers = ctx.mats.n_layers
     for c in np.flatnonzero(ctx.transparent_cands):
         prim = int(ctx.geo.cand_prim[c])
-        for k in np.flatnonzero(ctx.mats.layer_present[prim]):  # every layer filters (§2.5)
+        for k in np.flatnonzero(ctx.mats.layer_present[prim]):  # every layer filters (semantics §2.5)
             pig = pigment_at(ctx.mats, prim * n_layers + int(k), o + safe_t[c] * l)
             f = pig[3] * pig[:3] + pig[4]
             filt = filt * jnp.where(ok[c], f, 1.0)
     fading = ctx.fading_cands
     if ctx.plan.effects.interior_fade and fading.size:
         # interior fade at every exit crossing, over the depth since the previous crossing (or
-        # the shadow ray's start): the shadow ray continues from each hit (§2.4; povray 3.7
+        # the shadow ray's start): the shadow ray continues from each hit (semantics §2.4; povray 3.7
         # measured: a fading sphere attenuates a shadow by its chord, not by the air before it)
         accepted = jnp.where(ok, t, -jnp.inf)
         tc = accepted[fading]
@@ -188,7 +188,7 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
 
 
 def _area_weights(n: int) -> np.ndarray:
-    """POV's recursive corner-averaging weights along one area-light axis (§2.5):
+    """POV's recursive corner-averaging weights along one area-light axis (semantics §2.5):
     3 samples → ¼ ½ ¼, 5 → ⅛ ¼ ¼ ¼ ⅛, 4 → uniform."""
     w = np.zeros(n)
 
@@ -256,7 +256,7 @@ class _Arrival(NamedTuple):
 
 def _light_arrival(ctx: TraceContext, light: Light, p, p_spawn, n) -> _Arrival:
     """Direction to the light, the colour arriving (fade, spot cone, shadow filter) and whether the
-    light is on the viewer's side of the surface (``n·l > 1e-10``, §2.4)."""
+    light is on the viewer's side of the surface (``n·l > 1e-10``, semantics §2.4)."""
     l, dist, shadow_len = _light_geometry(light, p)
     c = light.color.astype(ctx.dtype)
     if light.fade_distance is not None and light.fade_power is not None:
@@ -285,7 +285,7 @@ def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, a
 
 
 def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
-    """Reflection colour (§2.6) and its ray weight."""
+    """Reflection colour (semantics §2.6) and its ray weight."""
     fin, mats = ctx.mats.finish, ctx.mats
     rmin, rmax = fin["refl_min"][row], fin["refl_max"][row]
     frac = safe_pow(1.0 - cos_i, fin["refl_falloff"][row])
@@ -340,7 +340,7 @@ class _Layers(NamedTuple):
 
 
 def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel) -> _Layers:
-    """Texture layers, top first (§2.3): each adds its local colour filtered by the layers above;
+    """Texture layers, top first (semantics §2.3): each adds its local colour filtered by the layers above;
     the loop stops once the layers above let less than adc_bailout through."""
     mats, fin = ctx.mats, ctx.mats.finish
     d, n, prim = ray.direction, s.n, s.prim
@@ -397,7 +397,7 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
     t_alive = s.found & (layers.trans > settings.adc_bailout) & (t_weight >= settings.adc_bailout)
     t_alive = t_alive & jnp.asarray(mats.transparent)[prim]  # opaque pigments never transmit
     # TIR is found by the refraction step, so it only replaces the mirror ray where that step
-    # runs; a conserve_energy + fresnel surface under TIR has fil = 0 and reflects instead (§2.3)
+    # runs; a conserve_energy + fresnel surface under TIR has fil = 0 and reflects instead (semantics §2.3)
     tir = tir & t_alive
     straight = jnp.abs(eta_rel - 1.0) < 1e-10
     t_level = jnp.where(straight & ~tir, level, level + 1)
@@ -425,7 +425,7 @@ def shade(ctx: TraceContext, ray: Rays) -> Shading:
 
     A dead ray sees black and spawns nothing; a live ray that misses sees the background. A ray
     spawns children only if its level is below ``max_trace_level``; straight transmission (ior 1)
-    keeps the level (§2.7).
+    keeps the level (semantics §2.7).
     """
     eff = ctx.plan.effects
     s = _surface(ctx, ray)

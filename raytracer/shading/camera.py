@@ -1,4 +1,4 @@
-"""Camera rays through pixel centres and sub-pixel grids (reference §1.2)."""
+"""Camera rays through pixel centres and sub-pixel grids (semantics §1.2)."""
 
 from __future__ import annotations
 

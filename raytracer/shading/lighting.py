@@ -1,4 +1,4 @@
-"""POV-Ray 3.7's local lighting model, term by term (reference §2.4–2.7).
+"""POV-Ray 3.7's local lighting model, term by term (semantics §2.4–2.7).
 
 Plain functions of arrays for one shading point; vectors are (3,). ``d`` is the incoming ray
 direction (towards the surface), ``n`` the unit normal flipped to face the ray (``n·d < 0``),
@@ -12,8 +12,8 @@ import jax.numpy as jnp
 
 from ..kernels import safe_arccos, safe_div, safe_pow, safe_sqrt
 
-GREY = (0.297, 0.589, 0.114)  # POV-Ray's grey weights for "trans" (§2.3)
-NL_EPSILON = 1e-10  # lights with n·l below this do not light the point (§2.4)
+GREY = (0.297, 0.589, 0.114)  # POV-Ray's grey weights for "trans" (semantics §2.3)
+NL_EPSILON = 1e-10  # lights with n·l below this do not light the point (semantics §2.4)
 
 
 def fade(dist, fade_distance, fade_power):
@@ -24,7 +24,7 @@ def fade(dist, fade_distance, fade_power):
 
 
 def interior_fade(depth, fade_distance, fade_power, fade_color, on=True):
-    """Attenuation after ``depth`` inside an object (§2.7): ``fc + (1 - fc)/(1 + (d/fd)^fp)``, or
+    """Attenuation after ``depth`` inside an object (semantics §2.7): ``fc + (1 - fc)/(1 + (d/fd)^fp)``, or
     ``exp(-(1 - fc)·d/fd)`` when ``fade_power >= 1000``; 1 where ``on`` is False or fading is off
     (``fade_distance`` or ``fade_power`` 0). Used by transmitted rays and by shadow rays alike."""
     on = on & (fade_distance != 0) & (fade_power > 0)
@@ -50,7 +50,7 @@ def spot(cos_theta, radius_degrees, falloff_degrees, tightness):
 
 
 def empirical_fresnel(cos_angle):
-    """POV's empirical metallic Fresnel ``F(x)``, ``x = acos(cos)/(π/2)`` (§2.4)."""
+    """POV's empirical metallic Fresnel ``F(x)``, ``x = acos(cos)/(π/2)`` (semantics §2.4)."""
     x = safe_arccos(jnp.clip(cos_angle, -1.0, 1.0)) / (jnp.pi / 2)
     f = 0.014567225 / ((x - 1.12) ** 2) - 0.011612903
     return jnp.clip(f, 0.0, 1.0)
@@ -85,7 +85,7 @@ def specular(k_specular, roughness, d, n, l):
 
 
 def fresnel(cos_i, eta_rel):
-    """Unpolarised dielectric Fresnel reflectance in POV's form (§2.6).
+    """Unpolarised dielectric Fresnel reflectance in POV's form (semantics §2.6).
 
     ``eta_rel = n_t/n_i``; returns ``(F, total)`` where ``total`` marks ``n² + c² − 1 ≤ 0`` (TIR).
     """

@@ -182,7 +182,7 @@ class Cylinder(AbstractShape):
         return cylinder_hits(self.base, self.cap, self.radius, o, d, open=self.open)
 
     def inside(self, p):
-        # open or not, the inside is the solid's (docs/semantics.md §4.1)
+        # open or not, the inside is the solid's (semantics §4.1)
         return cylinder_inside(self.base, self.cap, self.radius, p)
 
     def bounds(self):

@@ -37,7 +37,7 @@ def test_seed_scene_objects():
     assert (float(fin.ambient[0]), float(fin.diffuse), float(fin.phong)) == pytest.approx((0.2, 0.8, 1))
     assert box.texture.layers[0].finish.phong is None
     np.testing.assert_allclose(box.shape.corner1, [-2, -0.2, -2])
-    # rotate <-20, 30, 0>: Ry(30) @ Rx(-20) (reference §4.3)
+    # rotate <-20, 30, 0>: Ry(30) @ Rx(-20) (semantics §4.3)
     a, b = np.radians(-20), np.radians(30)
     rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
     ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
@@ -248,7 +248,7 @@ def test_standard_include_files_load():
 def test_look_at_along_sky_keeps_the_right_vector_with_a_warning():
     s = load_scene("camera { location <0, 5, 0> look_at 0 right x }")
     _, d, r, u = s.camera.frame()
-    np.testing.assert_allclose(r, [1, 0, 0], atol=1e-6)  # POV keeps the old right (reference §1.1)
+    np.testing.assert_allclose(r, [1, 0, 0], atol=1e-6)  # POV keeps the old right (semantics §1.1)
     np.testing.assert_allclose(u, [0, 0, 1], atol=1e-6)  # up = D̂ × R̂
     assert [w.feature for w in s.warnings] == ["camera sky"]
 

@@ -1,4 +1,4 @@
-"""Colour expressions and promotion (reference §2.2)."""
+"""Colour expressions and promotion (semantics §2.2)."""
 
 import pytest
 

@@ -80,7 +80,7 @@ def test_float_builtins(expr, expected):
 def test_vector_builtins():
     assert value("#declare R = vcross(x, y);") == (0.0, 0.0, 1.0)
     assert value("#declare R = vnormalize(<0, 3, 4>);") == pytest.approx((0.0, 0.6, 0.8))
-    # rotate x by 90° about z: POV's left-handed rule takes +x to +y (reference §4.3)
+    # rotate x by 90° about z: POV's left-handed rule takes +x to +y (semantics §4.3)
     assert value("#declare R = vrotate(x, <0, 0, 90>);") == pytest.approx((0.0, 1.0, 0.0))
     assert value("#declare R = vaxis_rotate(x, z, 90);") == pytest.approx((0.0, 1.0, 0.0))
 

@@ -3,7 +3,7 @@ statistics for the noise family), finite gradients, dtypes and vmap consistency.
 
 POV-Ray comparisons render a plane z = 0 (or y = 0) seen straight on by an orthographic camera, with
 the pattern through a black→white colour map, ``ambient 1 diffuse 0``: pixel (i, j) then shows the
-pattern at the pixel centre, which we evaluate directly and push through POV's chain (reference §5.2).
+pattern at the pixel centre, which we evaluate directly and push through POV's chain (semantics §5.2).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from jax.test_util import check_grads
 import raytracer.patterns as P
 
 GREY_MAP = "color_map { [0 rgb 0] [1 rgb 1] }"
-EXR_FLOOR = 5e-4  # half-float EXR precision, reference §3.2
+EXR_FLOOR = 5e-4  # half-float EXR precision, semantics §3.2
 
 
 def value(name, p, vector=(1.0, 0.0, 0.0), turbulence=None, octaves=6, **kw):
@@ -56,7 +56,7 @@ def test_gradient_normalises_the_vector_and_wraps_only_above_one():
     ((1.0, 0.0, -1.0), 0.125),
 ])
 def test_radial_turns_from_plus_x_through_minus_z(p, expected):
-    # Manual §3.4.7.1.22: 0 at +x, 0.25 at -z, 0.5 at -x, 0.75 at +z.
+    # POV-Ray manual, Radial Pattern: 0 at +x, 0.25 at -z, 0.5 at -x, 0.75 at +z.
     assert value("radial", p) == pytest.approx(expected, abs=1e-6)
 
 
@@ -281,7 +281,7 @@ global_settings {{ assumed_gamma 1.0 }}
 
 
 def _pixel_points(*, plane, cx, cy, w, h, width, height, dx=0.0, dy=0.0):
-    """The plane point each pixel centre sees (reference §1.2), optionally shifted by (dx, dy) pixels."""
+    """The plane point each pixel centre sees (semantics §1.2), optionally shifted by (dx, dy) pixels."""
     x = cx + ((np.arange(width) + 0.5 + dx) / width - 0.5) * w
     y = cy + (0.5 - (np.arange(height) + 0.5 + dy) / height) * h
     gx, gy = np.meshgrid(x, y)
@@ -290,7 +290,7 @@ def _pixel_points(*, plane, cx, cy, w, h, width, height, dx=0.0, dy=0.0):
 
 
 def _pov_chain(v, frequency=1.0, phase=0.0, wave="ramp"):
-    """POV's map chain (§5.2) for a black→white colour map."""
+    """POV's map chain (semantics §5.2) for a black→white colour map."""
     v = np.fmod(v * frequency + phase, 1.00001)
     v = np.where(v < 0, v - np.floor(v), v)
     return np.clip(np.asarray(P.apply_wave(jnp.asarray(v), wave)), 0.0, 1.0)

@@ -47,7 +47,7 @@ def lambert_scene(**finish) -> Scene:
 
 
 def analytic_lambert(i: int, j: int) -> np.ndarray:
-    """POV's value at pixel (i, j) of ``lambert_scene``: diffuse·P·C·(N·L), reference §1.2 and §2.4."""
+    """POV's value at pixel (i, j) of ``lambert_scene``: diffuse·P·C·(N·L), semantics §1.2, §2.4."""
     r_len = W / H
     d_len = r_len / (2 * math.tan(math.radians(20)))
     x0, y0 = (i + 0.5) / W - 0.5, 0.5 - (j + 0.5) / H

@@ -84,7 +84,7 @@ def fresh_jit():
 @pytest.mark.slow
 @pytest.mark.mitsuba
 def test_a_mirrored_camera_makes_the_suite_fail(monkeypatch, fresh_jit):
-    """Proof that the suite catches a real bug: the seed formula's v×u (mirrored image, §1.3)."""
+    """Proof that the suite catches a real bug: the seed formula's v×u (mirrored image, semantics §1.3)."""
     render_module = sys.modules["raytracer.render"]
     names = ["two_lights", "boxes_transforms"]
     scenes = [suite.scene_named(n) for n in names]
