@@ -1,12 +1,13 @@
 """Scene-level geometry: every primitive of the plan packed by kind, closest hits, CSG visibility,
 and shadow transmittance — all for ONE ray (the caller vmaps over rays).
 
-Primitives of one kind (and one static variant, e.g. open or closed cylinders) are stacked into
-struct-of-arrays *groups*; a ray is inverse-transformed into each instance's object space and the
-kind's kernel is vmapped over the instances. Every kernel reports all ``K`` crossings of the line,
-so CSG (keep a crossing only where it lies inside/outside the other operands, semantics §4.2),
-``clipped_by`` and filtered shadows (multiply the filter of every crossing, semantics §2.5) are masks over
-the same candidates.
+Primitives of one shape class and one static variant (its pytree structure and leaf shapes: an open
+cylinder, a polygon's edge list) are stacked into *groups*; a ray is inverse-transformed into each
+instance's object space and the shape's own ``hits`` is vmapped over the group. Every shape reports
+all ``K`` crossings of the line, so CSG (keep a crossing only where it lies inside/outside the other
+operands, semantics §4.2), ``clipped_by`` and filtered shadows (multiply the filter of every crossing,
+semantics §2.5) are masks over the same candidates. Every inside question — hit conditions here,
+``raytracer.query`` and the SDL's ``inside()`` — is answered by one circuit (``evaluate_inside``).
 """
 
 from __future__ import annotations
