@@ -122,7 +122,8 @@ class Effects:
         transmission:   some pigment can carry filter/transmit (rays continue through surfaces).
         refraction:     some interior has an ``ior`` (transmitted rays bend).
         highlights:     some finish has phong or specular.
-        metallic:       some finish has ``metallic``.
+        metallic:       some finish has the highlight ``metallic``.
+        reflection_metallic: some reflection has ``metallic`` (its tint by the pigment).
         fresnel:        some reflection uses ``fresnel``.
         fade:           some light fades with distance.
         spotlights:     some light is a spotlight.
@@ -145,6 +146,7 @@ class Effects:
     refraction: bool
     highlights: bool
     metallic: bool
+    reflection_metallic: bool
     fresnel: bool
     fade: bool
     spotlights: bool
@@ -162,9 +164,9 @@ class Effects:
 
     def describe(self) -> str:
         on = [name for name in ("shadows", "filtered_shadows", "reflection", "transmission",
-                                "refraction", "highlights", "metallic", "fresnel", "fade",
-                                "spotlights", "area_lights", "parallel_lights", "csg",
-                                "interior_fade") if getattr(self, name)]
+                                "refraction", "highlights", "metallic", "reflection_metallic",
+                                "fresnel", "fade", "spotlights", "area_lights", "parallel_lights",
+                                "csg", "interior_fade") if getattr(self, name)]
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
                 f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}"
                 + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
@@ -310,6 +312,8 @@ def make_plan(scene: Scene) -> Plan:
         refraction=refraction,
         highlights=any(f.phong is not None or f.specular is not None for f in finishes),
         metallic=any(f.metallic is not None for f in finishes),
+        reflection_metallic=any(f.reflection is not None and f.reflection.metallic is not None
+                                for f in finishes),
         fresnel=any(f.reflection is not None and f.reflection.fresnel for f in finishes),
         **light_effects(lights),  # fade, spotlights, area_lights, parallel_lights: from LIGHT_TYPES
         patterns=tuple(sorted({pig.pattern for pig in pigments})),

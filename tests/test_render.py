@@ -5,6 +5,7 @@ only ray goes exactly along the camera direction, so hit points, normals and lig
 are known exactly.
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -143,6 +144,76 @@ def test_reflection_falloff_interpolates_between_min_and_max():
     got = one_pixel(scene)
     frac = (1 - S) ** 2
     np.testing.assert_allclose(got, frac * 0.9 + (1 - frac) * 0.1, rtol=1e-5)
+
+
+def test_one_reflection_colour_with_fresnel_reflects_fresnel_times_that_colour():
+    # POV-Ray takes the one colour as the maximum and 0 as the minimum (semantics §2.6): at normal
+    # incidence on ior 1.5, F = ((1.5 - 1)/(1.5 + 1))² = 0.04 (POV-Ray 3.7.0.10: 0.032 for C = 0.8)
+    scene = rt.load_scene("""#version 3.7; global_settings { assumed_gamma 1.0 }
+        camera { location <0, 0, -5> look_at 0 }
+        background { rgb <0.2, 0.5, 1> }
+        sphere { 0, 1 pigment { rgb 1 } finish { ambient 0 diffuse 0 reflection { 0.8 fresnel on } }
+                 interior { ior 1.5 } }""")
+    np.testing.assert_allclose(one_pixel(scene), 0.8 * 0.04 * np.array([0.2, 0.5, 1.0]), rtol=1e-4)
+
+
+def metallic_tint_at_normal_incidence(m, pigment):
+    f = np.clip(0.014567225 / (0.0 - 1.12) ** 2 - 0.011612903, 0, 1)  # empirical curve at x = 0 (§2.4)
+    return 1 + m * (1 - f) * (np.asarray(pigment) - 1)
+
+
+def test_reflection_metallic_tints_without_a_highlight_metallic():
+    fin = rt.Finish(ambient=(0, 0, 0), diffuse=0.0,
+                    reflection=rt.Reflection(min=(0.8,) * 3, max=(0.8,) * 3, metallic=0.6))
+    scene = sphere_scene(fin, background=(0.2, 0.5, 1.0))
+    eff = rt.plan(scene).effects
+    assert eff.reflection_metallic and not eff.metallic
+    expected = 0.8 * metallic_tint_at_normal_incidence(0.6, (0.8, 0.4, 0.2)) * np.array([0.2, 0.5, 1.0])
+    np.testing.assert_allclose(one_pixel(scene), expected, rtol=1e-5)
+
+
+def test_reflection_metallic_zero_is_compiled_and_has_a_gradient():
+    fin = rt.Finish(ambient=(0, 0, 0), diffuse=0.0,
+                    reflection=rt.Reflection(min=(0.8,) * 3, max=(0.8,) * 3, metallic=0.0))
+    scene = sphere_scene(fin, background=(0.2, 0.5, 1.0))
+    assert rt.plan(scene).effects.reflection_metallic
+    assert not rt.plan(sphere_scene(rt.Finish(reflection=rt.Reflection(min=(0.8,) * 3, max=(0.8,) * 3)))
+                       ).effects.reflection_metallic
+
+    def red(m):
+        s = eqx.tree_at(lambda s: s.objects[0].texture.layers[0].finish.reflection.metallic, scene, m)
+        return rt.render(s, width=1, height=1)[0, 0, 0]
+
+    # d/dM of 0.8·(1 + M(1 - f)(P - 1))·bg = 0.8·(1 - f)(P - 1)·bg, red: P = 0.8, bg = 0.2
+    expected = 0.8 * (metallic_tint_at_normal_incidence(1.0, 0.8) - 1) * 0.2
+    np.testing.assert_allclose(jax.grad(red)(jnp.float32(0.0)), expected, rtol=1e-4)
+
+
+# a sphere over a checkered plane, lit: its reflection shows the plane, the sky and its own tint
+REFLECTION_SCENE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ location <0, 1.5, -5> look_at <0, 0.5, 0> right x*image_width/image_height angle 40 }}
+background {{ rgb <0.3, 0.5, 0.8> }}
+light_source {{ <-4, 6, -5>, rgb 1 }}
+plane {{ y, -1 pigment {{ checker rgb 1, rgb <0.1, 0.2, 0.1> }} finish {{ ambient 0.1 diffuse 0.7 }} }}
+sphere {{ <0, 0.2, 0>, 1.2 pigment {{ rgb <0.9, 0.5, 0.2> }} finish {{ ambient 0.05 {finish} }} {extra} }}
+"""
+
+
+@pytest.mark.povray
+@pytest.mark.parametrize("finish, extra", [
+    # one colour with fresnel on glass-like ior: was a full mirror, 12.0 dB from POV-Ray
+    ("diffuse 0.6 reflection { 0.8 fresnel on }", "interior { ior 1.5 }"),
+    # reflection metallic with no highlight metallic in the scene: was untinted, 15.5 dB
+    ("diffuse 0.3 reflection { 0.8 metallic 1 }", ""),
+])
+def test_reflection_forms_match_povray(finish, extra):
+    from validation.metrics import psnr
+    from validation.povray import render_povray
+
+    text = REFLECTION_SCENE.format(finish=finish, extra=extra)
+    ours = np.asarray(rt.render(rt.load_scene(text), width=80, height=60))
+    assert psnr(ours, render_povray(text, 80, 60)) >= 40.0
 
 
 @pytest.mark.parametrize("depth, expected", [(2, 0.04), (3, 0.04 + 0.96 * 0.96)])

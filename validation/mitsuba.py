@@ -470,7 +470,7 @@ class _Converter:
                 raise NotMatchable("reflection with min ≠ max (falloff)")
             if float(refl.exponent) != 1.0:
                 raise NotMatchable("reflection exponent")
-            if float(refl.metallic) != 0.0:
+            if refl.metallic is not None and float(refl.metallic) != 0.0:
                 raise NotMatchable("reflection metallic")
             if np.any(rmax > 0):
                 self.has_specular = True
@@ -529,7 +529,7 @@ class _Converter:
         refl = finish.reflection
         if (refl is None or not refl.fresnel or not np.allclose(_np(refl.min), 0.0)
                 or not np.allclose(_np(refl.max), 1.0) or float(refl.exponent) != 1.0
-                or float(refl.metallic) != 0.0):
+                or (refl.metallic is not None and float(refl.metallic) != 0.0)):
             raise NotMatchable("refraction without reflection{0, 1 fresnel on}")
         if not finish.conserve_energy:
             raise NotMatchable("glass without conserve_energy")

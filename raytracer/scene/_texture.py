@@ -92,13 +92,14 @@ class Pigment(eqx.Module):
 
 
 class Reflection(eqx.Module):
-    """``reflection { min, max [fresnel] falloff exponent metallic }`` (semantics §2.6)."""
+    """``reflection { min, max [fresnel] falloff exponent metallic }`` (semantics §2.6). The
+    ``metallic`` tint is absent when None (not compiled); a value of 0 is still a parameter."""
 
     min: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
     max: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
     falloff: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     exponent: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    metallic: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+    metallic: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
     fresnel: bool = eqx.field(static=True, default=False)
 
 

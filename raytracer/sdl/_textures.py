@@ -440,16 +440,23 @@ def _legacy_finish(p, t, fin):
 
 def _refl_default():
     return {"min": (0.0, 0.0, 0.0), "max": (0.0, 0.0, 0.0), "falloff": 1.0, "exponent": 1.0,
-            "metallic": 0.0, "fresnel": False}
+            "metallic": None, "fresnel": False}
 
 
 def _parse_reflection(p, t, old):
+    """``reflection C`` or ``reflection { [Cmin,] [Cmax] items }`` over the finish's earlier reflection
+    (semantics §2.6): the colours are those of this statement (none in a block = 0), the old form
+    turns ``fresnel`` off, and ``falloff``, ``exponent``, ``metallic`` and (in a block) ``fresnel``
+    carry over from earlier statements, as POV-Ray 3.7 does."""
     r = dict(old or _refl_default())
     if not p.is_op("{"):
         c = _rgb_of(p, t.loc)
         r["min"] = r["max"] = c
+        r["fresnel"] = False
         return r
     p.next()
+    r["min"] = r["max"] = (0.0, 0.0, 0.0)
+    one_colour = False
     if not p.is_id("fresnel") and not p.is_id("falloff") and not p.is_id("exponent") \
             and not p.is_id("metallic") and not p.is_op("}"):
         c1 = _rgb_of(p, t.loc)
@@ -457,10 +464,14 @@ def _parse_reflection(p, t, old):
         opt_comma(p)
         if _starts_color(p):
             r["max"] = _rgb_of(p, t.loc)
+        else:
+            one_colour = True
     while not p.accept_op("}"):
         k = p.next()
         if k.kind == ID and k.value == "fresnel":
             r["fresnel"] = _opt_bool(p)
+            if r["fresnel"] and one_colour:  # one colour with fresnel on is the maximum; the minimum is 0
+                r["min"] = (0.0, 0.0, 0.0)
         elif k.kind == ID and k.value in ("falloff", "exponent"):
             r[k.value] = float_(p)
         elif k.kind == ID and k.value == "metallic":

@@ -68,7 +68,7 @@ def _finish_arrays(f: Finish, dtype) -> dict:
         "roughness": f.roughness,
         "metallic": f.metallic if f.metallic is not None else zero,
         "refl_min": r.min, "refl_max": r.max, "refl_falloff": r.falloff,
-        "refl_exponent": r.exponent, "refl_metallic": r.metallic,
+        "refl_exponent": r.exponent, "refl_metallic": r.metallic if r.metallic is not None else zero,
     }
 
 

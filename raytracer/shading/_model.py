@@ -297,7 +297,7 @@ def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
         is_f = jnp.asarray(mats.fresnel)[row]
         reflec = jnp.where(is_f, fres, reflec)
         weight = jnp.where(is_f, jnp.max(reflec), weight)
-    if ctx.plan.effects.metallic:
+    if ctx.plan.effects.reflection_metallic:
         reflec = reflec * lighting.metallic_tint(fin["refl_metallic"][row], cos_i, rgb)
     return reflec, weight
 

@@ -141,6 +141,51 @@ def test_finish_keywords():
     assert r.fresnel and float(r.falloff) == 2 and float(r.exponent) == 0.5
 
 
+def reflection_of(finish):
+    return only_object(f"sphere {{ 0, 1 finish {{ {finish} }} }}").texture.layers[0].finish.reflection
+
+
+# (min, max, fresnel) as POV-Ray 3.7.0.10 renders them on a sphere with ior 1.5 that only reflects a
+# white background: 0.8·0.04 = 0.032 facing the camera for `{ 0.8 fresnel on }`, 0.2 + 0.6·0.04 for
+# two colours with fresnel, a constant 0.8 for the forms without it (semantics §2.6)
+@pytest.mark.parametrize("finish, rmin, rmax, fresnel", [
+    ("reflection { 0.8 fresnel on }", 0.0, 0.8, True),  # one colour with fresnel: the maximum, min 0
+    ("reflection { 0.8, fresnel }", 0.0, 0.8, True),
+    ("reflection { 0.8 fresnel on fresnel off }", 0.0, 0.8, False),  # (1 - cos)·0.8 at the rim
+    ("reflection { 0.8 fresnel off }", 0.8, 0.8, False),
+    ("reflection { 0.8 }", 0.8, 0.8, False),
+    ("reflection { 0.2, 0.8 fresnel on }", 0.2, 0.8, True),
+    ("reflection 0.8", 0.8, 0.8, False),
+    ("reflection { 0.2, 0.8 } reflection { fresnel on }", 0.0, 0.0, True),  # a block's colours are its own
+    ("reflection { 0.2, 0.8 fresnel on } reflection { 0.2, 0.8 }", 0.2, 0.8, True),  # fresnel carries over
+    ("reflection { 0.2, 0.8 fresnel on } reflection 0.5", 0.5, 0.5, False),  # the old form turns it off
+    ("reflection { fresnel on } reflection { 0.8 }", 0.8, 0.8, True),  # one colour, no fresnel keyword
+])
+def test_reflection_colours_and_fresnel_follow_povray(finish, rmin, rmax, fresnel):
+    r = reflection_of(finish)
+    np.testing.assert_allclose(r.min, [rmin] * 3)
+    np.testing.assert_allclose(r.max, [rmax] * 3)
+    assert r.fresnel is fresnel
+
+
+def test_legacy_reflection_colour_is_both_minimum_and_maximum():
+    r = reflection_of("reflection rgb <0.8, 0.5, 0.2>")
+    np.testing.assert_allclose(r.min, [0.8, 0.5, 0.2])
+    np.testing.assert_allclose(r.max, [0.8, 0.5, 0.2])
+
+
+def test_reflection_falloff_exponent_and_metallic_carry_over_to_later_statements():
+    # POV-Ray 3.7.0.10: `reflection { 0.2, 0.8 falloff 3 } reflection { 0.2, 0.8 }` renders as the first
+    r = reflection_of("reflection { 0.2, 0.8 falloff 3 exponent 2 metallic 0.5 } reflection 0.4")
+    assert (float(r.falloff), float(r.exponent), float(r.metallic)) == (3.0, 2.0, 0.5)
+
+
+def test_reflection_metallic_is_absent_unless_given_and_zero_stays_a_parameter():
+    assert reflection_of("reflection { 0.8 }").metallic is None
+    assert float(reflection_of("reflection { 0.8 metallic }").metallic) == 1.0
+    assert float(reflection_of("reflection { 0.8 metallic 0 }").metallic) == 0.0
+
+
 def test_interior_and_legacy_finish_ior():
     o = only_object("sphere { 0, 1 interior { ior 1.5 fade_distance 2 fade_power 1 fade_color rgb x } }")
     assert float(o.interior.ior) == 1.5
