@@ -155,14 +155,10 @@ def _vec(v) -> str:
 
 
 def _light_text(light) -> str:
-    kind = "parallel" if light.parallel else "spotlight" if light.spot is not None else "point"
-    extra = []
-    if light.area is not None:
-        extra.append(f"area {light.area.size1}x{light.area.size2}")
-    if light.shadowless:
-        extra.append("shadowless")
-    if light.fade_distance is not None:
-        extra.append("fade")
+    from .scene._lights import light_types
+    types = light_types(light)
+    kind = next(t.name for t in types if not t.modifier)
+    extra = [t.describe(light) if t.describe else t.name for t in types if t.modifier]
     return f"{kind} at {_vec(light.position.tolist())} colour {_vec(light.color.tolist())}" + (
         f" ({', '.join(extra)})" if extra else "")
 

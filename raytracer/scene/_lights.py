@@ -12,9 +12,13 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .._dtype import as_float, as_float_or_none
+from ..kernels import safe_normalize
+from ..shading import lighting
 
 # POV-Ray's defaults, the one place they are written (the SDL parser's records take them from here).
 LIGHT_DEFAULTS: Mapping[str, Any] = {"color": (1.0, 1.0, 1.0), "point_at": (0.0, 0.0, 1.0)}
@@ -73,10 +77,69 @@ class Light(eqx.Module):
     shadowless: bool = eqx.field(static=True, default=False)
 
 
+def point_geometry(light: Light, p):
+    """Unit direction from ``p`` to the light, its distance (for fading), and the shadow-ray length."""
+    v = light.position - p
+    dist = jnp.sqrt(jnp.maximum(jnp.dot(v, v), 1e-30))
+    return v / dist, dist, dist
+
+
+def _parallel_geometry(light: Light, p):
+    l = safe_normalize(light.position - light.point_at)
+    to_light = light.position - p
+    dist = jnp.sqrt(jnp.maximum(jnp.dot(to_light, to_light), 1e-30))
+    return l, dist, jnp.dot(l, to_light)  # objects beyond the light's plane cast no shadow
+
+
+def _fade_factor(light: Light, l, dist):
+    return lighting.fade(dist, light.fade_distance, light.fade_power)
+
+
+def _spot_factor(light: Light, l, dist):
+    axis = safe_normalize(light.point_at - light.position)
+    return lighting.spot(jnp.dot(-l, axis), light.spot.radius_degrees, light.spot.falloff_degrees,
+                         light.spot.tightness)
+
+
+def area_weights(n: int) -> np.ndarray:
+    """POV's recursive corner-averaging weights along one area-light axis (semantics §2.5):
+    3 samples → ¼ ½ ¼, 5 → ⅛ ¼ ¼ ¼ ⅛, 4 → uniform."""
+    w = np.zeros(n)
+
+    def rec(a, b, weight):
+        if b - a <= 1:
+            w[a] += weight / 2
+            w[b] += weight / 2
+            return
+        m = (a + b) / 2
+        rec(a, int(np.floor(m)), weight / 2)
+        rec(int(np.ceil(m)), b, weight / 2)
+
+    if n == 1:
+        w[0] = 1.0
+    else:
+        rec(0, n - 1, 1.0)
+    return w
+
+
+def _area_samples(light: Light, dtype):
+    """The grid of shadow-ray targets and their weights (semantics §2.5): point (i, j) at
+    centre + axis1 (i/(n1-1) - ½) + axis2 (j/(n2-1) - ½)."""
+    a = light.area
+    w1, w2 = area_weights(a.size1), area_weights(a.size2)
+    f1 = np.zeros(1) if a.size1 == 1 else np.arange(a.size1) / (a.size1 - 1) - 0.5
+    f2 = np.zeros(1) if a.size2 == 1 else np.arange(a.size2) / (a.size2 - 1) - 0.5
+    fu, fv = (g.reshape(-1) for g in np.meshgrid(f1, f2, indexing="ij"))
+    weights = jnp.asarray(np.outer(w1, w2).reshape(-1), dtype)
+    positions = (light.position[None, :] + jnp.asarray(fu, dtype)[:, None] * a.axis1[None, :]
+                 + jnp.asarray(fv, dtype)[:, None] * a.axis2[None, :])
+    return positions, weights
+
+
 @dataclasses.dataclass(frozen=True)
 class LightType:
     """One kind of POV-Ray light source, or one modifier any light may carry, as :class:`Light`
-    models it.
+    models it, with everything the rest of the system asks of it.
 
     Attributes:
         name:        the SDL keyword (``fade`` stands for ``fade_distance`` with ``fade_power``).
@@ -84,10 +147,18 @@ class LightType:
                      what combines with any kind (parallel, area_light, fade, shadowless).
         effects:     the ``Effects`` flags (``raytracer._plan``) the compiled tracer needs when a
                      scene has such a light: absent types cost nothing in the compiled program.
-        present:     whether a :class:`Light` is of this type / uses this modifier.
+        present:     whether a :class:`Light` is of this type / uses this modifier (structure only).
         defaults:    POV-Ray's defaults of the type's own keywords.
         rendered_as: the type it is approximated by, with a parse-time warning (cylinder lights
-                     are spotlights), or None when it is rendered as itself.
+                     are spotlights), or None when it is rendered as itself (only those shade).
+        geometry:    ``(light, p) → (l, dist, shadow_len)``: unit direction to the light, distance
+                     for fading, shadow-ray length; replaces :func:`point_geometry`, or None.
+        arrival:     ``(light, l, dist) → factor`` the arriving colour is multiplied by, or None;
+                     factors apply in the order of :data:`LIGHT_TYPES`.
+        shadow_samples: ``(light, dtype) → (positions (N, 3), weights (N,))``: the shadow is the
+                     weighted sum of shadow rays to these points instead of one to the light.
+        shadows:     False when such a light casts no shadows and makes no highlights.
+        describe:    ``light → str`` for summaries (``raytracer info``), or None for the name.
     """
 
     name: str
@@ -96,26 +167,42 @@ class LightType:
     present: Callable[[Light], bool]
     defaults: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     rendered_as: str | None = None
+    geometry: Callable[[Light, Any], tuple] | None = None
+    arrival: Callable[[Light, Any, Any], Any] | None = None
+    shadow_samples: Callable[[Light, Any], tuple] | None = None
+    shadows: bool = True
+    describe: Callable[[Light], str] | None = None
 
 
 LIGHT_TYPES: tuple[LightType, ...] = (
     LightType("point", False, (), lambda light: light.spot is None, LIGHT_DEFAULTS),
-    LightType("spotlight", False, ("spotlights",), lambda light: light.spot is not None, SPOT_DEFAULTS),
-    LightType("cylinder", False, ("spotlights",), lambda light: light.spot is not None, SPOT_DEFAULTS,
-              rendered_as="spotlight"),
-    LightType("parallel", True, ("parallel_lights",), lambda light: light.parallel),
-    # only the shadow is area-sampled, so a shadowless area light needs no samples
-    LightType("area_light", True, ("area_lights",),
-              lambda light: light.area is not None and not light.shadowless),
+    # before the spotlight: the arriving colour is faded, then cut by the cone
     LightType("fade", True, ("fade",),
               lambda light: light.fade_distance is not None and light.fade_power is not None,
-              {"fade_distance": None, "fade_power": None}),
-    LightType("shadowless", True, (), lambda light: light.shadowless),
+              {"fade_distance": None, "fade_power": None}, arrival=_fade_factor),
+    LightType("spotlight", False, ("spotlights",), lambda light: light.spot is not None, SPOT_DEFAULTS,
+              arrival=_spot_factor),
+    LightType("cylinder", False, ("spotlights",), lambda light: light.spot is not None, SPOT_DEFAULTS,
+              rendered_as="spotlight"),
+    LightType("parallel", True, ("parallel_lights",), lambda light: light.parallel,
+              geometry=_parallel_geometry),
+    # only the shadow is area-sampled, so a shadowless area light needs no samples
+    LightType("area_light", True, ("area_lights",),
+              lambda light: light.area is not None and not light.shadowless, shadow_samples=_area_samples,
+              describe=lambda light: f"area {light.area.size1}x{light.area.size2}"),
+    LightType("shadowless", True, (), lambda light: light.shadowless, shadows=False),
 )
 """Every light type and modifier, each with the effects it needs; one entry per POV-Ray keyword."""
 
 LIGHT_EFFECTS: tuple[str, ...] = tuple(dict.fromkeys(e for t in LIGHT_TYPES for e in t.effects))
 """The ``Effects`` flags that only lights decide."""
+
+
+def light_types(light: Light, effects: Any = None) -> tuple[LightType, ...]:
+    """The entries of :data:`LIGHT_TYPES` a light is of or carries (those rendered as another type
+    left out), all of whose ``effects`` are on in ``effects`` (a plan's ``Effects``) when given."""
+    return tuple(t for t in LIGHT_TYPES if t.rendered_as is None and t.present(light)
+                 and (effects is None or all(getattr(effects, e) for e in t.effects)))
 
 
 def light_effects(lights: Iterable[Light]) -> dict[str, bool]:

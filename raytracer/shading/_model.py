@@ -45,8 +45,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._plan import Effects, Plan
-from ..kernels import safe_normalize, safe_pow
+from ..kernels import safe_pow
 from ..scene import Light, Settings
+from ..scene._lights import light_types, point_geometry
 from . import lighting
 from ._geometry import PackedGeometry, all_crossings, closest_hit, csg_mask, static_prim_mask
 from ._materials import PackedMaterials, pigment_at
@@ -187,54 +188,15 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     return jnp.where(jnp.any(opaque), 0.0, 1.0) * filt
 
 
-def _area_weights(n: int) -> np.ndarray:
-    """POV's recursive corner-averaging weights along one area-light axis (semantics §2.5):
-    3 samples → ¼ ½ ¼, 5 → ⅛ ¼ ¼ ¼ ⅛, 4 → uniform."""
-    w = np.zeros(n)
-
-    def rec(a, b, weight):
-        if b - a <= 1:
-            w[a] += weight / 2
-            w[b] += weight / 2
-            return
-        m = (a + b) / 2
-        rec(a, int(np.floor(m)), weight / 2)
-        rec(int(np.ceil(m)), b, weight / 2)
-
-    if n == 1:
-        w[0] = 1.0
-    else:
-        rec(0, n - 1, 1.0)
-    return w
-
-
-def _light_geometry(light: Light, p):
-    """Unit direction to the light, its distance (for fading), and the shadow-ray length."""
-    if light.parallel:
-        l = safe_normalize(light.position - light.point_at)
-        to_light = light.position - p
-        dist = jnp.sqrt(jnp.maximum(jnp.dot(to_light, to_light), 1e-30))
-        return l, dist, jnp.dot(l, to_light)  # objects beyond the light's plane cast no shadow
-    v = light.position - p
-    dist = jnp.sqrt(jnp.maximum(jnp.dot(v, v), 1e-30))
-    return v / dist, dist, dist
-
-
-def _light_visibility(ctx: TraceContext, light: Light, p_spawn, l, shadow_len):
-    if light.shadowless or not ctx.plan.effects.shadows:
+def _light_visibility(ctx: TraceContext, light: Light, types, p_spawn, l, shadow_len):
+    """The shadow filter of one light: one shadow ray, or the weighted sum over the shadow samples of
+    its type (area lights; vmapped, so compile time does not grow with the grid)."""
+    if not all(t.shadows for t in types) or not ctx.plan.effects.shadows:
         return jnp.ones(3, ctx.dtype)
-    if light.area is None:
+    sampler = next((t.shadow_samples for t in types if t.shadow_samples is not None), None)
+    if sampler is None:
         return _shadow_filter(ctx, p_spawn, l, shadow_len)
-    a = light.area
-    w1, w2 = _area_weights(a.size1), _area_weights(a.size2)
-    # grid point (i, j) at centre + axis1 (i/(n1-1) - ½) + axis2 (j/(n2-1) - ½); one shadow ray
-    # each, vmapped (compile time does not grow with the grid)
-    f1 = np.zeros(1) if a.size1 == 1 else np.arange(a.size1) / (a.size1 - 1) - 0.5
-    f2 = np.zeros(1) if a.size2 == 1 else np.arange(a.size2) / (a.size2 - 1) - 0.5
-    fu, fv = (g.reshape(-1) for g in np.meshgrid(f1, f2, indexing="ij"))
-    weights = jnp.asarray(np.outer(w1, w2).reshape(-1), ctx.dtype)
-    positions = (light.position[None, :] + jnp.asarray(fu, ctx.dtype)[:, None] * a.axis1[None, :]
-                 + jnp.asarray(fv, ctx.dtype)[:, None] * a.axis2[None, :])
+    positions, weights = sampler(light, ctx.dtype)
 
     def one(pos):
         v = pos - p_spawn
@@ -255,18 +217,20 @@ class _Arrival(NamedTuple):
 
 
 def _light_arrival(ctx: TraceContext, light: Light, p, p_spawn, n) -> _Arrival:
-    """Direction to the light, the colour arriving (fade, spot cone, shadow filter) and whether the
-    light is on the viewer's side of the surface (``n·l > 1e-10``, semantics §2.4)."""
-    l, dist, shadow_len = _light_geometry(light, p)
+    """Direction to the light, the colour arriving (each of its types' factors: fade, spot cone;
+    then the shadow filter) and whether the light is on the viewer's side of the surface
+    (``n·l > 1e-10``, semantics §2.4). Only types whose effects the plan turns on are traced."""
+    types = light_types(light, ctx.plan.effects)
+    geometry = point_geometry
+    for t in types:
+        geometry = t.geometry or geometry
+    l, dist, shadow_len = geometry(light, p)
     c = light.color.astype(ctx.dtype)
-    if light.fade_distance is not None and light.fade_power is not None:
-        c = c * lighting.fade(dist, light.fade_distance, light.fade_power)
-    if light.spot is not None:
-        axis = safe_normalize(light.point_at - light.position)
-        c = c * lighting.spot(jnp.dot(-l, axis), light.spot.radius_degrees, light.spot.falloff_degrees,
-                              light.spot.tightness)
+    for t in types:
+        if t.arrival is not None:
+            c = c * t.arrival(light, l, dist)
     cos_nl = jnp.dot(n, l)
-    c = c * _light_visibility(ctx, light, p_spawn, l, shadow_len)
+    c = c * _light_visibility(ctx, light, types, p_spawn, l, shadow_len)
     return _Arrival(l, c, cos_nl, cos_nl > lighting.NL_EPSILON)
 
 
@@ -276,7 +240,7 @@ def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, a
     fin = ctx.mats.finish
     out = lighting.diffuse(att, fin["diffuse"][row], fin["brilliance"][row], cos_nl, rgb) * c
     eff = ctx.plan.effects
-    if eff.highlights and not light.shadowless:
+    if eff.highlights and all(t.shadows for t in light_types(light, eff)):
         h = lighting.phong(fin["phong"][row], fin["phong_size"][row], d, n, l)
         h = h + lighting.specular(fin["specular"][row], fin["roughness"][row], d, n, l)
         tint = lighting.metallic_tint(fin["metallic"][row], cos_nl, rgb) if eff.metallic else 1.0
