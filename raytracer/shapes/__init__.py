@@ -40,6 +40,7 @@ from ._quadric import quadric_value as quadric_value
 from ._sphere import Sphere as Sphere
 from ._sphere import sphere_hits as sphere_hits
 from ._sphere import sphere_inside as sphere_inside
+from ._superellipsoid import Superellipsoid as Superellipsoid
 from ._torus import Torus as Torus
 from ._torus import torus_hits as torus_hits
 from ._torus import torus_inside as torus_inside
@@ -51,6 +52,7 @@ from ._triangle import triangle_hits as triangle_hits
 
 _SHAPES: tuple[type[AbstractShape], ...] = (
     Sphere, Plane, Box, Cylinder, Cone, Quadric, Torus, Disc, Triangle, SmoothTriangle, Polygon, Mesh,
+    Superellipsoid,
 )
 
 REGISTRY: dict[str, type[AbstractShape]] = {cls.kind: cls for cls in _SHAPES}
