@@ -1,11 +1,13 @@
 """raytracer: a differentiable Whitted ray tracer in JAX that reads POV-Ray scenes.
 
-Public API: the scene model (``Scene``, ``Camera``, ``Light``, ``Object``, shapes, textures),
+Public API: the scene model (``Scene``, ``Camera``, ``Light``, ``Object``, shapes, textures; every
+registered shape is in ``raytracer.shapes``, the classic ones also here),
 ``load_scene`` (POV-Ray SDL → ``Scene``), ``render`` (``Scene`` → linear image, jit-compiled and
 differentiable), ``plan`` (what the compiled program simulates), and image I/O.
 """
 
 from . import params as params
+from . import shapes as shapes
 from .errors import InternalError as InternalError
 from .errors import SceneError as SceneError
 from .errors import SceneWarning as SceneWarning

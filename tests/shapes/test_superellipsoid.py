@@ -231,7 +231,7 @@ def _case(name, e, n, convex):
     return Case(name, Superellipsoid, (e, n), distance, np.zeros(3), 1.0, convex=convex)
 
 
-CASES = [
-    _case("superellipsoid", 0.5, 0.8, convex=True),
-    _case("superellipsoid star", 3.0, 2.5, convex=False),
-]
+# One generic case: the non-convex star takes every branch of the kernel (critical-point splits,
+# several crossings per octant); each case costs a compile of the kernel (~10-25 s) per generic
+# test. The convex shape is checked by the closed forms and sampling tests of this module.
+CASES = [_case("superellipsoid star", 3.0, 2.5, convex=False)]
