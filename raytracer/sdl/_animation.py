@@ -2,7 +2,8 @@
 
 POV-Ray renders frame ``f`` of ``Initial_Frame..Final_Frame`` with
 
-    clock = Initial_Clock + (f - Initial_Frame) · (Final_Clock - Initial_Clock) / (Final_Frame - Initial_Frame)
+    clock = Initial_Clock + (f - Initial_Frame) · (Final_Clock - Initial_Clock)
+                                                  / (Final_Frame - Initial_Frame)
 
 (the denominator is one larger with ``Cyclic_Animation``, so the last frame does not repeat the
 first). Without animation a scene sees ``clock = 0``, ``frame_number = 0`` and ``clock_on = 0``.
