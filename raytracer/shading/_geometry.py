@@ -32,7 +32,6 @@ class Group:
 
     kind: str
     prims: tuple[int, ...]  # indices into plan.prims
-    k: int  # crossings per instance
     solid: bool  # has an inside test
 
 
@@ -67,7 +66,7 @@ def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
     for ids in keyed.values():
         members = [plan.prims[i].obj.shape for i in ids]
         k = members[0].n_crossings()
-        groups.append(Group(members[0].kind, tuple(ids), k, type(members[0]).solid))
+        groups.append(Group(members[0].kind, tuple(ids), type(members[0]).solid))
         shapes.append(_stack(members))
         mats = []
         for i in ids:
