@@ -4,6 +4,10 @@ float64 fixture, and the ``povray`` marker's skip.
 * ``x64``: float64 for the duration of one test (parameters created inside it are float64).
 * ``@pytest.mark.povray``: the test runs the ``povray`` binary; it is skipped where POV-Ray is not
   installed (``validation.povray.povray_executable``, which honours ``$POVRAY``).
+* XLA compiles for compile time, not run time (``FAST_COMPILE_XLA_FLAGS``): the suite's images are
+  tiny and its programs many, so LLVM's optimisations and the fusion emitters cost far more than
+  they save (a glass scene's reverse-mode program: 30 s of compile without, 9.5 s with). The
+  arithmetic is IEEE either way; ``make validate`` and the benchmarks use XLA's defaults.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
   workers (``$RAYTRACER_TEST_JAX_CACHE`` overrides it and is then kept), so a program that two
   workers or two tests build compiles once. A fresh clone starts with an empty cache.
@@ -14,6 +18,11 @@ import shutil
 import tempfile
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
+FAST_COMPILE_XLA_FLAGS = ("--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true "
+                          "--xla_cpu_use_fusion_emitters=false")
+# read when the CPU backend starts (the first computation), so before any test; subprocesses inherit it
+if FAST_COMPILE_XLA_FLAGS not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_XLA_FLAGS}".strip()
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
