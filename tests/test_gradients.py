@@ -317,63 +317,103 @@ def _shading_signature(scene: rt.Scene):
     return dataclasses.replace(rt.plan(scene).effects, kinds=(), patterns=())
 
 
+def _features(scene: rt.Scene) -> set:
+    eff = rt.plan(scene).effects
+    return {("kind", k) for k in eff.kinds} | {("pattern", q) for q in eff.patterns}
+
+
 @functools.cache
 def _differentiated_examples() -> tuple[str, ...]:
-    """The example scenes whose reverse mode is compiled: the examples grouped by shading signature
-    (at the capped depth); in each group, greedily, the scene adding the most primitive kinds and
-    patterns not yet differentiated in that group (then by name), until the group's kinds and
-    patterns are all covered. So every shading signature, and within it every primitive kind and
-    pattern of the examples, goes through reverse mode in the whole renderer."""
-    groups: dict = {}
+    """The example scenes whose reverse mode is compiled: one per shading signature (at the capped
+    depth), the one with the most primitive kinds and patterns (then by name). Every primitive kind
+    is also differentiated in one scene (:func:`every_kind_scene`)."""
+    best: dict = {}
     for path in EXAMPLE_SCENES:
         scene = _capped_example(path)
-        eff = rt.plan(scene).effects
-        features = {("kind", k) for k in eff.kinds} | {("pattern", q) for q in eff.patterns}
-        groups.setdefault(_shading_signature(scene), []).append((Path(path).stem, path, features))
-    chosen = []
-    for members in groups.values():
-        wanted = set().union(*(f for _, _, f in members))
-        while wanted:
-            name, path, features = min(members, key=lambda m: (-len(m[2] & wanted), m[0]))
-            chosen.append(path)
-            wanted -= features
-    return tuple(sorted(chosen))
+        key = (-len(_features(scene)), Path(path).stem)
+        signature = _shading_signature(scene)
+        if signature not in best or key < best[signature][0]:
+            best[signature] = (key, path)
+    return tuple(sorted(path for _, path in best.values()))
 
 
-def test_differentiated_examples_cover_every_shading_signature_kind_and_pattern():
-    """The scenes left out of the reverse-mode test below add nothing to it that the examples in
-    it do not have: same shading signature, primitive kinds and patterns already in the test."""
+def every_kind_scene() -> rt.Scene:
+    """One object per shape test case (every registered shape and static variant, from
+    ``tests/shapes``), each moved into a cell of a 4-wide grid and scaled to it, unbounded ones
+    (planes, quadrics) clipped by a sphere around their patch, with phong, a shadow-catching wall
+    and a light: a new shape is differentiated here without a new example."""
+    cases = _shape_cases()
+    tex = rt.Texture.of(rt.Pigment.solid((0.8, 0.6, 0.4)),
+                        rt.Finish(ambient=(0.1,) * 3, diffuse=0.7, phong=0.4, phong_size=20.0))
+    objects = [rt.Object(rt.Plane((0, 0, -1), -3.0), texture=tex)]
+    for i, case in enumerate(cases):
+        cell = np.array([i % 4 - 1.5, 1.5 - i // 4, 0.0]) * 2.5
+        to_unit = rt.Transform.translate(-np.asarray(case.aim, float)).then(rt.Transform.scale(1 / case.size))
+        place = (to_unit
+                 .then(rt.Transform.rotate((60.0, 30.0, 0.0))).then(rt.Transform.translate(cell)))
+        shape = case.make(*case.params)
+        clip = () if shape.bounds() is not None else (rt.Object(rt.Sphere(case.aim, 1.2 * case.size)),)
+        objects.append(rt.Object(shape, transform=place, texture=tex, clipped_by=clip))
+    centre = (0.0, 1.25 * (4 - -(-len(cases) // 4)), 0.0)
+    cam = rt.Camera(location=(centre[0], centre[1], -16.0), look_at=centre, right=(KIND_W / KIND_H, 0, 0),
+                    angle_degrees=40.0)
+    return rt.Scene(camera=cam, objects=tuple(objects), lights=(rt.Light(position=(-10, 15, -12)),),
+                    settings=rt.Settings(max_trace_level=1, adc_bailout=0.0))
+
+
+KIND_W, KIND_H = 32, 24  # a few rays on every object
+
+
+def test_differentiated_scenes_cover_every_shading_signature_kind_and_pattern():
+    """The example scenes left out of the reverse-mode tests below add nothing to them: their
+    shading signatures, primitive kinds and patterns are all differentiated (a kind or pattern runs
+    the same code whatever the signature it appears in)."""
     chosen = _differentiated_examples()
     assert set(chosen) <= set(EXAMPLE_SCENES)
-
-    def features(path):
-        scene = _capped_example(path)
-        eff = rt.plan(scene).effects
-        return _shading_signature(scene), set(eff.kinds), set(eff.patterns)
-
-    covered = [features(p) for p in chosen]
+    covered = [_capped_example(p) for p in chosen]
+    signatures = {_shading_signature(s) for s in covered}
+    features = set().union(*(_features(s) for s in covered), _features(every_kind_scene()))
+    assert {("kind", c.kind) for c in _shape_cases()} <= _features(every_kind_scene())
     for path in EXAMPLE_SCENES:
-        sig, kinds, patterns = features(path)
-        same = [(k, q) for s, k, q in covered if s == sig]
-        assert same, f"{Path(path).name}: its shading signature is not differentiated"
-        assert kinds <= set().union(*(k for k, _ in same)), Path(path).name
-        assert patterns <= set().union(*(q for _, q in same)), Path(path).name
+        scene = _capped_example(path)
+        assert _shading_signature(scene) in signatures, f"{Path(path).name}: signature not differentiated"
+        assert _features(scene) <= features, Path(path).name
 
 
-@pytest.mark.slow  # one reverse-mode program per scene: 10–60 s of compile each
+def _shape_cases():
+    from shapes._cases import CASES
+
+    return CASES
+
+
+def _assert_finite_gradient(scene: rt.Scene, width: int, height: int, what: str) -> None:
+    p, rest = eqx.partition(scene, eqx.is_inexact_array)
+    g = jax.jit(jax.grad(lambda p: jnp.mean(rt.render(eqx.combine(p, rest), width=width,
+                                                      height=height) ** 2)))(p)
+    bad = [n for n, x in params.parameters(g).items() if not bool(jnp.isfinite(x).all())]
+    assert not bad, f"{what}: non-finite gradient for {bad}"
+    return g
+
+
+@pytest.mark.slow  # one reverse-mode program per scene: 5–30 s of compile each
 @pytest.mark.parametrize("path", _differentiated_examples(), ids=lambda p: Path(p).stem)
 def test_grad_is_finite_for_every_example_scene(path):
     """Reverse mode through the whole renderer (every parameter of the scene) is finite at every
-    pixel, for every example scene that adds a shading signature, primitive kind or pattern (see
-    the test above; the others run the same code). (Grouping several scenes into one program
-    compiles far slower than one per scene.) Every example's forward render is compared with
-    POV-Ray, so finite, by the suite's ``pov/`` entries."""
-    scene = _capped_example(path)
-    p, rest = eqx.partition(scene, eqx.is_inexact_array)
-    g = jax.jit(jax.grad(lambda p: jnp.mean(rt.render(eqx.combine(p, rest), width=GRAD_W,
-                                                      height=GRAD_H) ** 2)))(p)
-    bad = [n for n, x in params.parameters(g).items() if not bool(jnp.isfinite(x).all())]
-    assert not bad, f"{Path(path).name}: non-finite gradient for {bad}"
+    pixel, for one example scene per shading signature (see the test above; the others run the
+    same code). (Grouping several scenes into one program compiles far slower than one per scene.)
+    Every example's forward render is compared with POV-Ray, so finite, by the suite's ``pov/``
+    entries."""
+    _assert_finite_gradient(_capped_example(path), GRAD_W, GRAD_H, Path(path).name)
+
+
+@pytest.mark.slow  # one reverse-mode program with every primitive kind
+def test_grad_is_finite_for_every_primitive_kind_in_one_scene():
+    scene = every_kind_scene()
+    g = _assert_finite_gradient(scene, KIND_W, KIND_H, "every kind")
+    # every object is seen: each one's parameters move the image
+    for i in range(1, len(scene.objects)):
+        moved = [x for n, x in params.parameters(g).items() if n.startswith(f"objects[{i}].shape.")]
+        assert any(bool(jnp.any(x != 0)) for x in moved), scene.objects[i].shape
 
 
 # --------------------------------------------------------------------------------------------------
