@@ -11,7 +11,7 @@ import pytest
 
 import raytracer as rt
 from raytracer._plan import Effects
-from raytracer.scene._lights import LIGHT_EFFECTS, LIGHT_TYPES, light_effects
+from raytracer.scene._lights import LIGHT_EFFECTS, LIGHT_SDL_KEYWORDS, LIGHT_TYPES, light_effects
 from raytracer.sdl import load_scene
 
 # One SDL light per entry of LIGHT_TYPES (a new light type adds its line here).
@@ -70,3 +70,31 @@ def test_defaults_are_povray_s_in_the_parser_and_the_scene_model():
         np.testing.assert_array_equal(light.point_at, [0.0, 0.0, 1.0])
         assert (float(light.spot.radius_degrees), float(light.spot.falloff_degrees),
                 float(light.spot.tightness)) == (30.0, 45.0, 0.0)
+
+
+def test_every_light_keyword_comes_from_one_type_and_parses():
+    # LIGHT_SDL_KEYWORDS is derived from LIGHT_TYPES: each item below is read by the parser through
+    # its type's declaration, and lands on the Light field the type lowers it to.
+    assert set(LIGHT_SDL_KEYWORDS) == {k for t in LIGHT_TYPES for k in t.sdl_keywords}
+    (light,) = _scene("light_source { <0, 5, -5> rgb 1 spotlight radius 10 falloff 20 tightness 5 "
+                      "fade_distance 3 fade_power 2 area_light x, 2*z, 3, 2 circular orient adaptive 1 "
+                      "jitter area_illumination on parallel shadowless point_at <0, 0, 1> }").lights
+    assert (float(light.spot.radius_degrees), float(light.spot.falloff_degrees),
+            float(light.spot.tightness)) == (10.0, 20.0, 5.0)
+    assert (float(light.fade_distance), float(light.fade_power)) == (3.0, 2.0)
+    assert (light.area.size1, light.area.size2, light.area.circular, light.area.orient) == (3, 2, True, True)
+    assert light.parallel and light.shadowless
+
+
+def test_area_light_options_without_area_light_leave_a_point_light():
+    # POV-Ray's advanced/diffract.pov gives adaptive and jitter outside its #if (Area_Light)
+    (light,) = _scene("light_source { <0, 5, -5> rgb 1 adaptive 1 jitter circular orient }").lights
+    assert light.area is None and light.spot is None and not light.parallel
+
+
+def test_area_light_axes_and_position_follow_the_light_transform():
+    # rotate 90*y (left-handed, POV-Ray): x -> -z, z -> x
+    (light,) = _scene("light_source { <0, 5, -5> rgb 1 area_light x, 2*z, 3, 2 rotate 90*y }").lights
+    np.testing.assert_allclose(light.area.axis1, [0, 0, -1], atol=1e-12)
+    np.testing.assert_allclose(light.area.axis2, [2, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(light.position, [-5, 5, 0], atol=1e-12)

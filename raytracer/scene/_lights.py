@@ -101,6 +101,24 @@ def _spot_factor(light: Light, l, dist):
                          light.spot.tightness)
 
 
+def _lower_fade(values, linear):
+    return {"fade_distance": values["fade_distance"], "fade_power": values["fade_power"]}
+
+
+def _lower_spot(values, linear):
+    return {"spot": Spot(values["radius"], values["falloff"], values["tightness"])}
+
+
+def _lower_area(values, linear):
+    if values["area_light"] is None:  # circular, adaptive, ... without area_light: a point light
+        return {}
+    a1, a2, n1, n2 = values["area_light"]
+    a1, a2 = np.asarray(a1, np.float64), np.asarray(a2, np.float64)
+    if linear is not None:
+        a1, a2 = linear @ a1, linear @ a2
+    return {"area": AreaLight(a1, a2, n1, n2, circular=values["circular"], orient=values["orient"])}
+
+
 def area_weights(n: int) -> np.ndarray:
     """POV's recursive corner-averaging weights along one area-light axis (semantics §2.5):
     3 samples → ¼ ½ ¼, 5 → ⅛ ¼ ¼ ¼ ⅛, 4 → uniform."""
@@ -159,6 +177,15 @@ class LightType:
                      weighted sum of shadow rays to these points instead of one to the light.
         shadows:     False when such a light casts no shadows and makes no highlights.
         describe:    ``light → str`` for summaries (``raytracer info``), or None for the name.
+        sdl_keywords: the ``light_source`` items the type owns → how each is read: ``"kind"`` (the
+                     bare keyword makes the light this type), ``"flag"`` (bare keyword: True),
+                     ``"float"``, ``"float?"`` (an optional float, read and not used), or a tuple
+                     of ``"vector"`` / ``"size"`` (an area-light sample count) read comma-separated.
+                     Position, colour and ``point_at`` belong to every light, not to a type.
+        lower:       ``(values, linear) → Light fields``: the type's fields from its keywords'
+                     values (POV-Ray's ``defaults`` filled in) and the light's 3×3 linear
+                     transform (or None). Called for a kind when the light is of it, for a modifier
+                     when one of its keywords was given.
     """
 
     name: str
@@ -172,30 +199,73 @@ class LightType:
     shadow_samples: Callable[[Light, Any], tuple] | None = None
     shadows: bool = True
     describe: Callable[[Light], str] | None = None
+    sdl_keywords: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    lower: Callable[[Mapping[str, Any], Any], Mapping[str, Any]] | None = None
 
+
+_SPOT_KEYWORDS = {"radius": "float", "falloff": "float", "tightness": "float"}
 
 LIGHT_TYPES: tuple[LightType, ...] = (
     LightType("point", False, (), lambda light: light.spot is None, LIGHT_DEFAULTS),
     # before the spotlight: the arriving colour is faded, then cut by the cone
     LightType("fade", True, ("fade",),
               lambda light: light.fade_distance is not None and light.fade_power is not None,
-              {"fade_distance": None, "fade_power": None}, arrival=_fade_factor),
+              {"fade_distance": None, "fade_power": None}, arrival=_fade_factor,
+              sdl_keywords={"fade_distance": "float", "fade_power": "float"}, lower=_lower_fade),
     LightType("spotlight", False, ("spotlights",), lambda light: light.spot is not None, SPOT_DEFAULTS,
-              arrival=_spot_factor),
+              arrival=_spot_factor, sdl_keywords={"spotlight": "kind", **_SPOT_KEYWORDS},
+              lower=_lower_spot),
     LightType("cylinder", False, ("spotlights",), lambda light: light.spot is not None, SPOT_DEFAULTS,
-              rendered_as="spotlight"),
+              rendered_as="spotlight", sdl_keywords={"cylinder": "kind", **_SPOT_KEYWORDS},
+              lower=_lower_spot),
     LightType("parallel", True, ("parallel_lights",), lambda light: light.parallel,
-              geometry=_parallel_geometry),
-    # only the shadow is area-sampled, so a shadowless area light needs no samples
+              geometry=_parallel_geometry, sdl_keywords={"parallel": "flag"},
+              lower=lambda values, linear: {"parallel": True}),
+    # only the shadow is area-sampled, so a shadowless area light needs no samples; jitter is not
+    # simulated (a deterministic grid) and adaptive is full subdivision, so both are read and unused
     LightType("area_light", True, ("area_lights",),
               lambda light: light.area is not None and not light.shadowless, shadow_samples=_area_samples,
-              describe=lambda light: f"area {light.area.size1}x{light.area.size2}"),
-    LightType("shadowless", True, (), lambda light: light.shadowless, shadows=False),
+              describe=lambda light: f"area {light.area.size1}x{light.area.size2}",
+              defaults={"area_light": None, "circular": False, "orient": False},
+              sdl_keywords={"area_light": ("vector", "vector", "size", "size"), "circular": "flag",
+                            "orient": "flag", "adaptive": "float?", "jitter": "float?",
+                            "area_illumination": "float?"},
+              lower=_lower_area),
+    LightType("shadowless", True, (), lambda light: light.shadowless, shadows=False,
+              sdl_keywords={"shadowless": "flag"}, lower=lambda values, linear: {"shadowless": True}),
 )
 """Every light type and modifier, each with the effects it needs; one entry per POV-Ray keyword."""
 
 LIGHT_EFFECTS: tuple[str, ...] = tuple(dict.fromkeys(e for t in LIGHT_TYPES for e in t.effects))
 """The ``Effects`` flags that only lights decide."""
+
+
+def _keyword_table() -> dict[str, tuple[LightType, Any]]:
+    table: dict[str, tuple[LightType, Any]] = {}
+    for t in LIGHT_TYPES:
+        for keyword, how in t.sdl_keywords.items():
+            if keyword in table and table[keyword][1] != how:
+                raise AssertionError(f"light keyword {keyword!r} is read two ways")
+            table.setdefault(keyword, (t, how))
+    return table
+
+
+LIGHT_SDL_KEYWORDS: Mapping[str, tuple[LightType, Any]] = _keyword_table()
+"""``light_source`` item → (the first type that owns it, how it is read); shared keywords (a
+spotlight's and a cylinder light's ``radius``) are read the same way."""
+
+
+def light_fields(kind: str, values: Mapping[str, Any], linear=None) -> dict[str, Any]:
+    """The :class:`Light` fields its types give a parsed light: ``kind`` names the non-modifier
+    type, ``values`` maps the ``light_source`` items given to their values, ``linear`` is the
+    light's 3×3 linear transform or None."""
+    fields: dict[str, Any] = {}
+    for t in LIGHT_TYPES:
+        given = {k: values[k] for k in t.sdl_keywords if k in values}
+        chosen = (given and t.modifier) or (not t.modifier and t.name == kind)
+        if t.lower is not None and chosen:
+            fields.update(t.lower({**t.defaults, **given}, linear))
+    return fields
 
 
 def light_types(light: Light, effects: Any = None) -> tuple[LightType, ...]:

@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import scene as S
 from .._build import build
+from ..scene._lights import light_fields
 from ..shapes import SDL_KEYWORDS
 from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
 
@@ -120,20 +121,10 @@ def lower_light(rec: LightRec, parent_world) -> S.Light:
     if parent_world is not None:
         m = parent_world if m is None else parent_world @ m
     pos, at = np.asarray(rec.position, dtype=np.float64), np.asarray(rec.point_at, dtype=np.float64)
-    area = None
-    if rec.area is not None:
-        a1, a2 = np.asarray(rec.area[0], dtype=np.float64), np.asarray(rec.area[1], dtype=np.float64)
-        if m is not None:
-            a1, a2 = m[:3, :3] @ a1, m[:3, :3] @ a2
-        area = S.AreaLight(a1, a2, rec.area[2], rec.area[3], circular=rec.circular, orient=rec.orient)
     if m is not None:
         pos, at = _apply_point(m, pos), _apply_point(m, at)
-    spot = None
-    if rec.kind in ("spotlight", "cylinder"):
-        spot = S.Spot(rec.radius, rec.falloff, rec.tightness)
-    return S.Light(position=pos, color=rec.color.c[:3], point_at=at,
-                   fade_distance=rec.fade_distance, fade_power=rec.fade_power, spot=spot, area=area,
-                   parallel=rec.parallel, shadowless=rec.shadowless)
+    fields = light_fields(rec.kind, rec.values, None if m is None else m[:3, :3])
+    return S.Light(position=pos, color=rec.color.c[:3], point_at=at, **fields)
 
 
 def lower_camera(cam: CameraRec | None, warn) -> S.Camera:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..scene._lights import LIGHT_SDL_KEYWORDS
 from ..shapes import SDL_KEYWORDS
 from ._convert import as_int
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
@@ -351,6 +352,22 @@ def _area_size(p) -> int:
     return max(1, n)
 
 
+def _light_value(p, how):
+    """One light_source item's value, read as its type declares (``LightType.sdl_keywords``)."""
+    if how == "flag":
+        return True
+    if how == "float":
+        return float_(p)
+    if how == "float?":
+        return float_(p) if _starts_value(p) else None
+    values = []
+    for i, part in enumerate(how):
+        if i:
+            opt_comma(p)
+        values.append(_area_size(p) if part == "size" else vector3(p))
+    return tuple(values)
+
+
 def _light_color_follows(p) -> bool:
     t = p.peek()
     if t.kind == ID and (t.value in COLOR_KEYWORDS or t.value in ("red", "green", "blue")):
@@ -371,34 +388,19 @@ def _light_item(p, rec, t):
     if kw in TRANSFORM_KEYWORDS:
         m = parse_transform_item(p, t)
         rec.transform = m if rec.transform is None else m @ rec.transform
-    elif kw in ("spotlight", "cylinder"):
-        rec.kind = kw
-        if kw == "cylinder":
-            p.warn("cylinder light", "cylinder lights are treated as spotlights", t.loc)
-    elif kw == "parallel":
-        rec.parallel = True
-    elif kw == "shadowless":
-        rec.shadowless = True
-    elif kw in ("radius", "falloff", "tightness", "fade_distance", "fade_power"):
-        setattr(rec, kw, float_(p))
     elif kw == "point_at":
         rec.point_at = np.asarray(vector3(p), dtype=np.float64)
     elif kw in ("color", "colour") or kw in COLOR_KEYWORDS:
         p.la = t  # let the colour parser see the keyword
         rec.color = parse_color(p)
-    elif kw == "area_light":
-        a1 = vector3(p)
-        opt_comma(p)
-        a2 = vector3(p)
-        opt_comma(p)
-        n1 = _area_size(p)
-        opt_comma(p)
-        rec.area = (a1, a2, n1, _area_size(p))
-    elif kw in ("adaptive", "jitter", "area_illumination"):
-        if _starts_value(p):
-            float_(p)
-    elif kw in ("circular", "orient"):
-        setattr(rec, kw, True)
+    elif kw in LIGHT_SDL_KEYWORDS:
+        light_type, how = LIGHT_SDL_KEYWORDS[kw]
+        if how == "kind":
+            rec.kind = kw
+            if light_type.rendered_as is not None:
+                p.warn(f"{kw} light", f"{kw} lights are treated as {light_type.rendered_as}s", t.loc)
+        else:
+            rec.values[kw] = _light_value(p, how)
     elif kw == "looks_like":
         p.warn("looks_like", "light_source looks_like is not supported; dropped", t.loc)
         skip_braces(p)

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import SourceLoc
-from ..scene._lights import LIGHT_DEFAULTS, SPOT_DEFAULTS
+from ..scene._lights import LIGHT_DEFAULTS
 
 
 class Vec:
@@ -204,21 +204,14 @@ class LightRec:
     point_at: np.ndarray = dataclasses.field(
         default_factory=lambda: np.array(LIGHT_DEFAULTS["point_at"], dtype=np.float64))
     kind: str = "point"  # a non-modifier entry of LIGHT_TYPES: point, spotlight, cylinder
-    parallel: bool = False
-    shadowless: bool = False
-    fade_distance: float | None = None
-    fade_power: float | None = None
-    radius: float = SPOT_DEFAULTS["radius"]
-    falloff: float = SPOT_DEFAULTS["falloff"]
-    tightness: float = SPOT_DEFAULTS["tightness"]
-    area: tuple | None = None  # (axis1, axis2, n1, n2)
-    circular: bool = False
-    orient: bool = False
+    values: dict = dataclasses.field(default_factory=dict)  # item of LIGHT_SDL_KEYWORDS → value
     transform: np.ndarray | None = None
     loc: SourceLoc | None = None
 
     def clone(self) -> LightRec:
-        return copy.copy(self)
+        c = copy.copy(self)
+        c.values = dict(self.values)
+        return c
 
 
 @dataclasses.dataclass
