@@ -8,6 +8,8 @@ float64 fixture, and the ``povray`` marker's skip.
   tiny and its programs many, so LLVM's optimisations and the fusion emitters cost far more than
   they save (a glass scene's reverse-mode program: 30 s of compile without, 9.5 s with). The
   arithmetic is IEEE either way; ``make validate`` and the benchmarks use XLA's defaults.
+* Reference images (POV-Ray, Mitsuba) of the validation suite are kept for the run in a folder of
+  its own (``$RAYTRACER_REFERENCE_CACHE``), so a reference two tests need is rendered once.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
   workers (``$RAYTRACER_TEST_JAX_CACHE`` overrides it and is then kept), so a program that two
   workers or two tests build compiles once. A fresh clone starts with an empty cache.
@@ -30,24 +32,25 @@ import pytest  # noqa: E402
 jax.config.update("jax_numpy_rank_promotion", "raise")
 
 _CACHE_ENV = "RAYTRACER_TEST_JAX_CACHE"
+_REFERENCE_ENV = "RAYTRACER_REFERENCE_CACHE"
 
 
 def pytest_configure(config):
-    # The controller (or a run without xdist) makes the folder; xdist workers, started after this
-    # hook, inherit the variable. A folder given from outside is left in place at the end.
-    if _CACHE_ENV not in os.environ:
-        os.environ[_CACHE_ENV] = tempfile.mkdtemp(prefix="raytracer-jax-cache-")
-        config._raytracer_owned_jax_cache = os.environ[_CACHE_ENV]
+    # The controller (or a run without xdist) makes the folders; xdist workers, started after this
+    # hook, inherit the variables. A folder given from outside is left in place at the end.
+    config._raytracer_owned = []
+    for env, prefix in ((_CACHE_ENV, "raytracer-jax-cache-"), (_REFERENCE_ENV, "raytracer-references-")):
+        if env not in os.environ:
+            os.environ[env] = tempfile.mkdtemp(prefix=prefix)
+            config._raytracer_owned.append(env)
     jax.config.update("jax_compilation_cache_dir", os.environ[_CACHE_ENV])
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def pytest_unconfigure(config):
-    owned = getattr(config, "_raytracer_owned_jax_cache", None)
-    if owned is not None:
-        shutil.rmtree(owned, ignore_errors=True)
-        os.environ.pop(_CACHE_ENV, None)
+    for env in getattr(config, "_raytracer_owned", ()):
+        shutil.rmtree(os.environ.pop(env), ignore_errors=True)
 
 
 def pytest_collection_modifyitems(config, items):

@@ -17,6 +17,8 @@ checker edge, make up the non-matching fraction of deterministic scenes.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import os
 import time
 from pathlib import Path
 
@@ -199,9 +201,38 @@ def render_ours(parsed, width: int = WIDTH, height: int = HEIGHT, spp: int = 1) 
     return np.asarray(raytracer.render(parsed, width=width, height=height, spp=spp), dtype=np.float32)
 
 
+REFERENCE_CACHE_ENV = "RAYTRACER_REFERENCE_CACHE"
+
+
+def _cached_reference(key: tuple, make) -> np.ndarray:
+    """``make()``, kept in ``$RAYTRACER_REFERENCE_CACHE`` (when set) under a hash of ``key``: the test
+    session sets it to a folder of its own, so a reference two tests (or two workers) need is
+    rendered once per run. Written atomically; never shared between runs."""
+    folder = os.environ.get(REFERENCE_CACHE_ENV)
+    if not folder:
+        return make()
+    path = Path(folder) / (hashlib.sha256(repr(key).encode()).hexdigest() + ".npy")
+    if path.is_file():
+        return np.load(path)
+    image = make()
+    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
+    np.save(tmp, image)
+    os.replace(tmp, path)
+    return image
+
+
 def render_reference(scene: SuiteScene, reference: str, parsed=None, width: int = WIDTH,
-                     height: int = HEIGHT) -> np.ndarray:
-    """The reference image of ``scene`` (POV-Ray ``-A`` or Mitsuba pixel centres)."""
+                     height: int = HEIGHT, *, parsed_is_default: bool = False) -> np.ndarray:
+    """The reference image of ``scene`` (POV-Ray ``-A`` or Mitsuba pixel centres). ``parsed`` is
+    ``load_ours(scene, width, height)`` when ``parsed_is_default`` (the image may then be cached)."""
+    if (parsed is None or parsed_is_default) and reference in REFERENCES:
+        key = (reference, str(scene.path), hashlib.sha256(scene.path.read_bytes()).hexdigest(), width,
+               height, scene.mitsuba_spp)
+        return _cached_reference(key, lambda: _render_reference(scene, reference, parsed, width, height))
+    return _render_reference(scene, reference, parsed, width, height)
+
+
+def _render_reference(scene: SuiteScene, reference: str, parsed, width: int, height: int) -> np.ndarray:
     if reference == "povray":
         from .povray import render_povray
 
@@ -246,7 +277,7 @@ def run(scenes, references=REFERENCES, *, render=None, width: int = WIDTH, heigh
             try:
                 if setup_error is not None:
                     raise RuntimeError(setup_error)
-                ref = render_reference(scene, reference, parsed, width, height)
+                ref = render_reference(scene, reference, parsed, width, height, parsed_is_default=True)
                 th = scene.thresholds(reference)
                 result.metrics = metrics.compare(ours, ref, tol=th.tol)
                 result.failures = th.failures(result.metrics)

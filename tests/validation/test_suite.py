@@ -44,10 +44,8 @@ def test_mitsuba_reference_agrees_with_povray_within_the_scene_thresholds(scene)
     """The two references agree with each other, so the harness itself is right (no code of ours
     renders here except the parser feeding the Mitsuba conversion)."""
     from validation import metrics
-    from validation.povray import render_povray
-
     mi_img = suite.render_reference(scene, "mitsuba")
-    pov = render_povray(scene.path, suite.WIDTH, suite.HEIGHT)
+    pov = suite.render_reference(scene, "povray")
     assert scene.mitsuba.failures(metrics.compare(mi_img, pov, tol=scene.mitsuba.tol)) == []
 
 
