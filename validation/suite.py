@@ -207,18 +207,23 @@ REFERENCE_CACHE_ENV = "RAYTRACER_REFERENCE_CACHE"
 def _cached_reference(key: tuple, make) -> np.ndarray:
     """``make()``, kept in ``$RAYTRACER_REFERENCE_CACHE`` (when set) under a hash of ``key``: the test
     session sets it to a folder of its own, so a reference two tests (or two workers) need is
-    rendered once per run. Written atomically; never shared between runs."""
+    rendered once per run (a lock per image: a worker that needs an image another is rendering
+    waits for it). Written atomically; never shared between runs."""
+    import fcntl
+
     folder = os.environ.get(REFERENCE_CACHE_ENV)
     if not folder:
         return make()
     path = Path(folder) / (hashlib.sha256(repr(key).encode()).hexdigest() + ".npy")
-    if path.is_file():
-        return np.load(path)
-    image = make()
-    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
-    np.save(tmp, image)
-    os.replace(tmp, path)
-    return image
+    with open(path.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.is_file():
+            return np.load(path)
+        image = make()
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
+        np.save(tmp, image)
+        os.replace(tmp, path)
+        return image
 
 
 def render_reference(scene: SuiteScene, reference: str, parsed=None, width: int = WIDTH,
