@@ -128,3 +128,17 @@ def test_an_internal_error_exits_70_in_one_line_and_shows_the_traceback_with_deb
     err = capsys.readouterr().err
     assert "Traceback" in err and "broken_camera_builder" in err
     assert err.splitlines()[-1].startswith(f"raytracer: {SEED}:")
+
+
+@pytest.mark.parametrize("suffix", [".png", ".exr"])
+def test_written_images_follow_the_umask_not_0600(tmp_path, suffix):
+    # issue 13 item 12: the atomic write's temporary file is 0600; the image must be 0666 & ~umask
+    import os
+
+    old = os.umask(0o027)
+    try:
+        rt.write_image(tmp_path / f"img{suffix}", np.full((2, 3, 3), 0.5, np.float32))
+    finally:
+        os.umask(old)
+    assert (tmp_path / f"img{suffix}").stat().st_mode & 0o777 == 0o640
+    assert [p.name for p in tmp_path.iterdir()] == [f"img{suffix}"]  # no temporary left behind

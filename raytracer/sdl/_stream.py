@@ -140,31 +140,48 @@ class Stream:
     def push_main(self, tokens: list[Token], path: str | None) -> None:
         self.frames.append(Frame(tokens, 0, len(tokens) - 1, "main", False, path=path))
 
+    def read_roots(self) -> list[Path]:
+        """The folders a scene may read from (semantics §9): the main scene file's folder (the
+        working folder for a scene given as text), the ``-L`` folders, ``$RAYTRACER_INCLUDE_PATH``
+        and POV-Ray's include folder — the spirit of POV-Ray's I/O restrictions."""
+        main = next((f.path for f in self.frames if f.kind == "main" and f.path is not None), None)
+        roots = [Path(main).parent if main is not None else Path(".")]
+        roots += self.include_paths
+        env = os.environ.get("RAYTRACER_INCLUDE_PATH", "")
+        roots += [Path(d) for d in env.split(os.pathsep) if d]
+        if STANDARD_INCLUDE.is_dir():
+            roots.append(STANDARD_INCLUDE)
+        return roots
+
     def resolve_include(self, name: str, loc: SourceLoc) -> str:
-        """Search order: including file's folder, include_paths, $RAYTRACER_INCLUDE_PATH, POV's folder."""
+        """Search order: including file's folder, include_paths, $RAYTRACER_INCLUDE_PATH, POV's folder.
+        The file found must lie (symbolic links resolved) inside one of :meth:`read_roots`."""
+        roots = self.read_roots()
         if os.path.isabs(name):
-            if os.path.isfile(name):
-                return name
-            raise self.error(f'expected an include file, found no file "{name}"', loc)
+            if not os.path.isfile(name):
+                raise self.error(f'expected an include file, found no file "{name}"', loc)
+            return self._confined(name, name, roots, loc)
         dirs = []
         for f in reversed(self.frames):
             if f.path is not None and f.kind in ("main", "include"):
                 dirs.append(Path(f.path).parent)
                 break
-        dirs += self.include_paths
-        env = os.environ.get("RAYTRACER_INCLUDE_PATH", "")
-        dirs += [Path(d) for d in env.split(os.pathsep) if d]
-        if STANDARD_INCLUDE.is_dir():
-            dirs.append(STANDARD_INCLUDE)
-        if not dirs:
-            dirs.append(Path("."))
+        dirs += [d for d in roots[1:]] if dirs else roots
         for d in dirs:
             for cand in (name, name.lower()):
                 p = d / cand
                 if p.is_file():
-                    return str(p)
+                    return self._confined(str(p), name, roots, loc)
         where = ", ".join(str(d) for d in dirs)
         raise self.error(f'expected an include file, found no "{name}" in {where}', loc)
+
+    def _confined(self, path: str, name: str, roots: list[Path], loc: SourceLoc) -> str:
+        real = Path(os.path.realpath(path))
+        if any(real.is_relative_to(os.path.realpath(r)) for r in roots):
+            return path
+        raise self.error(f'#include "{name}" is outside the folders a scene may read (the scene\'s '
+                         f"folder, -L folders, $RAYTRACER_INCLUDE_PATH, POV-Ray's include folder); "
+                         "add its folder with -L (include_paths=) to allow it", loc)
 
     def push_include(self, name: str, loc: SourceLoc) -> None:
         if name in getattr(self, "virtual_files", {}):  # written by this scene with #write

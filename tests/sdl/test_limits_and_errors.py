@@ -191,3 +191,26 @@ def test_an_internal_failure_is_an_internal_error_with_the_scene_location(monkey
     assert e.value.location == SourceLoc("<string>", 2, 1)
     assert str(e.value).startswith("<string>:2:1: internal error (a bug in raytracer, not in the scene): "
                                    "TypeError: unsupported operand")
+
+
+def test_include_outside_the_scene_folders_is_refused_without_reading_it(tmp_path):
+    # issue 13 item 8: the scene's folder, -L folders and POV-Ray's include folder only
+    secret = tmp_path / "private" / "secret.inc"
+    secret.parent.mkdir()
+    secret.write_text("#declare TOP_SECRET = 42;\n")
+    scene_dir = tmp_path / "scene"
+    scene_dir.mkdir()
+    (scene_dir / "link.inc").symlink_to(secret)
+    for include in (str(secret), "../private/secret.inc", "link.inc", "/etc/passwd"):
+        main = scene_dir / "main.pov"
+        main.write_text(f'\n#include "{include}"\n')
+        with pytest.raises(SceneError) as e:
+            load_scene(main)
+        message = str(e.value)
+        assert "outside the folders a scene may read" in message and "-L" in message
+        assert f"{main}:2:" in message and "TOP_SECRET" not in message and "root:" not in message
+    # -L widens it; a file in the scene's folder or a sub-folder of it is always allowed
+    main.write_text('#include "secret.inc"\n#include "sub/ok.inc"\n')
+    (scene_dir / "sub").mkdir()
+    (scene_dir / "sub" / "ok.inc").write_text("#declare OK = 1;\n")
+    load_scene(main, include_paths=[secret.parent])
