@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from ._convert import as_float, as_int, as_vector, fmt_number, type_name
+from ._convert import as_float, as_int, as_vector, check_string_length, fmt_number, type_name
 from ._values import ArrayValue, ObjRec, RandStream, Vec
 
 MAX_FORMAT_WIDTH = 1000  # str()/vstr() width and decimal places: beyond it only padding grows
@@ -293,8 +293,9 @@ def _val(p, tok):
 
 
 def _concat(p, tok):
-    args = _args(p, tok, 1, 10000)
-    return "".join(_str_arg(p, tok, a) for a in args)
+    args = [_str_arg(p, tok, a) for a in _args(p, tok, 1, 10000)]
+    check_string_length(p, sum(len(a) for a in args), tok.loc, "concat()")
+    return "".join(args)
 
 
 def _substr(p, tok):

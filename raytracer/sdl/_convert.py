@@ -92,3 +92,11 @@ def as_color(p, v, loc=None) -> Vec:
 
 def truthy(p, v, loc=None) -> bool:
     return abs(as_float(p, v, loc)) > EPSILON
+
+
+def check_string_length(p, length: int, loc, what: str) -> None:
+    """A SceneError when a string of ``length`` characters would exceed ``Limits.max_string_length``."""
+    limit = p.limits.max_string_length
+    if length > limit:
+        raise p.error(f"expected a string of at most {limit} characters (Limits.max_string_length), "
+                      f"{what} would make {length}", loc)

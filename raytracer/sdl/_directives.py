@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import re
 
+from ._convert import check_string_length
 from ._expr import as_float, as_int, finite, index_list, parse_expr, parse_expr_paren, truthy, type_name
 from ._lexer import EOF, ID, OP, STR
 from ._stream import Frame, logger
@@ -478,6 +479,7 @@ class Directives:
         if mode in ("write", "append"):
             if mode == "write" or name not in self.virtual_files:
                 self.virtual_files[name] = []
+                self.written_chars[name] = 0
             self.open_files[ident] = (name, mode, 0)
         elif mode == "read":
             if name not in self.virtual_files:
@@ -504,7 +506,10 @@ class Directives:
             self.accept_op(",")
             if self.accept_op(")"):
                 break
-            self.virtual_files[name].append(_file_text(parse_expr(self)))
+            text = _file_text(parse_expr(self))
+            self.written_chars[name] += len(text)
+            check_string_length(self, self.written_chars[name], tok.loc, f'#write to "{name}"')
+            self.virtual_files[name].append(text)
 
     def _fread(self, tok):
         ident = self._file_args(tok)

@@ -56,6 +56,7 @@ class Interpreter(Stream, Directives):
         self.version = 3.7
         self.version_seen = False
         self.virtual_files: dict[str, list[str]] = {}  # #fopen … write: in memory only
+        self.written_chars: dict[str, int] = {}  # their lengths (Limits.max_string_length)
         self.open_files: dict[str, tuple[str, str, int]] = {}
         self.first_version = None
         self.old_version_warned = False

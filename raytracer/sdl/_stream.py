@@ -31,6 +31,8 @@ class Limits:
         max_include_depth:   nested ``#include`` files.
         max_tokens:          tokens read in total (a budget for the whole scene).
         max_array_elements:  elements of one array (``array[1000000000]`` would need 8 GB).
+        max_string_length:   characters of one string (``concat`` doubling a string 34 times
+                             reached 6.4 GB) and of one file a scene writes with ``#write``.
     """
 
     max_loop_iterations: int = 1_000_000
@@ -38,6 +40,7 @@ class Limits:
     max_include_depth: int = 64
     max_tokens: int = 50_000_000
     max_array_elements: int = 16_777_216
+    max_string_length: int = 16_777_216
 
 
 @dataclasses.dataclass
