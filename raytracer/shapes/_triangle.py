@@ -144,6 +144,14 @@ class SmoothTriangle(AbstractShape):
     def bounds(self):
         return _vertex_bounds(self.p1, self.p2, self.p3)
 
+    @classmethod
+    def parse_sdl(cls, keyword, args):
+        fields = super().parse_sdl(keyword, args)
+        if not any(np.any(np.asarray(fields[n], np.float64)) for n in ("n1", "n2", "n3")):
+            # POV-Ray 3.7: "Parse Warning: Degenerate triangle. Please remove." and draws nothing
+            args.leave_out("smooth_triangle with all three normals zero is degenerate; left out, as "
+                           "POV-Ray does")
+        return fields
 
     def to_mitsuba(self, m, camera_origin):
         tris = np.stack([np.asarray(v, np.float64) for v in (self.p1, self.p2, self.p3)])[None]
