@@ -26,7 +26,7 @@ MAX_TILE = 1 << 13  # camera rays per tile
 CHUNKS_PER_TILE = 4  # secondary rays are shaded in chunks of tile/4 rays; chunks with no live ray are skipped
 # a tile's pool of at most this many slots is shaded in one vmap, unchunked: skipping its empty
 # chunks saves less than their branches cost (two ``lax.cond`` levels, linearized in reverse mode:
-# the chunked reverse program of a 8×6 glass scene took 1.5× as long to trace and compile)
+# the chunked reverse program of an 8×6 glass scene took 56 s to trace and compile, unchunked 31 s)
 UNCHUNKED_POOL = 4096
 FORWARD_CAPACITY = 4  # live-ray slots per camera ray and level when rendering values (grown if short)
 PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program

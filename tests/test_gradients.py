@@ -337,6 +337,15 @@ def _differentiated_examples() -> tuple[str, ...]:
     return tuple(sorted(path for _, path in best.values()))
 
 
+KIND_W, KIND_H = 32, 24  # a few rays on every object
+
+
+def _shape_cases():
+    from shapes._cases import CASES
+
+    return CASES
+
+
 def every_kind_scene() -> rt.Scene:
     """One object per shape test case (every registered shape and static variant, from
     ``tests/shapes``), each moved into a cell of a 4-wide grid and scaled to it, unbounded ones
@@ -349,8 +358,7 @@ def every_kind_scene() -> rt.Scene:
     for i, case in enumerate(cases):
         cell = np.array([i % 4 - 1.5, 1.5 - i // 4, 0.0]) * 2.5
         to_unit = rt.Transform.translate(-np.asarray(case.aim, float)).then(rt.Transform.scale(1 / case.size))
-        place = (to_unit
-                 .then(rt.Transform.rotate((60.0, 30.0, 0.0))).then(rt.Transform.translate(cell)))
+        place = to_unit.then(rt.Transform.rotate((60.0, 30.0, 0.0))).then(rt.Transform.translate(cell))
         shape = case.make(*case.params)
         clip = () if shape.bounds() is not None else (rt.Object(rt.Sphere(case.aim, 1.2 * case.size)),)
         objects.append(rt.Object(shape, transform=place, texture=tex, clipped_by=clip))
@@ -361,32 +369,24 @@ def every_kind_scene() -> rt.Scene:
                     settings=rt.Settings(max_trace_level=1, adc_bailout=0.0))
 
 
-KIND_W, KIND_H = 32, 24  # a few rays on every object
-
-
 def test_differentiated_scenes_cover_every_shading_signature_kind_and_pattern():
     """The example scenes left out of the reverse-mode tests below add nothing to them: their
     shading signatures, primitive kinds and patterns are all differentiated (a kind or pattern runs
     the same code whatever the signature it appears in)."""
     chosen = _differentiated_examples()
-    assert set(chosen) <= set(EXAMPLE_SCENES)
-    covered = [_capped_example(p) for p in chosen]
-    signatures = {_shading_signature(s) for s in covered}
-    features = set().union(*(_features(s) for s in covered), _features(every_kind_scene()))
-    assert {("kind", c.kind) for c in _shape_cases()} <= _features(every_kind_scene())
-    for path in EXAMPLE_SCENES:
-        scene = _capped_example(path)
+    examples = {path: _capped_example(path) for path in EXAMPLE_SCENES}
+    assert set(chosen) <= set(examples)
+    every_kind = _features(every_kind_scene())
+    assert {("kind", c.kind) for c in _shape_cases()} <= every_kind
+    signatures = {_shading_signature(examples[p]) for p in chosen}
+    features = set().union(*(_features(examples[p]) for p in chosen), every_kind)
+    for path, scene in examples.items():
         assert _shading_signature(scene) in signatures, f"{Path(path).name}: signature not differentiated"
         assert _features(scene) <= features, Path(path).name
 
 
-def _shape_cases():
-    from shapes._cases import CASES
-
-    return CASES
-
-
-def _assert_finite_gradient(scene: rt.Scene, width: int, height: int, what: str) -> None:
+def _assert_finite_gradient(scene: rt.Scene, width: int, height: int, what: str):
+    """``jax.grad`` of the image's mean square with respect to every parameter, asserted finite."""
     p, rest = eqx.partition(scene, eqx.is_inexact_array)
     g = jax.jit(jax.grad(lambda p: jnp.mean(rt.render(eqx.combine(p, rest), width=width,
                                                       height=height) ** 2)))(p)

@@ -262,7 +262,7 @@ def light_fields(kind: str, values: Mapping[str, Any], linear=None) -> dict[str,
     fields: dict[str, Any] = {}
     for t in LIGHT_TYPES:
         given = {k: values[k] for k in t.sdl_keywords if k in values}
-        chosen = (given and t.modifier) or (not t.modifier and t.name == kind)
+        chosen = bool(given) if t.modifier else t.name == kind
         if t.lower is not None and chosen:
             fields.update(t.lower({**t.defaults, **given}, linear))
     return fields

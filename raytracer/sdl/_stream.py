@@ -169,7 +169,7 @@ class Stream:
             if f.path is not None and f.kind in ("main", "include"):
                 dirs.append(Path(f.path).parent)
                 break
-        dirs += [d for d in roots[1:]] if dirs else roots
+        dirs += roots[1:] if dirs else roots  # the main folder is the including file's or first
         for d in dirs:
             for cand in (name, name.lower()):
                 p = d / cand
