@@ -18,7 +18,6 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from ._dtype import default_float
 from ._plan import make_plan
@@ -42,7 +41,7 @@ def _packed(obj: AbstractObject):
         return None, None
     # packed once, outside the program: the inverse transforms (LAPACK calls) and stacking are
     # then constants, and each call runs only the intersection (~80 -> ~15 µs per call)
-    return plan, pack_geometry(plan, default_float())
+    return plan, pack_geometry(plan, default_float(), accelerate=False)
 
 
 def compile_trace(obj: AbstractObject) -> Callable[[jax.Array], jax.Array] | None:
@@ -57,12 +56,11 @@ def compile_trace(obj: AbstractObject) -> Callable[[jax.Array], jax.Array] | Non
         return None
     dtype = default_float()
     visible = jnp.asarray(static_prim_mask(geo, lambda i: plan.prims[i].rendered))
-    sign = np.where(static_prim_mask(geo, lambda i: plan.prims[i].inverse), -1.0, 1.0)
 
     @jax.jit
     def trace(ray):  # one (6,) argument, one (7,) result: one dispatch and one copy per call
         o, d = ray[:3].astype(dtype), ray[3:].astype(dtype)
-        hit = closest_hit(geo, plan, o, d, T_MIN, visible, sign)
+        hit = closest_hit(geo, plan, o, d, T_MIN, visible)
         return jnp.concatenate([hit.found.astype(dtype)[None], o + hit.t * d, hit.normal])
 
     return trace

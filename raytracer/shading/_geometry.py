@@ -23,6 +23,8 @@ from .._plan import InAll, InDiff, InPrim, InsideTree, Plan
 from ..kernels import safe_normalize
 from ..scene._transform import inverse_affine
 from ..shapes import AbstractShape
+from . import _accel
+from ._accel import Accel
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,6 +35,7 @@ class Group:
     kind: str
     prims: tuple[int, ...]  # indices into plan.prims
     solid: bool  # has an inside test
+    accelerated: bool = False  # chosen by the hierarchy (``_accel``), not a candidate of every ray
 
 
 @dataclasses.dataclass
@@ -43,9 +46,11 @@ class PackedGeometry:
     shapes: tuple[AbstractShape, ...]  # per group: the group's shapes stacked along a leading axis
     object_from_world: tuple[jax.Array, ...]  # per group: (n, 4, 4)
     where: dict[int, tuple[int, int]]  # prim -> (group, index in group)
-    cand_prim: np.ndarray  # (C,) prim index of every flat candidate
+    cand_prim: np.ndarray  # (C,) prim index of every flat candidate (groups not accelerated)
     n_candidates: int
     conditions: CSGConditions | None = None  # None when no hit has CSG / clipping conditions
+    accel: Accel | None = None  # the hierarchy of the accelerated groups
+    prim_sign: np.ndarray | None = None  # (P,) -1.0 where a primitive's normals are inverted
 
 
 def _stack(trees):
@@ -58,26 +63,60 @@ def _variant(shape: AbstractShape) -> tuple:
     return treedef, tuple(np.shape(x) for x in leaves)
 
 
-def pack_geometry(plan: Plan, dtype) -> PackedGeometry:
+def _accelerable(prim) -> bool:
+    """Whether the hierarchy may choose this primitive: a native kernel, bounded, rendered, no CSG
+    or clipping condition, and opaque (a shadow ray only asks whether it blocks)."""
+    shape = prim.obj.shape
+    return (type(shape).native_kernel is not None and prim.rendered and not prim.conditions
+            and not all(layer.pigment.transparent for layer in prim.texture.layers))
+
+
+def visibility_bits(prim) -> int:
+    """The ``_accel.MASK_*`` bits of a primitive: seen by camera / reflected rays, casts shadows."""
+    if not prim.rendered:
+        return 0
+    return ((_accel.MASK_CAMERA if "no_image" not in prim.flags else 0)
+            | (_accel.MASK_REFLECT if "no_reflection" not in prim.flags else 0)
+            | (_accel.MASK_SHADOW if "no_shadow" not in prim.flags else 0))
+
+
+def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGeometry:
+    """Every primitive of ``plan`` packed by group. ``accelerate``: let the native hierarchy choose
+    among the primitives it can (None: when ``_accel.mode()`` is native and there are at least
+    ``_accel.MIN_ITEMS`` items)."""
+    if accelerate is None:
+        accelerate = _accel.mode() == "native"
+    accel_ok = [accelerate and _accelerable(p) for p in plan.prims]
+    items = sum(p.obj.shape.n_crossings() for p, ok in zip(plan.prims, accel_ok, strict=True) if ok)
+    if items < _accel.MIN_ITEMS:
+        accel_ok = [False] * len(plan.prims)
     keyed: dict[tuple, list[int]] = {}
     for i, p in enumerate(plan.prims):
-        keyed.setdefault(_variant(p.obj.shape), []).append(i)
-    groups, shapes, ofw, where, cand_prim = [], [], [], {}, []
-    for ids in keyed.values():
+        keyed.setdefault((_variant(p.obj.shape), accel_ok[i]), []).append(i)
+    groups, shapes, ofw, wfo, where, cand_prim = [], [], [], [], {}, []
+    for (_, accelerated), ids in keyed.items():
         members = [plan.prims[i].obj.shape for i in ids]
         k = members[0].n_crossings()
-        groups.append(Group(members[0].kind, tuple(ids), type(members[0]).solid))
+        groups.append(Group(members[0].kind, tuple(ids), type(members[0]).solid, accelerated))
         shapes.append(_stack(members))
         mats = []
         for i in ids:
             t = plan.prims[i].world_from_object()
             mats.append(jnp.eye(4, dtype=dtype) if t is None else t.matrix.astype(dtype))
-        ofw.append(jax.vmap(inverse_affine)(jnp.stack(mats)))
+        wfo.append(jnp.stack(mats))
+        ofw.append(jax.vmap(inverse_affine)(wfo[-1]))
         for j, i in enumerate(ids):
             where[i] = (len(groups) - 1, j)
-            cand_prim.extend([i] * k)
+            if not accelerated:
+                cand_prim.extend([i] * k)
+    accel = None
+    accel_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.accelerated]
+    if accel_groups:
+        accel = _accel.pack_accel(shapes, ofw, wfo, accel_groups,
+                                  [visibility_bits(p) for p in plan.prims], dtype)
     geo = PackedGeometry(tuple(groups), tuple(shapes), tuple(ofw), where,
-                         np.asarray(cand_prim, dtype=np.int32), len(cand_prim))
+                         np.asarray(cand_prim, dtype=np.int32), len(cand_prim), accel=accel,
+                         prim_sign=np.array([-1.0 if p.inverse else 1.0 for p in plan.prims]))
     if plan.effects.csg:
         geo = dataclasses.replace(geo, conditions=build_csg_conditions(geo, plan))
     return geo
@@ -94,8 +133,10 @@ def all_crossings(geo: PackedGeometry, o, d):
         t: (C,) ray parameters (world units of ``|d|``), +inf where a slot is empty.
         n: (C, 3) unit outward world normals (``inverse`` not applied).
     """
-    ts, ns = [], []
-    for shapes, ofw in zip(geo.shapes, geo.object_from_world, strict=True):
+    ts, ns = [jnp.zeros(0, o.dtype)], [jnp.zeros((0, 3), o.dtype)]
+    for group, shapes, ofw in zip(geo.groups, geo.shapes, geo.object_from_world, strict=True):
+        if group.accelerated:
+            continue
 
         def one(shape, ofw_i):
             oo, dd = _to_object(ofw_i, o, d)
@@ -251,16 +292,26 @@ class Hit:
     normal: jax.Array  # (3,) unit outward world normal with ``inverse`` applied
 
 
-def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array,
-                inverse_sign: np.ndarray) -> Hit:
-    """Closest crossing with ``t > t_min`` among candidates where ``visible`` (C,) holds."""
-    t, n = all_crossings(geo, o, d)
-    ok = visible & (t > t_min) & jnp.isfinite(t) & (t < 1e7)
-    ok = ok & csg_mask(geo, plan, o, d, t)
-    tt = jnp.where(ok, t, jnp.inf)
-    c = jnp.argmin(tt)
-    found = jnp.isfinite(tt[c])
-    t_hit = jnp.where(found, tt[c], 0.0)
-    normal = n[c] * jnp.asarray(inverse_sign, n.dtype)[c]
-    prim = jnp.asarray(geo.cand_prim)[c]
-    return Hit(found, t_hit, prim, normal)
+def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array, want=None) -> Hit:
+    """Closest crossing with ``t > t_min`` among candidates where ``visible`` (C,) holds and
+    accelerated primitives with the visibility bit ``want`` (``_accel.MASK_*``, traced or not)."""
+    best_t = jnp.asarray(jnp.inf, o.dtype)
+    best_n = jnp.zeros(3, o.dtype).at[2].set(1.0)
+    best_prim = jnp.zeros((), jnp.int32)
+    if geo.n_candidates:
+        t, n = all_crossings(geo, o, d)
+        ok = visible & (t > t_min) & jnp.isfinite(t) & (t < 1e7)
+        ok = ok & csg_mask(geo, plan, o, d, t)
+        tt = jnp.where(ok, t, jnp.inf)
+        c = jnp.argmin(tt)
+        best_t, best_n, best_prim = tt[c], n[c], jnp.asarray(geo.cand_prim)[c]
+    if geo.accel is not None:
+        found, t, prim, n = _accel.closest(geo.accel, geo.shapes, geo.object_from_world, o, d, t_min,
+                                           _accel.MASK_CAMERA if want is None else want)
+        closer = found & (t < best_t)
+        best_t = jnp.where(closer, t, best_t)
+        best_n = jnp.where(closer, n, best_n)
+        best_prim = jnp.where(closer, prim, best_prim)
+    found = jnp.isfinite(best_t)
+    normal = best_n * jnp.asarray(geo.prim_sign, best_n.dtype)[best_prim]
+    return Hit(found, jnp.where(found, best_t, 0.0), best_prim, normal)

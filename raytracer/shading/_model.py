@@ -48,7 +48,7 @@ from .._plan import Effects, Plan
 from ..kernels import safe_pow
 from ..scene import Light, Settings
 from ..scene._lights import light_types, point_geometry
-from . import lighting
+from . import _accel, lighting
 from ._geometry import PackedGeometry, all_crossings, closest_hit, csg_mask, static_prim_mask
 from ._materials import PackedMaterials, pigment_at
 
@@ -152,13 +152,18 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
 def _shadow_filter(ctx: TraceContext, o, l, dist):
     """RGB transmittance of the segment ``o → o + dist·l`` (semantics §2.5): opaque crossings block,
     transparent ones multiply by ``f·P + t`` at each crossing; refraction is ignored."""
-    t, n = all_crossings(ctx.geo, o, l)
     scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+    one = jnp.ones(3, ctx.dtype)
+    # opaque primitives the hierarchy holds: does any lie on the segment (an any-hit query)
+    blocked = (jnp.zeros((), bool) if ctx.geo.accel is None
+               else _accel.blocked(ctx.geo.accel, o, l, scale, dist - scale))
+    if not ctx.geo.n_candidates:
+        return jnp.where(blocked, 0.0, 1.0) * one
+    t, n = all_crossings(ctx.geo, o, l)
     ok = jnp.asarray(ctx.casts_shadow) & jnp.isfinite(t) & (t > scale) & (t < dist - scale)
     ok = ok & csg_mask(ctx.geo, ctx.plan, o, l, t)
-    one = jnp.ones(3, ctx.dtype)
     if not ctx.plan.effects.filtered_shadows:
-        return jnp.where(jnp.any(ok), 0.0, 1.0) * one
+        return jnp.where(jnp.any(ok) | blocked, 0.0, 1.0) * one
     opaque = ok & ~jnp.asarray(ctx.transparent_cands)
     filt = one
     safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
@@ -185,7 +190,7 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
                                      m.fade_distance[prims][:, None], m.fade_power[prims][:, None],
                                      m.fade_color[prims], on=exiting[:, None])
         filt = filt * jnp.prod(att, axis=0)
-    return jnp.where(jnp.any(opaque), 0.0, 1.0) * filt
+    return jnp.where(jnp.any(opaque) | blocked, 0.0, 1.0) * filt
 
 
 def _light_visibility(ctx: TraceContext, light: Light, types, p_spawn, l, shadow_len):
@@ -284,7 +289,8 @@ def _surface(ctx: TraceContext, ray: Rays) -> _Surface:
     o, d = ray.origin, ray.direction
     vis = jnp.where(ray.reflection, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
     scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
-    hit = closest_hit(ctx.geo, ctx.plan, o, d, scale, vis, ctx.inverse_sign)
+    want = jnp.where(ray.reflection, _accel.MASK_REFLECT, _accel.MASK_CAMERA)
+    hit = closest_hit(ctx.geo, ctx.plan, o, d, scale, vis, want)
     p = o + hit.t * d
     entering = jnp.dot(hit.normal, d) < 0
     n = jnp.where(entering, hit.normal, -hit.normal)  # faces the incoming ray

@@ -166,6 +166,21 @@ class AbstractShape(eqx.Module):
         """Object-space ``(lo (3,), hi (3,))``, or None when the shape is unbounded."""
         return None
 
+    # The acceleration structure (``shading/_accel.py``) can choose among shapes that name one of
+    # its native kernels. It only chooses: the hit is then computed again by ``sub_hits``.
+    native_kernel: ClassVar[int | None] = None  # NATIVE_SPHERE / NATIVE_BOX / NATIVE_TRIANGLE
+
+    def native_items(self) -> tuple[Float[Array, "k 12"], Float[Array, "k V 3"]]:
+        """The shape as ``k`` items of ``native_kernel`` (object space): their parameters (k, 12)
+        (sphere: centre, radius; box: two corners; triangle: three vertices; zero padded) and
+        points whose hull holds each item (k, V, 3) (its bounding box comes from them)."""
+        raise NotImplementedError(f"{self.kind} has no native kernel")
+
+    def sub_hits(self, o: Float[Array, "3"], d: Float[Array, "3"], sub) -> tuple[Float[Array, " J"], Float[Array, "J 3"]]:  # noqa: E501
+        """The crossings of native item ``sub`` (an index into ``native_items``): by default every
+        crossing (the shape is one item); a mesh answers for the one triangle."""
+        return self.hits(o, d)
+
     @classmethod
     def parse_sdl(cls, keyword: str, args: ShapeArgs) -> dict:
         """The fields read after ``keyword {`` (up to the object modifiers): by default the
@@ -185,6 +200,21 @@ class AbstractShape(eqx.Module):
         raise NoEquivalent(self.kind, "no Mitsuba primitive; tessellation would be an approximation")
 
 
+NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE = 0, 1, 2  # the kernels of raytracer/_native/bvh.cc
+
+
+def box_corners(lo, hi):
+    """(8, 3): the corners of the box ``lo``–``hi``."""
+    xp = array_module(lo, hi)
+    return xp.stack([xp.stack([(lo, hi)[(i >> a) & 1][a] for a in range(3)]) for i in range(8)])
+
+
+def native_params(*parts):
+    """(1, 12): the parts (scalars and vectors) flattened and zero padded to 12 numbers."""
+    flat = jnp.concatenate([jnp.reshape(jnp.asarray(x), (-1,)) for x in parts])
+    return jnp.pad(flat, (0, 12 - flat.shape[0]))[None]
+
+
 def world_bounds(shape: AbstractShape, world_from_object=None):
     """World-space ``(lo, hi)`` of ``shape`` placed by ``world_from_object`` (4, 4), or None.
 
@@ -199,7 +229,7 @@ def world_bounds(shape: AbstractShape, world_from_object=None):
         return lo, hi
     xp = array_module(lo, hi, world_from_object)
     m = xp.asarray(world_from_object)
-    corners = xp.stack([xp.stack([(lo, hi)[(i >> a) & 1][a] for a in range(3)]) for i in range(8)])
+    corners = box_corners(lo, hi)
     pts = corners @ m[:3, :3].T + m[:3, 3]
     return pts.min(axis=0), pts.max(axis=0)
 

@@ -11,12 +11,15 @@ from .._dtype import as_float
 from ..kernels._common import masked_hits
 from ..kernels._numerics import as_float_arrays, solve_linear
 from ._base import (
+    NATIVE_BOX,
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
     SdlArguments,
     affine,
     array_module,
+    box_corners,
+    native_params,
 )
 
 BOX_K = 2
@@ -91,6 +94,11 @@ class Box(AbstractShape):
     def bounds(self):
         xp = array_module(self.corner1, self.corner2)
         return xp.minimum(self.corner1, self.corner2), xp.maximum(self.corner1, self.corner2)
+
+    native_kernel: ClassVar[int] = NATIVE_BOX
+
+    def native_items(self):
+        return native_params(self.corner1, self.corner2), box_corners(*self.bounds())[None]
 
 
     def to_mitsuba(self, m, camera_origin):

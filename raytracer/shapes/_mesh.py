@@ -11,12 +11,13 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
 from .._build import build
 from .._dtype import as_float
-from ._base import AbstractShape, MitsubaShape, mesh_entry
+from ._base import NATIVE_TRIANGLE, AbstractShape, MitsubaShape, mesh_entry
 from ._triangle import smooth_triangle_hits, triangle_hits
 
 _MESH2_SECTIONS = ("vertex_vectors", "normal_vectors", "uv_vectors", "texture_list", "face_indices",
@@ -56,6 +57,19 @@ class Mesh(AbstractShape):
     def bounds(self):
         v = self.triangles.reshape(-1, 3)
         return v.min(axis=0), v.max(axis=0)
+
+    native_kernel: ClassVar[int] = NATIVE_TRIANGLE
+
+    def native_items(self):
+        f = self.triangles.shape[0]
+        return jnp.pad(self.triangles.reshape(f, 9), ((0, 0), (0, 3))), self.triangles
+
+    def sub_hits(self, o, d, sub):
+        tri = self.triangles[sub]
+        if self.normals is None:
+            return triangle_hits(tri[0], tri[1], tri[2], o, d)
+        nn = self.normals[sub]
+        return smooth_triangle_hits(tri[0], tri[1], tri[2], nn[0], nn[1], nn[2], o, d)
 
     @classmethod
     def parse_sdl(cls, keyword, args):

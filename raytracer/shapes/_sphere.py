@@ -11,12 +11,15 @@ from .._dtype import as_float
 from ..kernels._common import masked_hits, points_at
 from ..kernels._numerics import as_float_arrays, safe_normalize, solve_quadratic
 from ._base import (
+    NATIVE_SPHERE,
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
     SdlArguments,
     apply_point,
     array_module,
+    box_corners,
+    native_params,
     similarity_scale,
 )
 
@@ -86,6 +89,11 @@ class Sphere(AbstractShape):
     def bounds(self):
         r = array_module(self.radius).abs(self.radius)
         return self.center - r, self.center + r
+
+    native_kernel: ClassVar[int] = NATIVE_SPHERE
+
+    def native_items(self):
+        return native_params(self.center, self.radius), box_corners(*self.bounds())[None]
 
 
     def to_mitsuba(self, m, camera_origin):

@@ -16,7 +16,15 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._dtype import as_float
 from ..kernels._numerics import as_float_arrays, eps_of, safe_mask, safe_normalize
-from ._base import AbstractShape, MitsubaShape, SdlArguments, array_module, mesh_entry
+from ._base import (
+    NATIVE_TRIANGLE,
+    AbstractShape,
+    MitsubaShape,
+    SdlArguments,
+    array_module,
+    mesh_entry,
+    native_params,
+)
 
 TRIANGLE_K = 1
 SMOOTH_TRIANGLE_K = 1
@@ -115,6 +123,11 @@ class Triangle(AbstractShape):
     def bounds(self):
         return _vertex_bounds(self.p1, self.p2, self.p3)
 
+    native_kernel: ClassVar[int] = NATIVE_TRIANGLE  # the smooth normal does not move the hit
+
+    def native_items(self):
+        return native_params(self.p1, self.p2, self.p3), jnp.stack([self.p1, self.p2, self.p3])[None]
+
 
     def to_mitsuba(self, m, camera_origin):
         tris = np.stack([np.asarray(v, np.float64) for v in (self.p1, self.p2, self.p3)])[None]
@@ -143,6 +156,11 @@ class SmoothTriangle(AbstractShape):
 
     def bounds(self):
         return _vertex_bounds(self.p1, self.p2, self.p3)
+
+    native_kernel: ClassVar[int] = NATIVE_TRIANGLE  # the smooth normal does not move the hit
+
+    def native_items(self):
+        return native_params(self.p1, self.p2, self.p3), jnp.stack([self.p1, self.p2, self.p3])[None]
 
     @classmethod
     def parse_sdl(cls, keyword, args):

@@ -1,0 +1,453 @@
+// A bounding volume hierarchy over a scene's primitives, called from JAX through XLA's FFI.
+//
+// It only *chooses*: which item a ray hits first (closest hit) or whether anything blocks a shadow
+// segment (any hit). The distance and normal the renderer uses are then computed again by the chosen
+// primitive's JAX kernel, so gradients never pass through this file (a preliminary intersection
+// followed by a differentiable surface interaction, as in Mitsuba 3).
+//
+// Items. An item is one primitive (a sphere, a box) or one triangle of a mesh. Each carries
+// ITEM_PARAMS numbers: its object_from_world affine map (3×4, row-major) and its shape in object
+// space (sphere: centre, radius; box: two corners; triangle: three vertices). The intersections
+// below are computed in double precision whatever the input type.
+//
+// Layout of the hierarchy (written by bvh_build, M = 2n - 1 nodes at most, root 0): node_box (M, 6) =
+// lo xyz, hi xyz; node_info (M, 4) int32: a leaf is [first, count > 0, 0, 0] and holds the items
+// order[first : first + count]; an inner node is [left, 0, right, axis], `axis` its split axis (the
+// child on the ray's near side is visited first).
+//
+// Build: binned surface-area heuristic over item centroids (16 bins on each axis), leaves of at most
+// 4 items unless splitting does not pay, a median split when every centroid falls in one bin.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+#include "xla/ffi/api/ffi.h"
+
+namespace ffi = xla::ffi;
+
+namespace {
+
+constexpr int ITEM_PARAMS = 24;
+constexpr int KIND_SPHERE = 0;
+constexpr int KIND_BOX = 1;
+constexpr int KIND_TRIANGLE = 2;
+constexpr int BINS = 16;
+constexpr int MAX_LEAF = 4;
+constexpr int STACK = 128;
+constexpr int64_t SAH_DEPTH = 64;  // below this depth, median splits (see build)
+
+struct Box3 {
+  double lo[3] = {INFINITY, INFINITY, INFINITY};
+  double hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  void grow(const Box3& b) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], b.lo[k]);
+      hi[k] = std::max(hi[k], b.hi[k]);
+    }
+  }
+  void grow(const double* p) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], p[k]);
+      hi[k] = std::max(hi[k], p[k]);
+    }
+  }
+  double area() const {
+    double e[3];
+    for (int k = 0; k < 3; ++k) e[k] = std::max(0.0, hi[k] - lo[k]);
+    return e[0] * e[1] + e[1] * e[2] + e[2] * e[0];
+  }
+};
+
+// ------------------------------------------------------------------------------------------ build
+template <typename T>
+int64_t build(const T* boxes, int64_t n, T* node_box, int32_t* node_info, int32_t* order) {
+  std::vector<Box3> item(n);
+  std::vector<double> cen(3 * n);
+  for (int64_t i = 0; i < n; ++i) {
+    // inflate each box a little so that rounding in the box (float32) never loses a hit
+    double scale = 0.0;
+    for (int k = 0; k < 6; ++k) {
+      double v = static_cast<double>(boxes[6 * i + k]);
+      if (std::isfinite(v)) scale = std::max(scale, std::fabs(v));
+    }
+    double pad = 1e-6 * scale + 1e-30;
+    for (int k = 0; k < 3; ++k) {
+      double lo = static_cast<double>(boxes[6 * i + k]), hi = static_cast<double>(boxes[6 * i + 3 + k]);
+      if (!(lo <= hi)) lo = hi = 0.0;  // an empty or NaN box: a point (its item is never hit anyway)
+      item[i].lo[k] = lo - pad;
+      item[i].hi[k] = hi + pad;
+      cen[3 * i + k] = 0.5 * (lo + hi);
+    }
+  }
+  for (int64_t i = 0; i < n; ++i) order[i] = static_cast<int32_t>(i);
+
+  struct Task {
+    int64_t node, begin, end, depth;
+  };
+  std::vector<Task> tasks;
+  tasks.push_back({0, 0, n, 0});
+  int64_t n_nodes = 1;
+  while (!tasks.empty()) {
+    Task task = tasks.back();
+    tasks.pop_back();
+    Box3 bounds, cbounds;
+    for (int64_t i = task.begin; i < task.end; ++i) {
+      bounds.grow(item[order[i]]);
+      cbounds.grow(&cen[3 * order[i]]);
+    }
+    for (int k = 0; k < 3; ++k) {
+      node_box[6 * task.node + k] = static_cast<T>(bounds.lo[k]);
+      node_box[6 * task.node + 3 + k] = static_cast<T>(bounds.hi[k]);
+    }
+    // rounding the node box to T must not shrink it
+    for (int k = 0; k < 3; ++k) {
+      T& lo = node_box[6 * task.node + k];
+      T& hi = node_box[6 * task.node + 3 + k];
+      if (static_cast<double>(lo) > bounds.lo[k]) lo = std::nextafter(lo, -std::numeric_limits<T>::infinity());
+      if (static_cast<double>(hi) < bounds.hi[k]) hi = std::nextafter(hi, std::numeric_limits<T>::infinity());
+    }
+    int32_t* info = node_info + 4 * task.node;
+    const int64_t count = task.end - task.begin;
+    auto make_leaf = [&] {
+      info[0] = static_cast<int32_t>(task.begin);
+      info[1] = static_cast<int32_t>(count);
+      info[2] = 0;
+      info[3] = 0;
+    };
+    if (count <= 1) {
+      make_leaf();
+      continue;
+    }
+    // binned SAH over the three axes
+    int best_axis = -1, best_bin = -1;
+    double best_cost = INFINITY;
+    for (int axis = 0; axis < 3; ++axis) {
+      const double lo = cbounds.lo[axis], extent = cbounds.hi[axis] - cbounds.lo[axis];
+      if (!(extent > 0.0)) continue;
+      Box3 bin_box[BINS];
+      int64_t bin_count[BINS] = {0};
+      for (int64_t i = task.begin; i < task.end; ++i) {
+        int b = static_cast<int>(BINS * (cen[3 * order[i] + axis] - lo) / extent);
+        b = std::min(std::max(b, 0), BINS - 1);
+        bin_count[b] += 1;
+        bin_box[b].grow(item[order[i]]);
+      }
+      double right_area[BINS];
+      int64_t right_count[BINS];
+      Box3 acc;
+      int64_t c = 0;
+      for (int b = BINS - 1; b > 0; --b) {
+        acc.grow(bin_box[b]);
+        c += bin_count[b];
+        right_area[b] = acc.area();
+        right_count[b] = c;
+      }
+      Box3 left;
+      int64_t lc = 0;
+      for (int b = 1; b < BINS; ++b) {
+        left.grow(bin_box[b - 1]);
+        lc += bin_count[b - 1];
+        if (lc == 0 || right_count[b] == 0) continue;
+        double cost = left.area() * lc + right_area[b] * right_count[b];
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_axis = axis;
+          best_bin = b;
+        }
+      }
+    }
+    const double leaf_cost = bounds.area() * count;
+    // traversal cost ~ one item test: split when it pays, always when the leaf would be large
+    if (best_axis >= 0 && count <= MAX_LEAF && best_cost + bounds.area() >= leaf_cost) {
+      make_leaf();
+      continue;
+    }
+    int64_t mid;
+    int axis;
+    if (best_axis >= 0 && task.depth < SAH_DEPTH) {
+      axis = best_axis;
+      const double lo = cbounds.lo[axis], extent = cbounds.hi[axis] - cbounds.lo[axis];
+      int32_t* split = std::partition(order + task.begin, order + task.end, [&](int32_t it) {
+        int b = static_cast<int>(BINS * (cen[3 * it + axis] - lo) / extent);
+        return std::min(std::max(b, 0), BINS - 1) < best_bin;
+      });
+      mid = split - order;
+    } else {
+      // every centroid coincides, or the tree is already deep: a median split on the widest axis
+      // (it bounds the depth, and so the traversal stack, by SAH_DEPTH + log2 n)
+      axis = 0;
+      for (int k = 1; k < 3; ++k)
+        if (cbounds.hi[k] - cbounds.lo[k] > cbounds.hi[axis] - cbounds.lo[axis]) axis = k;
+      mid = task.begin + count / 2;
+      std::nth_element(order + task.begin, order + mid, order + task.end,
+                       [&](int32_t a, int32_t b) { return cen[3 * a + axis] < cen[3 * b + axis]; });
+    }
+    if (mid == task.begin || mid == task.end) mid = task.begin + count / 2;
+    const int64_t left = n_nodes, right = n_nodes + 1;
+    n_nodes += 2;
+    info[0] = static_cast<int32_t>(left);
+    info[1] = 0;
+    info[2] = static_cast<int32_t>(right);
+    info[3] = axis;
+    tasks.push_back({right, mid, task.end, task.depth + 1});
+    tasks.push_back({left, task.begin, mid, task.depth + 1});
+  }
+  return n_nodes;
+}
+
+// ------------------------------------------------------------------------------------------ items
+struct RayD {
+  double o[3], d[3];
+};
+
+inline RayD to_object(const double* m, const double* o, const double* d) {
+  RayD r;
+  for (int i = 0; i < 3; ++i) {
+    r.o[i] = m[4 * i] * o[0] + m[4 * i + 1] * o[1] + m[4 * i + 2] * o[2] + m[4 * i + 3];
+    r.d[i] = m[4 * i] * d[0] + m[4 * i + 1] * d[1] + m[4 * i + 2] * d[2];
+  }
+  return r;
+}
+
+inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+// The first crossing of the item with t in (tmin, tmax), or INFINITY.
+template <typename T>
+inline double item_hit(int32_t kind, const T* params, const double* o, const double* d, double tmin,
+                       double tmax) {
+  double p[ITEM_PARAMS];
+  for (int k = 0; k < ITEM_PARAMS; ++k) p[k] = static_cast<double>(params[k]);
+  RayD r = to_object(p, o, d);
+  const double* q = p + 12;
+  double t0 = INFINITY, t1 = INFINITY;
+  if (kind == KIND_SPHERE) {
+    double oc[3] = {r.o[0] - q[0], r.o[1] - q[1], r.o[2] - q[2]};
+    double a = dot3(r.d, r.d);
+    if (!(a > 0.0)) return INFINITY;
+    // distance of the line from the centre, computed from the foot of the perpendicular (stable)
+    double tc = -dot3(oc, r.d) / a;
+    double f[3] = {oc[0] + tc * r.d[0], oc[1] + tc * r.d[1], oc[2] + tc * r.d[2]};
+    double h2 = q[3] * q[3] - dot3(f, f);
+    if (h2 < 0.0) return INFINITY;
+    double h = std::sqrt(h2 / a);
+    t0 = tc - h;
+    t1 = tc + h;
+  } else if (kind == KIND_BOX) {
+    double tn = -INFINITY, tf = INFINITY;
+    for (int k = 0; k < 3; ++k) {
+      double lo = std::min(q[k], q[3 + k]), hi = std::max(q[k], q[3 + k]);
+      if (r.d[k] == 0.0) {
+        if (r.o[k] < lo || r.o[k] > hi) return INFINITY;
+        continue;
+      }
+      double inv = 1.0 / r.d[k];
+      double a = (lo - r.o[k]) * inv, b = (hi - r.o[k]) * inv;
+      tn = std::max(tn, std::min(a, b));
+      tf = std::min(tf, std::max(a, b));
+    }
+    if (!(tn <= tf)) return INFINITY;
+    t0 = tn;
+    t1 = tf;
+  } else if (kind == KIND_TRIANGLE) {
+    const double *p1 = q, *p2 = q + 3, *p3 = q + 6;
+    double e1[3] = {p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]};
+    double e2[3] = {p3[0] - p1[0], p3[1] - p1[1], p3[2] - p1[2]};
+    double pv[3] = {r.d[1] * e2[2] - r.d[2] * e2[1], r.d[2] * e2[0] - r.d[0] * e2[2],
+                    r.d[0] * e2[1] - r.d[1] * e2[0]};
+    double det = dot3(e1, pv);
+    if (det == 0.0 || !std::isfinite(det)) return INFINITY;
+    double inv = 1.0 / det;
+    double s[3] = {r.o[0] - p1[0], r.o[1] - p1[1], r.o[2] - p1[2]};
+    double u = dot3(s, pv) * inv;
+    // a hair of tolerance on the edges: the JAX kernel decides the exact hit of the chosen item
+    const double tol = 1e-9;
+    if (u < -tol || u > 1.0 + tol) return INFINITY;
+    double qv[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
+    double v = dot3(r.d, qv) * inv;
+    if (v < -tol || u + v > 1.0 + tol) return INFINITY;
+    t0 = dot3(e2, qv) * inv;
+  } else {
+    return INFINITY;
+  }
+  if (t0 > tmin && t0 < tmax) return t0;
+  if (t1 > tmin && t1 < tmax) return t1;
+  return INFINITY;
+}
+
+template <typename T>
+struct Scene {
+  const T* node_box;
+  const int32_t* node_info;
+  const int32_t* order;
+  const int32_t* kind;
+  const int32_t* mask;
+  const T* params;
+  int64_t n_items;
+};
+
+inline bool slab(const double* box_lo, const double* box_hi, const double* o, const double* inv, double tmin,
+                 double tmax) {
+  for (int k = 0; k < 3; ++k) {
+    double a = (box_lo[k] - o[k]) * inv[k], b = (box_hi[k] - o[k]) * inv[k];
+    // fmin/fmax drop the NaN of 0·inf (origin on a slab, direction parallel): no restriction
+    tmin = std::fmax(tmin, std::fmin(a, b));
+    tmax = std::fmin(tmax, std::fmax(a, b));
+  }
+  return tmin <= tmax;
+}
+
+// Closest (any_hit = false) or first found (any_hit = true) item of one ray.
+template <typename T>
+int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
+                 bool any_hit, double* t_out) {
+  double inv[3];
+  for (int k = 0; k < 3; ++k) inv[k] = 1.0 / d[k];
+  int32_t best = -1;
+  double best_t = tmax;
+  int64_t stack[STACK];
+  int sp = 0;
+  stack[sp++] = 0;
+  double lo[3], hi[3];
+  while (sp > 0) {
+    const int64_t node = stack[--sp];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = static_cast<double>(s.node_box[6 * node + k]);
+      hi[k] = static_cast<double>(s.node_box[6 * node + 3 + k]);
+    }
+    if (!slab(lo, hi, o, inv, tmin, best_t)) continue;
+    const int32_t* info = s.node_info + 4 * node;
+    if (info[1] > 0) {
+      for (int32_t j = info[0]; j < info[0] + info[1]; ++j) {
+        const int32_t it = s.order[j];
+        if ((s.mask[it] & want) == 0) continue;
+        double t = item_hit(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), o, d, tmin,
+                            best_t);
+        if (t < best_t) {
+          best_t = t;
+          best = it;
+          if (any_hit) {
+            *t_out = best_t;
+            return best;
+          }
+        }
+      }
+      continue;
+    }
+    const int64_t left = info[0], right = info[2];
+    if (sp + 2 > STACK) continue;  // unreachable for the depths the build makes (see bvh_build)
+    if (d[info[3]] < 0) {
+      stack[sp++] = left;
+      stack[sp++] = right;
+    } else {
+      stack[sp++] = right;
+      stack[sp++] = left;
+    }
+  }
+  *t_out = best_t;
+  return best;
+}
+
+template <ffi::DataType DT>
+ffi::Error build_impl(ffi::Buffer<DT> boxes, ffi::ResultBuffer<DT> node_box, ffi::ResultBuffer<ffi::S32> node_info,
+                      ffi::ResultBuffer<ffi::S32> order) {
+  const int64_t n = static_cast<int64_t>(boxes.element_count()) / 6;
+  if (n < 1) return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh_build: no items");
+  auto* nb = node_box->typed_data();
+  auto* ni = node_info->typed_data();
+  const int64_t m = static_cast<int64_t>(node_box->element_count()) / 6;
+  if (m < 2 * n - 1 || static_cast<int64_t>(node_info->element_count()) != 4 * m ||
+      static_cast<int64_t>(order->element_count()) != n)
+    return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh_build: outputs too small");
+  std::fill(nb, nb + 6 * m, 0);
+  std::fill(ni, ni + 4 * m, 0);
+  build(boxes.typed_data(), n, nb, ni, order->typed_data());
+  return ffi::Error::Success();
+}
+
+template <ffi::DataType DT>
+ffi::Error query_impl(bool any_hit, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
+                      ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
+                      ffi::Buffer<DT> params, ffi::Buffer<DT> origin, ffi::Buffer<DT> direction,
+                      ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want,
+                      ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t_out) {
+  using T = ffi::NativeType<DT>;
+  Scene<T> s{node_box.typed_data(), node_info.typed_data(), order.typed_data(), kind.typed_data(),
+             mask.typed_data(), params.typed_data(), static_cast<int64_t>(kind.element_count())};
+  const int64_t rays = static_cast<int64_t>(tmin.element_count());
+  auto size = [](const auto& buffer) { return static_cast<int64_t>(buffer.element_count()); };
+  if (size(origin) != 3 * rays || size(direction) != 3 * rays || size(tmax) != rays || size(want) != rays ||
+      size(params) != ITEM_PARAMS * s.n_items || size(mask) != s.n_items || size(order) != s.n_items)
+    return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh query: inconsistent operand sizes");
+  const T* o = origin.typed_data();
+  const T* d = direction.typed_data();
+  int32_t* out = item->typed_data();
+  T* tout = t_out->typed_data();
+  for (int64_t r = 0; r < rays; ++r) {
+    double oo[3] = {double(o[3 * r]), double(o[3 * r + 1]), double(o[3 * r + 2])};
+    double dd[3] = {double(d[3 * r]), double(d[3 * r + 1]), double(d[3 * r + 2])};
+    double t = INFINITY;
+    int32_t hit = -1;
+    const double lo = double(tmin.typed_data()[r]), hi = double(tmax.typed_data()[r]);
+    if (std::isfinite(oo[0] + oo[1] + oo[2] + dd[0] + dd[1] + dd[2]) && lo < hi)
+      hit = traverse(s, oo, dd, lo, hi, want.typed_data()[r], any_hit, &t);
+    out[r] = hit;
+    tout[r] = static_cast<T>(hit >= 0 ? t : INFINITY);
+  }
+  return ffi::Error::Success();
+}
+
+template <ffi::DataType DT>
+ffi::Error closest_impl(ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
+                        ffi::Buffer<ffi::S32> m, ffi::Buffer<DT> p, ffi::Buffer<DT> o, ffi::Buffer<DT> d,
+                        ffi::Buffer<DT> t0, ffi::Buffer<DT> t1, ffi::Buffer<ffi::S32> w,
+                        ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t) {
+  return query_impl<DT>(false, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
+}
+
+template <ffi::DataType DT>
+ffi::Error any_impl(ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
+                    ffi::Buffer<ffi::S32> m, ffi::Buffer<DT> p, ffi::Buffer<DT> o, ffi::Buffer<DT> d,
+                    ffi::Buffer<DT> t0, ffi::Buffer<DT> t1, ffi::Buffer<ffi::S32> w,
+                    ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t) {
+  return query_impl<DT>(true, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
+}
+
+}  // namespace
+
+// node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item, t
+#define QUERY_BINDING(DT)                                                                                  \
+  ffi::Ffi::Bind()                                                                                       \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Ret<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Ret<ffi::Buffer<DT>>()
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhBuildF32, build_impl<ffi::F32>,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F32>>()
+                                  .Ret<ffi::Buffer<ffi::F32>>()
+                                  .Ret<ffi::Buffer<ffi::S32>>()
+                                  .Ret<ffi::Buffer<ffi::S32>>());
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhBuildF64, build_impl<ffi::F64>,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::S32>>()
+                                  .Ret<ffi::Buffer<ffi::S32>>());
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF32, closest_impl<ffi::F32>, QUERY_BINDING(ffi::F32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF64, closest_impl<ffi::F64>, QUERY_BINDING(ffi::F64));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF32, any_impl<ffi::F32>, QUERY_BINDING(ffi::F32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF64, any_impl<ffi::F64>, QUERY_BINDING(ffi::F64));

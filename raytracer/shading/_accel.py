@@ -1,0 +1,217 @@
+"""The acceleration structure: a bounding volume hierarchy that *chooses* which primitive a ray hits.
+
+A ray used to be tested against every primitive (``_geometry.all_crossings``). Primitives whose
+shape names a native kernel (spheres, boxes, triangles, meshes: ``AbstractShape.native_kernel``)
+and that need nothing but their own surface — no CSG or clipping condition, not transparent (so a
+shadow ray only asks whether they block) — are instead *items* of a hierarchy built and traversed
+by native code (``raytracer/_native/bvh.cc``) called through XLA's FFI:
+
+* ``closest``: the item a ray hits first, then its distance and normal computed again by the
+  primitive's own JAX kernel (``sub_hits``): the choice is piecewise constant (made on
+  ``stop_gradient`` values), the hit is differentiable exactly as before — Mitsuba's split of a
+  preliminary intersection from a differentiable surface interaction;
+* ``blocked``: whether any item lies on a shadow segment (an any-hit query that stops at the first).
+
+The hierarchy is rebuilt by every call of the compiled program from the scene's current values
+(binned SAH, native), so it is right under ``jit``, ``grad`` and ``vmap`` and for traced geometry.
+The other primitives (planes and other unbounded shapes, CSG members, transparent objects, shapes
+without a native kernel) keep the candidate path of ``_geometry``; a scene with fewer than
+``MIN_ITEMS`` items is not accelerated at all. ``RAYTRACER_ACCEL=none`` turns the native path off
+(``native`` requires it); without the compiled library the renderer falls back to the candidate
+path, and ``raytracer info`` says which one a render uses.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import functools
+import os
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.custom_batching import custom_vmap
+
+from ..kernels import safe_normalize
+
+ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
+MIN_ITEMS = 32  # fewer items than this: every primitive is a candidate (cheaper than a query)
+T_MAX = 1e7  # as ``_geometry.closest_hit``: crossings beyond are ignored
+MASK_CAMERA, MASK_REFLECT, MASK_SHADOW = 1, 2, 4  # item visibility bits (bvh.cc's ``want``)
+
+
+class AccelUnavailable(RuntimeError):
+    pass
+
+
+@functools.cache
+def _library() -> str | None:
+    """Loads the native library and registers its FFI targets; the reason it failed otherwise."""
+    folder = Path(__file__).resolve().parent.parent / "_native"
+    found = sorted(folder.glob("_bvh*.so"))
+    if not found:
+        return f"the native BVH library is not built (no _bvh*.so in {folder}; reinstall with a C++ compiler)"
+    try:
+        lib = ctypes.cdll.LoadLibrary(str(found[0]))
+    except OSError as e:
+        return f"the native BVH library does not load: {e}"
+    for name in ("BvhBuild", "BvhClosest", "BvhAny"):
+        for suffix in ("F32", "F64"):
+            capsule = jax.ffi.pycapsule(getattr(lib, name + suffix))
+            jax.ffi.register_ffi_target(f"raytracer_{name}{suffix}", capsule, platform="cpu")
+    return None
+
+
+def mode() -> str:
+    """``"native"`` when renders use the native hierarchy, ``"none"`` when they test every primitive.
+
+    ``$RAYTRACER_ACCEL``: ``auto`` (default: native when the library is built and the default device
+    is a CPU), ``native`` (an error when unavailable) or ``none``."""
+    want = os.environ.get("RAYTRACER_ACCEL", "auto").strip().lower() or "auto"
+    if want not in ("auto", "native", "none"):
+        raise ValueError(f"RAYTRACER_ACCEL must be auto, native or none, not {want!r}")
+    if want == "none":
+        return "none"
+    problem = _library()
+    if problem is None and jax.default_backend() != "cpu":
+        problem = f"the native BVH runs on the CPU and the default device is {jax.default_backend()}"
+    if problem is not None:
+        if want == "native":
+            raise AccelUnavailable(problem)
+        return "none"
+    return "native"
+
+
+def unavailable_reason() -> str | None:
+    return _library()
+
+
+# ---------------------------------------------------------------- the FFI calls
+def _suffix(dtype) -> str:
+    return "F64" if jnp.dtype(dtype) == jnp.float64 else "F32"
+
+
+def _build(boxes):
+    """The hierarchy of ``boxes`` (n, 6): (node_box (2n-1, 6), node_info (2n-1, 4), order (n,))."""
+    n = boxes.shape[0]
+    m = max(2 * n - 1, 1)
+    out = (jax.ShapeDtypeStruct((m, 6), boxes.dtype), jax.ShapeDtypeStruct((m, 4), jnp.int32),
+           jax.ShapeDtypeStruct((n,), jnp.int32))
+    call = jax.ffi.ffi_call(f"raytracer_BvhBuild{_suffix(boxes.dtype)}", out)
+    return tuple(call(boxes))
+
+
+def _query_fn(any_hit: bool):
+    name = "BvhAny" if any_hit else "BvhClosest"
+
+    @custom_vmap
+    def query(tables, o, d, tmin, tmax, want):
+        """Rays of any leading shape ``S`` (``o``, ``d``: S + (3,)): (item S int32, -1 for none; t S)."""
+        shape = tmin.shape
+        out = (jax.ShapeDtypeStruct(shape, jnp.int32), jax.ShapeDtypeStruct(shape, o.dtype))
+        call = jax.ffi.ffi_call(f"raytracer_{name}{_suffix(o.dtype)}", out)
+        item, t = call(*tables, o.reshape(-1, 3), d.reshape(-1, 3), tmin.reshape(-1), tmax.reshape(-1),
+                       want.reshape(-1))
+        return item.reshape(shape), t.reshape(shape)
+
+    @query.def_vmap
+    def _batched(axis_size, in_batched, tables, o, d, tmin, tmax, want):
+        # the rays of every vmap (the ray pool, area-light samples, ...) become one call; the
+        # hierarchy is the scene's and is never batched
+        if any(jax.tree_util.tree_leaves(in_batched[0])):
+            raise NotImplementedError("the native BVH does not batch over scenes: vmap over scenes with "
+                                      "RAYTRACER_ACCEL=none")
+        rays = [x if b else jnp.broadcast_to(x, (axis_size, *x.shape))
+                for x, b in zip((o, d, tmin, tmax, want), in_batched[1:], strict=True)]
+        return query(tables, *rays), (True, True)
+
+    return query
+
+
+_closest_query = _query_fn(any_hit=False)
+_any_query = _query_fn(any_hit=True)
+
+
+# ---------------------------------------------------------------- the packed hierarchy
+@dataclasses.dataclass(frozen=True)
+class AccelGroup:
+    """Static description of the items of one accelerated group (``_geometry.Group``)."""
+
+    group: int  # index into PackedGeometry.groups
+    first: int  # its first item
+    members: int  # primitives in the group
+    per_member: int  # items per primitive (1, or a mesh's triangles)
+
+
+@dataclasses.dataclass
+class Accel:
+    """The items of every accelerated primitive and their hierarchy (arrays of this trace)."""
+
+    groups: tuple[AccelGroup, ...]
+    item_prim: jax.Array  # (n,) int32 primitive of each item
+    tables: tuple  # the query's scene operands: node_box, node_info, order, kind, mask, params
+    n_items: int
+
+
+def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, dtype) -> Accel:
+    """Items and hierarchy of the accelerated groups. ``groups``: (group index, prim indices) pairs,
+    ``shapes[g]`` / ``*_from_*[g]`` that group's stacked shapes and (n, 4, 4) maps; ``prim_mask`` (P,)
+    int: each primitive's visibility bits."""
+    sg = jax.lax.stop_gradient
+    boxes, kinds, params, prims, accel_groups = [], [], [], [], []
+    first = 0
+    for g, prim_ids in groups:
+        shape = jax.tree_util.tree_map(sg, shapes[g])
+        ofw, wfo = sg(object_from_world[g]), sg(world_from_object[g])
+        p, hull = jax.vmap(lambda s: s.native_items())(shape)  # (n, k, 12), (n, k, V, 3)
+        n, k = p.shape[:2]
+        world = jnp.einsum("nij,nkvj->nkvi", wfo[:, :3, :3], hull) + wfo[:, None, None, :3, 3]
+        boxes.append(jnp.concatenate([world.min(axis=2), world.max(axis=2)], axis=-1).reshape(n * k, 6))
+        m = jnp.broadcast_to(ofw[:, None, :3, :].reshape(n, 1, 12), (n, k, 12))
+        params.append(jnp.concatenate([m, p.astype(dtype)], axis=-1).reshape(n * k, ITEM_PARAMS))
+        kinds.append(np.full(n * k, type(shapes[g]).native_kernel, np.int32))
+        prims.append(np.repeat(np.asarray(prim_ids, np.int32), k))
+        accel_groups.append(AccelGroup(g, first, n, k))
+        first += n * k
+    boxes = jnp.concatenate(boxes).astype(dtype)
+    item_prim = np.concatenate(prims)
+    node_box, node_info, order = _build(boxes)
+    tables = (node_box, node_info, order, jnp.asarray(np.concatenate(kinds)),
+              jnp.asarray(np.asarray(prim_mask, np.int32)[item_prim]), jnp.concatenate(params).astype(dtype))
+    return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first)
+
+
+def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array):
+    """The closest item hit beyond ``t_min`` by rays whose visibility bit is ``want``, computed
+    again by its primitive's kernel: ``(found, t, prim, unit world normal)`` (``inverse`` not
+    applied); ``t`` is +inf where nothing is found."""
+    sg = jax.lax.stop_gradient
+    want = jnp.asarray(want, jnp.int32)
+    item, _ = _closest_query(accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
+    chosen = jnp.maximum(item, 0)
+    best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
+    for ag in accel.groups:
+        local = chosen - ag.first
+        mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)
+        local = jnp.where(mine, local, 0)
+        member, sub = local // ag.per_member, local % ag.per_member
+        shape = jax.tree_util.tree_map(lambda a, member=member: a[member], shapes[ag.group])
+        m = object_from_world[ag.group][member]
+        t, n = shape.sub_hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d, sub)
+        ok = mine & (t > t_min) & jnp.isfinite(t) & (t < T_MAX)
+        tt = jnp.where(ok, t, jnp.inf)
+        c = jnp.argmin(tt)
+        closer = tt[c] < best_t
+        best_t = jnp.where(closer, tt[c], best_t)
+        best_n = jnp.where(closer, safe_normalize(n[c] @ m[:3, :3]), best_n)
+    return jnp.isfinite(best_t), best_t, accel.item_prim[chosen], best_n
+
+
+def blocked(accel: Accel, o, d, t_min, t_max):
+    """Whether a shadow-casting item lies on the segment ``t_min < t < t_max`` of the ray."""
+    sg = jax.lax.stop_gradient
+    want = jnp.asarray(MASK_SHADOW, jnp.int32)
+    item, _ = _any_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
+    return item >= 0
