@@ -14,8 +14,6 @@ does not exist) is a dead slot and contributes nothing. This module joins the tw
 
 from __future__ import annotations
 
-import functools
-
 import jax
 
 from .._plan import Effects
@@ -34,5 +32,11 @@ def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None) -> t
     """Colours (N, 3) of N camera rays (origins and unit directions (N, 3)), and the number of child
     rays dropped for lack of ``capacity`` (0 without one): see ``_scheduler.trace_tree``."""
     eff = ctx.plan.effects
-    return trace_tree(functools.partial(shade, ctx), camera_rays(o, d), depth=eff.depth,
+
+    # a function, not functools.partial(shade, ctx): JAX names traced functions after their source,
+    # and for a partial it prints the arguments: the whole context (14 s for 1,000 spheres)
+    def shade_one(ray):
+        return shade(ctx, ray)
+
+    return trace_tree(shade_one, camera_rays(o, d), depth=eff.depth,
                       branch=child_slots(eff), chunk=chunk, capacity=capacity)

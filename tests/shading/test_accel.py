@@ -1,0 +1,137 @@
+"""The native hierarchy (``shading/_accel.py``) only chooses the hit: images and gradients must be
+those of the candidate path, which tests every primitive (the reference here)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from raytracer import load_scene, render
+from raytracer._plan import make_plan
+from raytracer.shading import _accel
+from raytracer.shading._geometry import pack_geometry
+
+pytestmark = pytest.mark.skipif(_accel.unavailable_reason() is not None,
+                                reason=str(_accel.unavailable_reason()))
+
+# every kind the hierarchy holds, transformed, next to what it must leave to the candidates
+# (a plane, a CSG, a glass sphere) and objects that only some rays see
+SCENE = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 max_trace_level 4 }
+camera { location <0, 6, -12> look_at <0, 0.5, 0> angle 55 }
+light_source { <-8, 14, -9> color rgb 1 }
+light_source { <9, 6, -4> color rgb 0.4 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
+#declare R = seed(7);
+#for (i, 0, 59)
+  #declare P = <rand(R) * 10 - 5, rand(R) * 1.5, rand(R) * 8 - 3>;
+  #switch (mod(i, 4))
+  #case (0) sphere { 0, 0.2 + 0.3 * rand(R) scale <1, 0.5 + rand(R), 1> rotate <0, 0, 40 * rand(R)>
+                     translate P pigment { rgb <rand(R), 0.5, 0.7> } finish { phong 0.6 } } #break
+  #case (1) box { -0.3, <0.2, 0.5, 0.3> rotate <30 * rand(R), 60 * rand(R), 0> translate P
+                  pigment { rgb <0.9, rand(R), 0.2> } } #break
+  #case (2) triangle { <-0.5, 0, 0>, <0.5, 0, 0.2>, <0, 0.8, -0.1> rotate <0, 90 * rand(R), 0>
+                       translate P pigment { rgb <0.2, 0.8, rand(R)> } } #break
+  #else smooth_triangle { <-0.4, 0, 0>, <0, 0, -1>, <0.4, 0, 0>, <1, 0, -1>, <0, 0.7, 0>, <-1, 1, -1>
+                          translate P pigment { rgb 0.8 } }
+  #end
+#end
+mesh2 { vertex_vectors { 4, <-1, 0, 0>, <1, 0, 0>, <0, 1.5, 0>, <0, 0.5, -1> }
+        face_indices { 3, <0, 1, 2>, <0, 1, 3>, <1, 2, 3> }
+        pigment { rgb <1, 0.6, 0.2> } translate <3, 0.2, -2> }
+sphere { <-2, 1, -3>, 0.8 pigment { rgb 0.9 } finish { reflection 0.7 } }
+sphere { <0, 1, -4>, 0.7 pigment { rgbf <1, 1, 1, 0.9> } interior { ior 1.3 } }
+difference { box { -0.6, 0.6 } sphere { 0, 0.75 } pigment { rgb <0.3, 0.3, 1> } translate <2, 0.6, -5> }
+sphere { <-3.5, 0.5, -5>, 0.5 pigment { rgb 1 } no_shadow }
+sphere { <-2.9, 0.5, -5.5>, 0.4 pigment { rgb <1, 0, 0> } no_image }
+sphere { <-1.9, 2.5, -3.4>, 0.3 pigment { rgb <0, 1, 0> } no_reflection }
+"""
+
+
+@pytest.fixture
+def scene(tmp_path):
+    path = tmp_path / "accel.pov"
+    path.write_text(SCENE)
+    return load_scene(path, width=48, height=36)
+
+
+def _render(scene, mode, monkeypatch):
+    monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+    jax.clear_caches()
+    return np.asarray(render(scene, width=48, height=36))
+
+
+def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    plan = make_plan(scene)
+    geo = pack_geometry(plan, jnp.float32)
+    held = {p for g in geo.groups if g.accelerated for p in g.prims}
+    kinds = {plan.prims[i].kind for i in held}
+    assert kinds == {"sphere", "box", "triangle", "smooth_triangle", "mesh"}
+    # the loop's 60, the mesh's 3 triangles, the mirror sphere and the three flagged spheres
+    assert geo.accel.n_items == 60 + 3 + 4
+    left = [plan.prims[i] for i in range(len(plan.prims)) if i not in held]
+    # the plane (unbounded), the glass sphere (transparent), the box and sphere of the difference
+    assert sorted(p.kind for p in left) == ["box", "plane", "sphere", "sphere"]
+    assert sum(bool(p.conditions) for p in left) == 2
+
+
+def test_native_hierarchy_renders_the_candidate_paths_image(scene, monkeypatch):
+    ours = _render(scene, "native", monkeypatch)
+    reference = _render(scene, "none", monkeypatch)
+    assert np.isfinite(ours).all()
+    diff = np.abs(ours - reference).max(axis=-1)
+    # the same hits to float32 rounding; a pixel may differ where two surfaces are within
+    # rounding of each other along its ray (none in this scene at this size)
+    assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
+
+
+@pytest.mark.slow
+def test_gradient_through_the_chosen_hit_equals_the_candidate_path(scene, monkeypatch):
+    def loss(s):
+        return jnp.mean(render(s, width=16, height=12) ** 2)
+
+    grads = {}
+    for mode in ("native", "none"):
+        monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+        jax.clear_caches()
+        g = jax.grad(loss)(scene)
+        grads[mode] = jax.tree_util.tree_leaves(g)
+    for a, b in zip(grads["native"], grads["none"], strict=True):
+        assert np.isfinite(np.asarray(a)).all()
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-6)
+
+
+def test_closest_and_any_hit_queries_in_float64(x64):
+    """The query's distances against a brute-force minimum over the same items (float64)."""
+    rng = np.random.default_rng(3)
+    n = 300
+    centres = rng.uniform(-5, 5, (n, 3))
+    radii = rng.uniform(0.05, 0.5, n)
+    eye = np.broadcast_to(np.eye(4)[:3].reshape(12), (n, 12))
+    params = np.concatenate([eye, centres, radii[:, None], np.zeros((n, 8))], axis=1)
+    boxes = np.concatenate([centres - radii[:, None], centres + radii[:, None]], axis=1)
+    node_box, node_info, order = _accel._build(jnp.asarray(boxes))
+    tables = (node_box, node_info, order, jnp.zeros(n, jnp.int32), jnp.full(n, 7, jnp.int32),
+              jnp.asarray(params))
+    o = rng.uniform(-6, 6, (500, 3))
+    d = rng.normal(size=(500, 3))
+    item, t = _accel._closest_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500),
+                                    jnp.full(500, 1e7), jnp.ones(500, jnp.int32))
+    # brute force: the smaller positive root of every sphere
+    oc = o[:, None, :] - centres[None]
+    a = np.sum(d * d, axis=1)[:, None]
+    b = np.einsum("ri,rni->rn", d, oc)
+    c = np.sum(oc * oc, axis=2) - radii[None] ** 2
+    disc = b * b - a * c
+    sq = np.sqrt(np.where(disc >= 0, disc, 0))
+    roots = np.stack([(-b - sq) / a, (-b + sq) / a])
+    roots = np.where((disc >= 0)[None] & (roots > 0), roots, np.inf).min(axis=0)
+    want_item = np.where(np.isfinite(roots.min(axis=1)), roots.argmin(axis=1), -1)
+    np.testing.assert_array_equal(np.asarray(item), want_item)
+    hit = want_item >= 0
+    np.testing.assert_allclose(np.asarray(t)[hit], roots.min(axis=1)[hit], rtol=1e-12)
+    blocked, _ = _accel._any_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500), jnp.full(500, 1e7),
+                                   jnp.ones(500, jnp.int32))
+    np.testing.assert_array_equal(np.asarray(blocked) >= 0, hit)
