@@ -9,15 +9,19 @@ the forward render nor its gradient holds more than one tile's rays at a time.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from ._packing import is_traced, skeleton
 from ._plan import Plan, make_plan
 from .scene import Scene
-from .shading._geometry import pack_geometry
-from .shading._materials import pack_materials
+from .shading import _accel
+from .shading._geometry import PackedGeometry, pack_geometry
+from .shading._materials import PackedMaterials, pack_materials
 from .shading.camera import camera_rays, image_coords
 from .shading.whitted import make_context, slots_per_camera_ray, trace
 
@@ -54,17 +58,46 @@ def _output_transfer(img, settings):
     return jnp.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
-def _context(scene: Scene, scene_plan: Plan):
+class Packed(NamedTuple):
+    """The scene as the compiled program receives it (see ``raytracer/_packing.py``): its skeleton
+    (objects without their arrays; camera, lights and settings as they are) and its objects packed
+    into struct-of-arrays. Packing runs before the program, so neither the program's size nor its
+    compile time grows with the number of objects' leaves."""
+
+    scene: Scene
+    geo: PackedGeometry
+    mats: PackedMaterials
+
+
+_PACKED: dict[tuple, tuple[Scene, Packed]] = {}  # the last few concrete scenes packed (by identity)
+
+
+def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
+    """``scene`` packed for the compiled program (values stay differentiable: under ``jax.grad``
+    the packing is traced with the rest). A concrete scene is immutable (read-only arrays), so the
+    last few packed are kept: rendering one scene again does not pack it again."""
+    key = (id(scene), _accel.mode())
+    cached = _PACKED.get(key)
+    if cached is not None and cached[0] is scene:
+        return cached[1]
+    scene_plan = make_plan(scene) if scene_plan is None else scene_plan
     dtype = scene.camera.location.dtype
-    geo = pack_geometry(scene_plan, dtype)
-    mats = pack_materials(scene_plan, dtype)
-    return make_context(scene_plan, geo, mats, scene.lights, scene.settings, scene.background, dtype)
+    bones = eqx.tree_at(lambda s: s.objects, scene, skeleton(scene.objects))
+    packed = Packed(bones, pack_geometry(scene_plan, dtype), pack_materials(scene_plan, dtype))
+    if not is_traced(scene) and all(isinstance(x, np.ndarray) and not x.flags.writeable
+                                    for x in jax.tree_util.tree_leaves(scene.objects)):
+        while len(_PACKED) >= 4:
+            _PACKED.pop(next(iter(_PACKED)))
+        _PACKED[key] = (scene, packed)
+    return packed
 
 
-def _trace_tiles(scene: Scene, scene_plan: Plan, origins, dirs, tile: int, capacity: int | None):
+def _trace_tiles(packed: Packed, scene_plan: Plan, origins, dirs, tile: int, capacity: int | None):
     """Colours of a stack of tiles (T, tile, 3), one tile at a time, and the dropped-ray count.
-    ``scene_plan`` is ``make_plan(scene)`` of this very ``scene`` (its arrays are this trace's)."""
-    ctx = _context(scene, scene_plan)
+    ``scene_plan`` is ``make_plan(packed.scene)``."""
+    scene = packed.scene
+    ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
+                       scene.camera.location.dtype)
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
     chunk = pool if pool <= UNCHUNKED_POOL else tile // CHUNKS_PER_TILE
 
@@ -90,16 +123,17 @@ def _layout(scene_plan: Plan, n: int, n_parts: int, capacity: int | None) -> tup
 
 
 @eqx.filter_jit
-def _render_part(scene: Scene, width: int, height: int, k: int, n_parts: int, part,
+def _render_part(packed: Packed, width: int, height: int, k: int, n_parts: int, part,
                  capacity: int | None = None):
     """Colours (tiles, tile, 3) of part ``part`` (traced) of the image's tiles, in ``n_parts`` parts,
     and the number of rays dropped for lack of ``capacity`` (see ``whitted.trace``)."""
-    return _render_tiles(scene, make_plan(scene), width, height, k, n_parts, part, capacity)
+    return _render_tiles(packed, make_plan(packed.scene), width, height, k, n_parts, part, capacity)
 
 
-def _render_tiles(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, n_parts: int, part,
+def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: int, n_parts: int, part,
                   capacity: int | None):
-    """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(scene)``."""
+    """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(packed.scene)``."""
+    scene = packed.scene
     dtype = scene.camera.location.dtype
     x0, y0 = image_coords(width, height, k, dtype)
     origins, dirs = camera_rays(scene.camera, x0, y0)
@@ -113,19 +147,17 @@ def _render_tiles(scene: Scene, scene_plan: Plan, width: int, height: int, k: in
     dirs = jax.lax.dynamic_slice_in_dim(dirs.reshape(-1, tile, 3), part * per_part, per_part)
     if n_dev > 1:
         # tiles are independent: shard them over the devices (CPU devices with
-        # --xla_force_host_platform_device_count, or GPUs); the scene is replicated, and the plan
-        # is made again inside from the replicated scene (the outer plan's arrays belong to the
-        # outer trace)
-        def trace_shard(s, o, d):
-            return _trace_tiles(s, make_plan(s), o, d, tile=tile, capacity=capacity)
+        # --xla_force_host_platform_device_count, or GPUs); the packed scene is replicated
+        def trace_shard(p, o, d):
+            return _trace_tiles(p, scene_plan, o, d, tile=tile, capacity=capacity)
 
         mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.devices(),
                              axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
         colours, dropped = jax.shard_map(trace_shard, mesh=mesh, in_specs=(replicated, spec, spec),
-                                         out_specs=(spec, spec), check_vma=False)(scene, origins, dirs)
+                                         out_specs=(spec, spec), check_vma=False)(packed, origins, dirs)
         return colours, jnp.sum(dropped)
-    colours, dropped = _trace_tiles(scene, scene_plan, origins, dirs, tile=tile, capacity=capacity)
+    colours, dropped = _trace_tiles(packed, scene_plan, origins, dirs, tile=tile, capacity=capacity)
     return colours, jnp.sum(dropped)
 
 
@@ -144,13 +176,18 @@ def _background_only(scene: Scene, width: int, height: int):
 
 
 @eqx.filter_jit
+def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: int | None = None):
+    """The image and the number of rays dropped for lack of ``capacity`` (0 when None)."""
+    colours, dropped = _render_tiles(packed, make_plan(packed.scene), width, height, k, 1, 0, capacity)
+    return _assemble(packed.scene, [colours], width, height, k), dropped
+
+
 def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None = None):
     """The image and the number of rays dropped for lack of ``capacity`` (0 when None)."""
     scene_plan = make_plan(scene)
     if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background
         return _background_only(scene, width, height), jnp.zeros((), jnp.int32)
-    colours, dropped = _render_tiles(scene, scene_plan, width, height, k, 1, 0, capacity)
-    return _assemble(scene, [colours], width, height, k), dropped
+    return _render_packed(pack(scene, scene_plan), width, height, k, capacity)
 
 
 def _check(width: int, height: int, spp: int) -> int:
@@ -211,16 +248,17 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
     state = {"capacity": capacity}
 
     def build():
-        return _render_part.lower(scene, width, height, k, n_parts, jnp.asarray(0),
+        return _render_part.lower(pack(scene), width, height, k, n_parts, jnp.asarray(0),
                                   state["capacity"]).compile()
 
     state["compiled"] = build()
 
     def run(s: Scene) -> jax.Array:
+        packed = pack(s)
         while True:
             parts, dropped = [], 0
             for i in range(n_parts):
-                colours, lost = state["compiled"](s, width, height, k, n_parts, jnp.asarray(i),
+                colours, lost = state["compiled"](packed, width, height, k, n_parts, jnp.asarray(i),
                                                   state["capacity"])
                 parts.append(colours)
                 dropped += int(lost)

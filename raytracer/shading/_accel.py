@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.custom_batching import custom_vmap
 
+from .._packing import register_packed
 from ..kernels import safe_normalize
 
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
@@ -153,6 +154,9 @@ class Accel:
     item_prim: jax.Array  # (n,) int32 primitive of each item
     tables: tuple  # the query's scene operands: node_box, node_info, order, kind, mask, params
     n_items: int
+
+
+register_packed(Accel, ("item_prim", "tables"))
 
 
 def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, dtype) -> Accel:

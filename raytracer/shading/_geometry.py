@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._packing import register_packed, stack
 from .._plan import InAll, InDiff, InPrim, InsideTree, Plan
 from ..kernels import safe_normalize
 from ..scene._transform import inverse_affine
@@ -53,8 +54,11 @@ class PackedGeometry:
     prim_sign: np.ndarray | None = None  # (P,) -1.0 where a primitive's normals are inverted
 
 
+register_packed(PackedGeometry, ("shapes", "object_from_world", "accel"))
+
+
 def _stack(trees):
-    return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trees)
+    return jax.tree_util.tree_map(lambda *xs: stack(xs), *trees)
 
 
 def _variant(shape: AbstractShape) -> tuple:
@@ -99,12 +103,9 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
         k = members[0].n_crossings()
         groups.append(Group(members[0].kind, tuple(ids), type(members[0]).solid, accelerated))
         shapes.append(_stack(members))
-        mats = []
-        for i in ids:
-            t = plan.prims[i].world_from_object()
-            mats.append(jnp.eye(4, dtype=dtype) if t is None else t.matrix.astype(dtype))
-        wfo.append(jnp.stack(mats))
-        ofw.append(jax.vmap(inverse_affine)(wfo[-1]))
+        transforms = [plan.prims[i].world_from_object() for i in ids]
+        wfo.append(stack([np.eye(4) if t is None else t.matrix for t in transforms], dtype))
+        ofw.append(jax.vmap(inverse_affine)(jnp.asarray(wfo[-1])))
         for j, i in enumerate(ids):
             where[i] = (len(groups) - 1, j)
             if not accelerated:

@@ -1,5 +1,6 @@
-"""Per-primitive material arrays (top texture layer, finish, interior), packed inside the jit trace
-so gradients reach the user's objects, and pigment evaluation at a hit point (semantics §5.2)."""
+"""Per-primitive material arrays (texture layers, finish, interior), packed before the compiled
+program runs (numpy for concrete values, jnp for traced ones, so gradients reach the user's objects:
+see ``raytracer/_packing.py``), and pigment evaluation at a hit point (semantics §5.2)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import patterns
+from .._packing import is_traced, register_packed, stack
 from .._plan import Plan
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
 from ..scene._transform import inverse_affine
@@ -53,23 +55,28 @@ class PackedMaterials:
     transparent: np.ndarray  # (N,) static: every layer's pigment can carry filter/transmit
 
 
-def _f(x, dtype):
-    return jnp.asarray(x, dtype)
-
-
-def _finish_arrays(f: Finish, dtype) -> dict:
+def _finish_arrays(f: Finish) -> dict:
     r = f.reflection if f.reflection is not None else Reflection()
-    zero = jnp.zeros((), dtype)
     return {
         "ambient": f.ambient, "emission": f.emission, "diffuse": f.diffuse,
         "brilliance": f.brilliance,
-        "phong": f.phong if f.phong is not None else zero, "phong_size": f.phong_size,
-        "specular": f.specular if f.specular is not None else zero,
+        "phong": f.phong if f.phong is not None else 0.0, "phong_size": f.phong_size,
+        "specular": f.specular if f.specular is not None else 0.0,
         "roughness": f.roughness,
-        "metallic": f.metallic if f.metallic is not None else zero,
+        "metallic": f.metallic if f.metallic is not None else 0.0,
         "refl_min": r.min, "refl_max": r.max, "refl_falloff": r.falloff,
-        "refl_exponent": r.exponent, "refl_metallic": r.metallic if r.metallic is not None else zero,
+        "refl_exponent": r.exponent, "refl_metallic": r.metallic if r.metallic is not None else 0.0,
     }
+
+
+def _padded(xs, m: int, dtype):
+    """(n, m, …): each array of ``xs`` (its own length along axis 0) padded to ``m`` entries by
+    repeating its last entry (a colour-map lookup is unchanged by it)."""
+    if not is_traced(xs):
+        return np.stack([np.concatenate([np.asarray(x), np.repeat(np.asarray(x)[-1:], m - x.shape[0], 0)])
+                         for x in xs]).astype(dtype)
+    return jnp.stack([jnp.concatenate([x, jnp.repeat(x[-1:], m - x.shape[0], 0)]) if x.shape[0] < m
+                      else jnp.asarray(x) for x in xs]).astype(dtype)
 
 
 def pack_materials(plan: Plan, dtype) -> PackedMaterials:
@@ -82,19 +89,10 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
     interiors = [p.interior if p.interior is not None else Interior() for p in plan.prims]
     names = tuple(sorted({pg.pattern for pg in pigments}))
     m = max(pg.values.shape[0] for pg in pigments)
-
-    def pad(pg: Pigment):
-        extra = m - pg.values.shape[0]
-        v = jnp.concatenate([pg.values, jnp.repeat(pg.values[-1:], extra)]) if extra else pg.values
-        c = jnp.concatenate([pg.colors, jnp.repeat(pg.colors[-1:], extra, 0)]) if extra else pg.colors
-        return v.astype(dtype), c.astype(dtype)
-
-    padded = [pad(pg) for pg in pigments]
-    eye = jnp.eye(4, dtype=dtype)
-    pfw = [eye if pg.transform is None else inverse_affine(pg.transform.matrix.astype(dtype))
-           for pg in pigments]
-    zero3 = jnp.zeros(3, dtype)
-    fin = [_finish_arrays(f, dtype) for f in finishes]
+    world_from_pattern = stack([np.eye(4) if pg.transform is None else pg.transform.matrix
+                                for pg in pigments], dtype)
+    zero3 = np.zeros(3)
+    fin = [_finish_arrays(f) for f in finishes]
     return PackedMaterials(
         n_layers=n_layers,
         layer_present=present,
@@ -104,28 +102,31 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
                         for nm in names),
         octaves={nm: max(pg.octaves for pg in pigments if pg.pattern == nm) for nm in names},
         waves=np.array([pat_wave_index(pg) for pg in pigments], dtype=np.int32),
-        values=jnp.stack([v for v, _ in padded]),
-        colors=jnp.stack([c for _, c in padded]),
-        pattern_from_world=jnp.stack(pfw),
-        vector=jnp.stack([pg.vector.astype(dtype) for pg in pigments]),
-        frequency=jnp.stack([pg.frequency.astype(dtype) for pg in pigments]),
-        phase=jnp.stack([pg.phase.astype(dtype) for pg in pigments]),
-        turbulence=jnp.stack([zero3 if pg.turbulence is None else pg.turbulence.astype(dtype)
-                              for pg in pigments]),
-        omega=jnp.stack([pg.omega.astype(dtype) for pg in pigments]),
-        lambda_=jnp.stack([pg.lambda_.astype(dtype) for pg in pigments]),
-        finish={k: jnp.stack([_f(fi[k], dtype) for fi in fin]) for k in fin[0]},
+        values=_padded([pg.values for pg in pigments], m, dtype),
+        colors=_padded([pg.colors for pg in pigments], m, dtype),
+        pattern_from_world=jax.vmap(inverse_affine)(jnp.asarray(world_from_pattern)),
+        vector=stack([pg.vector for pg in pigments], dtype),
+        frequency=stack([pg.frequency for pg in pigments], dtype),
+        phase=stack([pg.phase for pg in pigments], dtype),
+        turbulence=stack([zero3 if pg.turbulence is None else pg.turbulence for pg in pigments], dtype),
+        omega=stack([pg.omega for pg in pigments], dtype),
+        lambda_=stack([pg.lambda_ for pg in pigments], dtype),
+        finish={k: stack([fi[k] for fi in fin], dtype) for k in fin[0]},
         fresnel=np.array([f.reflection is not None and f.reflection.fresnel for f in finishes]),
         conserve_energy=np.array([f.conserve_energy for f in finishes]),
-        ior=jnp.stack([_f(1.0 if it.ior is None else it.ior, dtype) for it in interiors]),
-        fade_distance=jnp.stack([_f(0.0 if it.fade_distance is None or it.fade_power is None
-                                    else it.fade_distance, dtype) for it in interiors]),
-        fade_power=jnp.stack([_f(0.0 if it.fade_power is None else it.fade_power, dtype)
-                              for it in interiors]),
-        fade_color=jnp.stack([it.fade_color.astype(dtype) for it in interiors]),
+        ior=stack([1.0 if it.ior is None else it.ior for it in interiors], dtype),
+        fade_distance=stack([0.0 if it.fade_distance is None or it.fade_power is None
+                             else it.fade_distance for it in interiors], dtype),
+        fade_power=stack([0.0 if it.fade_power is None else it.fade_power for it in interiors], dtype),
+        fade_color=stack([it.fade_color for it in interiors], dtype),
         transparent=np.array([all(layer.pigment.transparent for layer in p.texture.layers)
                               for p in plan.prims]),
     )
+
+
+register_packed(PackedMaterials, ("values", "colors", "pattern_from_world", "vector", "frequency", "phase",
+                                  "turbulence", "omega", "lambda_", "finish", "ior", "fade_distance",
+                                  "fade_power", "fade_color"))
 
 
 def pat_wave_index(pg: Pigment) -> int:
