@@ -144,10 +144,28 @@ def _summary(scene) -> list[str]:
         + "".join(f"\n  {_light_text(light)}" for light in scene.lights),
         f"camera: {scene.camera.projection} at {_vec(loc)} direction {_vec(d)} right {_vec(r)} up {_vec(u)}",
         f"plan: {p.effects.describe()}",
+        _acceleration_text(p),
         f"warnings: {len(p.warnings)}",
     ]
     lines += [f"  {w}" for w in p.warnings]
     return lines
+
+
+def _acceleration_text(p) -> str:
+    from .shading import _accel
+    from .shading._geometry import accelerated_prims
+
+    if _accel.mode() == "none":
+        why = _accel.unavailable_reason() or "RAYTRACER_ACCEL=none"
+        return f"acceleration: none ({why}): every ray tests every primitive"
+    held = accelerated_prims(p)
+    n = sum(held)
+    if not n:
+        return (f"acceleration: none (fewer than {_accel.MIN_ITEMS} primitives or triangles it can hold): "
+                "every ray tests every primitive")
+    items = sum(prim.obj.shape.n_native_items() for prim, ok in zip(p.prims, held, strict=True) if ok)
+    return (f"acceleration: native BVH over {n} of {len(p.prims)} primitives ({items} items); "
+            f"every ray tests the other {len(p.prims) - n}")
 
 
 def _vec(v) -> str:

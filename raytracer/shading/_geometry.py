@@ -84,16 +84,20 @@ def visibility_bits(prim) -> int:
             | (_accel.MASK_SHADOW if "no_shadow" not in prim.flags else 0))
 
 
+def accelerated_prims(plan: Plan, accelerate: bool | None = None) -> list[bool]:
+    """Which primitives the native hierarchy chooses among (see ``pack_geometry``)."""
+    if accelerate is None:
+        accelerate = _accel.mode() == "native"
+    held = [accelerate and _accelerable(p) for p in plan.prims]
+    items = sum(p.obj.shape.n_native_items() for p, ok in zip(plan.prims, held, strict=True) if ok)
+    return held if items >= _accel.MIN_ITEMS else [False] * len(plan.prims)
+
+
 def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGeometry:
     """Every primitive of ``plan`` packed by group. ``accelerate``: let the native hierarchy choose
     among the primitives it can (None: when ``_accel.mode()`` is native and there are at least
     ``_accel.MIN_ITEMS`` items)."""
-    if accelerate is None:
-        accelerate = _accel.mode() == "native"
-    accel_ok = [accelerate and _accelerable(p) for p in plan.prims]
-    items = sum(p.obj.shape.n_crossings() for p, ok in zip(plan.prims, accel_ok, strict=True) if ok)
-    if items < _accel.MIN_ITEMS:
-        accel_ok = [False] * len(plan.prims)
+    accel_ok = accelerated_prims(plan, accelerate)
     keyed: dict[tuple, list[int]] = {}
     for i, p in enumerate(plan.prims):
         keyed.setdefault((_variant(p.obj.shape), accel_ok[i]), []).append(i)

@@ -176,6 +176,10 @@ class AbstractShape(eqx.Module):
         points whose hull holds each item (k, V, 3) (its bounding box comes from them)."""
         raise NotImplementedError(f"{self.kind} has no native kernel")
 
+    def n_native_items(self) -> int:
+        """k of ``native_items`` (static: from shapes alone)."""
+        return 1
+
     def sub_hits(self, o: Float[Array, "3"], d: Float[Array, "3"], sub) -> tuple[Float[Array, " J"], Float[Array, "J 3"]]:  # noqa: E501
         """The crossings of native item ``sub`` (an index into ``native_items``): by default every
         crossing (the shape is one item); a mesh answers for the one triangle."""

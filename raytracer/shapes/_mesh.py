@@ -64,6 +64,9 @@ class Mesh(AbstractShape):
         f = self.triangles.shape[0]
         return jnp.pad(self.triangles.reshape(f, 9), ((0, 0), (0, 3))), self.triangles
 
+    def n_native_items(self) -> int:
+        return int(self.triangles.shape[0])
+
     def sub_hits(self, o, d, sub):
         tri = self.triangles[sub]
         if self.normals is None:
