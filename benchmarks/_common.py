@@ -7,6 +7,7 @@ import json
 import os
 import platform
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -54,7 +55,12 @@ def scene_variant(
 
 
 def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
-    """Runs one measurement (see :mod:`benchmarks._worker`) in a fresh Python process."""
+    """Runs one measurement (see :mod:`benchmarks._worker`) in a fresh Python process.
+
+    Raises :class:`JobFailed` if the worker fails and :class:`subprocess.TimeoutExpired` after
+    ``timeout`` seconds. The worker runs in its own process group, killed whole on a timeout (or an
+    interrupt), so that a ``povray`` it started does not outlive it.
+    """
     env = dict(os.environ)
     env.setdefault("JAX_PLATFORMS", "cpu")
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
@@ -62,19 +68,34 @@ def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench-home-") as home:
         if job["kind"] == "mitsuba":
             env["HOME"] = home  # Dr.Jit caches compiled kernels under ~/.drjit: start cold
-        proc = subprocess.run(
+        proc = subprocess.Popen(
             [sys.executable, "-m", "benchmarks._worker"],
-            input=json.dumps(job),
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
             text=True,
-            capture_output=True,
             env=env,
             cwd=ROOT,
-            timeout=timeout,
+            start_new_session=True,
         )
-    lines = proc.stdout.strip().splitlines()
+        try:
+            stdout, stderr = proc.communicate(json.dumps(job), timeout=timeout)
+        except BaseException:
+            _kill_group(proc)
+            raise
+    lines = stdout.strip().splitlines()
     if proc.returncode != 0 or not lines:
-        raise JobFailed(f"{job['kind']} job failed ({proc.returncode}): {job}\n{proc.stderr[-3000:]}")
+        raise JobFailed(f"{job['kind']} job failed ({proc.returncode}): {job}\n{stderr[-3000:]}")
     return json.loads(lines[-1])
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    """Kills a worker started with ``start_new_session`` and everything it started, and reaps it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.communicate()
 
 
 def machine() -> dict:
