@@ -217,7 +217,8 @@ def main() -> int:
     job = json.loads(sys.stdin.read())
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     kind = job["kind"]
-    result = {"ours": run_ours, "ours_grad": run_ours_grad, "povray": run_povray, "mitsuba": run_mitsuba}[kind](job)
+    jobs = {"ours": run_ours, "ours_grad": run_ours_grad, "povray": run_povray, "mitsuba": run_mitsuba}
+    result = jobs[kind](job)
     sys.stdout.write("\n" + json.dumps(result) + "\n")
     return 0
 
