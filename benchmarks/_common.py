@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -24,6 +25,10 @@ SCENES = {
 
 class JobFailed(RuntimeError):
     pass
+
+
+class MemoryExceeded(JobFailed):
+    """A worker (with what it started) held more resident memory than the job allowed; it was killed."""
 
 
 def scene_variant(
@@ -54,12 +59,14 @@ def scene_variant(
     return out
 
 
-def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
+def run_job(job: dict, *, timeout: float = 1800.0, max_rss_mb: float | None = None) -> dict:
     """Runs one measurement (see :mod:`benchmarks._worker`) in a fresh Python process.
 
-    Raises :class:`JobFailed` if the worker fails and :class:`subprocess.TimeoutExpired` after
-    ``timeout`` seconds. The worker runs in its own process group, killed whole on a timeout (or an
-    interrupt), so that a ``povray`` it started does not outlive it.
+    Raises :class:`JobFailed` if the worker fails, :class:`subprocess.TimeoutExpired` after
+    ``timeout`` seconds, and :class:`MemoryExceeded` once the worker's process group holds more than
+    ``max_rss_mb`` of resident memory (polled every :data:`POLL_S` seconds on Linux; the machine is
+    shared and has no swap). The worker runs in its own process group, killed whole on any of
+    these (or an interrupt), so that a ``povray`` it started does not outlive it.
     """
     env = dict(os.environ)
     env.setdefault("JAX_PLATFORMS", "cpu")
@@ -79,7 +86,7 @@ def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
             start_new_session=True,
         )
         try:
-            stdout, stderr = proc.communicate(json.dumps(job), timeout=timeout)
+            stdout, stderr = _communicate(proc, json.dumps(job), timeout, max_rss_mb)
         except BaseException:
             _kill_group(proc)
             raise
@@ -87,6 +94,40 @@ def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
     if proc.returncode != 0 or not lines:
         raise JobFailed(f"{job['kind']} job failed ({proc.returncode}): {job}\n{stderr[-3000:]}")
     return json.loads(lines[-1])
+
+
+POLL_S = 0.5
+
+
+def _communicate(proc: subprocess.Popen, text: str, timeout: float, max_rss_mb: float | None):
+    """``proc.communicate(text)`` within ``timeout`` seconds, checking the group's memory meanwhile."""
+    if max_rss_mb is None:
+        return proc.communicate(text, timeout=timeout)
+    deadline = time.monotonic() + timeout
+    pending = text
+    while True:
+        try:  # a retried communicate() loses no output; the input is sent by the first call only
+            return proc.communicate(pending, timeout=max(0.0, min(POLL_S, deadline - time.monotonic())))
+        except subprocess.TimeoutExpired:
+            pending = None
+        if time.monotonic() >= deadline:
+            raise subprocess.TimeoutExpired(proc.args, timeout)
+        rss = _group_rss_mb(proc.pid)
+        if rss > max_rss_mb:
+            raise MemoryExceeded(f"used {rss:.0f} MB of resident memory, over the limit of {max_rss_mb:g} MB")
+
+
+def _group_rss_mb(pgid: int) -> float:
+    """Resident memory of the processes in group ``pgid``, from /proc (0 where there is no /proc)."""
+    total = 0
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()  # from field 3 (state) on
+        except (OSError, IndexError):
+            continue  # the process has gone
+        if int(fields[2]) == pgid:  # field 5: pgrp
+            total += int(fields[21])  # field 24: rss, in pages
+    return total * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
