@@ -35,8 +35,10 @@ Every measurement is a fresh worker process (``benchmarks/_worker.py``), one at 
 * ``ours / POV``: our warm time over POV-Ray's Trace Time; ``PSNR dB``: our image against POV-Ray's
   (``validation.metrics.psnr``, linear, peak 1), where both finished.
 
-Every job has a timeout (``--timeout``, default 600 s, covering parse, compile and the runs); a job
-that times out or fails is recorded as ``timeout`` / ``failed`` with its reason and the run goes on.
+Every job has a timeout (``--timeout``, default 600 s, covering parse, compile and the runs) and a
+memory limit (``--max-memory-mb``, default 8000: resident memory of the worker and its ``povray``);
+a job that times out, goes over the limit or fails is recorded as ``timeout`` / ``failed`` with its
+reason, and the run goes on.
 The cases of a family run in increasing size, and a renderer that timed out or failed on one case is
 not run on the larger cases of that family (``skipped``); the other renderer goes on.
 
@@ -302,11 +304,11 @@ def cases(family: str, quick: bool, max_n: int | None, max_triangles: int | None
 # ---------------------------------------------------------------------------------------------------
 
 
-def attempt(job: dict, timeout: float) -> dict:
+def attempt(job: dict, timeout: float, max_rss_mb: float | None = None) -> dict:
     """Runs ``job``; its result with ``status: ok``, or ``status: timeout / failed`` and a reason."""
     t0 = time.perf_counter()
     try:
-        res = run_job(job, timeout=timeout)
+        res = run_job(job, timeout=timeout, max_rss_mb=max_rss_mb)
     except subprocess.TimeoutExpired:
         return {"status": "timeout", "reason": f"no result after {timeout:g} s", "job_wall_s": timeout}
     except JobFailed as e:
@@ -363,7 +365,7 @@ def run_case(case: Case, scene: Path, images: Path, opts, stopped: dict[str, str
         if kind in stopped:
             out[kind] = {"status": "skipped", "reason": stopped[kind]}
             continue
-        res = attempt(job, opts.timeout)
+        res = attempt(job, opts.timeout, opts.max_memory_mb)
         out[kind] = res
         if res["status"] != "ok":
             stopped[kind] = f"{res['status']} at {case.label}"
@@ -488,21 +490,22 @@ def plot(rows: list[dict], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     families = [f for f in FAMILIES if any(r["family"] == f for r in rows)]
     ncol = min(3, len(families))
     nrow = math.ceil(len(families) / ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol, 4.2 * nrow), squeeze=False)
-    series = [
-        ("ours", "time_s", "ours warm", "C0", "o-"),
-        ("ours", "compile_s", "ours compile", "C0", "s--"),
-        ("ours_grad", "time_s", "ours grad warm", "C2", "o-"),
-        ("ours_grad", "compile_s", "ours grad compile", "C2", "s--"),
-        ("povray", "time_s", "POV-Ray trace", "C1", "o-"),
+    series = [  # kind, key, label, colour, line style, marker of the instanced mesh
+        ("ours", "time_s", "ours warm", "C0", "o-", "*"),
+        ("ours", "compile_s", "ours compile", "C0", "s--", "X"),
+        ("ours_grad", "time_s", "ours grad warm", "C2", "o-", "*"),
+        ("ours_grad", "compile_s", "ours grad compile", "C2", "s--", "X"),
+        ("povray", "time_s", "POV-Ray trace", "C1", "o-", "*"),
     ]
     for ax, family in zip(axes.flat, families, strict=False):
         fam = [r for r in rows if r["family"] == family]
-        for kind, key, label, colour, style in series:
+        for kind, key, label, colour, style, star in series:
             for instanced in (False, True):
                 pts = [
                     (r["x"], r[kind][key])
@@ -516,11 +519,12 @@ def plot(rows: list[dict], path: Path) -> None:
                     continue
                 x, y = zip(*pts, strict=True)
                 if instanced:
-                    ax.plot(x, y, "*", color=colour, ms=10, label=f"{label} ({MESH_COPIES} instances)")
+                    ax.plot(x, y, star, color=colour, ms=9, label=f"{label} ({MESH_COPIES} instances)")
                 else:
                     ax.plot(x, y, style, color=colour, label=label, ms=5)
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # 2×10⁴ 3×10⁴ … overlap
         size = {f"{r['width']}×{r['height']}" for r in fam}
         ax.set_title(f"{family} ({', '.join(sorted(size)) if len(size) == 1 else 'varying size'})")
         ax.set_xlabel(AXIS[family])
@@ -597,6 +601,12 @@ def main(argv=None) -> int:
         help="largest mesh (the instanced case places 100 copies of the smallest mesh run)",
     )
     ap.add_argument("--only", action="append", choices=FAMILIES, help="run this family (repeatable)")
+    ap.add_argument(
+        "--max-memory-mb",
+        type=float,
+        default=8000.0,
+        help="kill a job (failed) whose resident memory exceeds this (the machine is shared)",
+    )
     ap.add_argument("--threads", type=int, default=2, help="POV-Ray render threads (+WT)")
     ap.add_argument("--keep-scenes", action="store_true", help="keep the scene files in DIR/scenes")
     ap.add_argument("--from-json", type=Path, help="only rewrite the .md and .png from this scaling.json")
@@ -632,6 +642,7 @@ def main(argv=None) -> int:
             "quick": args.quick,
             "repeats": args.repeats,
             "timeout": args.timeout,
+            "max_memory_mb": args.max_memory_mb,
             "max_n": args.max_n,
             "max_triangles": args.max_triangles,
             "only": args.only,
