@@ -7,9 +7,11 @@ import json
 import os
 import platform
 import re
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -23,6 +25,10 @@ SCENES = {
 
 class JobFailed(RuntimeError):
     pass
+
+
+class MemoryExceeded(JobFailed):
+    """A worker (with what it started) held more resident memory than the job allowed; it was killed."""
 
 
 def scene_variant(
@@ -53,8 +59,15 @@ def scene_variant(
     return out
 
 
-def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
-    """Runs one measurement (see :mod:`benchmarks._worker`) in a fresh Python process."""
+def run_job(job: dict, *, timeout: float = 1800.0, max_rss_mb: float | None = None) -> dict:
+    """Runs one measurement (see :mod:`benchmarks._worker`) in a fresh Python process.
+
+    Raises :class:`JobFailed` if the worker fails, :class:`subprocess.TimeoutExpired` after
+    ``timeout`` seconds, and :class:`MemoryExceeded` once the worker's process group holds more than
+    ``max_rss_mb`` of resident memory (polled every :data:`POLL_S` seconds on Linux; the machine is
+    shared and has no swap). The worker runs in its own process group, killed whole on any of
+    these (or an interrupt), so that a ``povray`` it started does not outlive it.
+    """
     env = dict(os.environ)
     env.setdefault("JAX_PLATFORMS", "cpu")
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
@@ -62,19 +75,68 @@ def run_job(job: dict, *, timeout: float = 1800.0) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench-home-") as home:
         if job["kind"] == "mitsuba":
             env["HOME"] = home  # Dr.Jit caches compiled kernels under ~/.drjit: start cold
-        proc = subprocess.run(
+        proc = subprocess.Popen(
             [sys.executable, "-m", "benchmarks._worker"],
-            input=json.dumps(job),
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
             text=True,
-            capture_output=True,
             env=env,
             cwd=ROOT,
-            timeout=timeout,
+            start_new_session=True,
         )
-    lines = proc.stdout.strip().splitlines()
+        try:
+            stdout, stderr = _communicate(proc, json.dumps(job), timeout, max_rss_mb)
+        except BaseException:
+            _kill_group(proc)
+            raise
+    lines = stdout.strip().splitlines()
     if proc.returncode != 0 or not lines:
-        raise JobFailed(f"{job['kind']} job failed ({proc.returncode}): {job}\n{proc.stderr[-3000:]}")
+        raise JobFailed(f"{job['kind']} job failed ({proc.returncode}): {job}\n{stderr[-3000:]}")
     return json.loads(lines[-1])
+
+
+POLL_S = 0.5
+
+
+def _communicate(proc: subprocess.Popen, text: str, timeout: float, max_rss_mb: float | None):
+    """``proc.communicate(text)`` within ``timeout`` seconds, checking the group's memory meanwhile."""
+    if max_rss_mb is None:
+        return proc.communicate(text, timeout=timeout)
+    deadline = time.monotonic() + timeout
+    pending = text
+    while True:
+        try:  # a retried communicate() loses no output; the input is sent by the first call only
+            return proc.communicate(pending, timeout=max(0.0, min(POLL_S, deadline - time.monotonic())))
+        except subprocess.TimeoutExpired:
+            pending = None
+        if time.monotonic() >= deadline:
+            raise subprocess.TimeoutExpired(proc.args, timeout)
+        rss = _group_rss_mb(proc.pid)
+        if rss > max_rss_mb:
+            raise MemoryExceeded(f"used {rss:.0f} MB of resident memory, over the limit of {max_rss_mb:g} MB")
+
+
+def _group_rss_mb(pgid: int) -> float:
+    """Resident memory of the processes in group ``pgid``, from /proc (0 where there is no /proc)."""
+    total = 0
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()  # from field 3 (state) on
+        except (OSError, IndexError):
+            continue  # the process has gone
+        if int(fields[2]) == pgid:  # field 5: pgrp
+            total += int(fields[21])  # field 24: rss, in pages
+    return total * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    """Kills a worker started with ``start_new_session`` and everything it started, and reaps it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.communicate()
 
 
 def machine() -> dict:

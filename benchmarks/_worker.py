@@ -11,6 +11,10 @@ a ``.npy`` path to write the last image to):
 
 * ``{"kind": "ours", "spp": k², "x64": bool}``: parse, compile (``compile_render``), then ``repeats``
   warm renders. ``x64`` turns ``jax_enable_x64`` on before anything is created.
+* ``{"kind": "ours_grad", "spp": k², "x64": bool}``: parse, then compile and time (``repeats`` warm
+  runs) ``jax.jit(jax.grad(loss))`` with ``loss = mean(render(scene))`` differentiated with respect to
+  every inexact array leaf of the scene (``eqx.partition(scene, eqx.is_inexact_array)``, as
+  ``benchmarks/gradients.py``): reverse mode through the full-width ray tree. ``image`` is not written.
 * ``{"kind": "povray", "aa": null | [threshold, depth], "threads": 2}``: ``repeats`` runs of the
   ``povray`` binary through :func:`validation.povray.run_povray`; POV-Ray's own Parse and Trace Time
   and its CPU seconds are read from its log.
@@ -86,6 +90,48 @@ def run_ours(job: dict) -> dict:
         "peak_mb": _rss_mb(),
         "base_mb": base_mb,
         "dtype": str(image.dtype),
+        "devices": len(jax.devices()),
+    }
+
+
+def run_ours_grad(job: dict) -> dict:
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    if job.get("x64"):
+        jax.config.update("jax_enable_x64", True)
+    from raytracer import load_scene, render
+
+    width, height, spp = job["width"], job["height"], job.get("spp", 1)
+    t0 = time.perf_counter()
+    scene = load_scene(job["scene"], width=width, height=height)
+    parse_s = time.perf_counter() - t0
+    params, rest = eqx.partition(scene, eqx.is_inexact_array)
+
+    def loss(p):
+        return jnp.mean(render(eqx.combine(p, rest), width=width, height=height, spp=spp))
+
+    base_mb = _rss_mb()
+    c0, t0 = time.process_time(), time.perf_counter()
+    grad = jax.jit(jax.grad(loss)).lower(params).compile()
+    compile_s = time.perf_counter() - t0
+    compile_cpu_s = time.process_time() - c0
+    walls, cpus, g = _timed_runs(
+        lambda: jax.block_until_ready(grad(params)), job.get("repeats", 3), job.get("max_total_s", 120.0)
+    )
+    leaves = jax.tree_util.tree_leaves(g)
+    return {
+        "parse_s": parse_s,
+        "compile_s": compile_s,
+        "compile_cpu_s": compile_cpu_s,
+        "times_s": walls,
+        "cpu_s": cpus,
+        "time_s": statistics.median(walls),
+        "peak_mb": _rss_mb(),
+        "base_mb": base_mb,
+        "parameters": int(sum(x.size for x in leaves)),
+        "finite": bool(all(bool(jnp.all(jnp.isfinite(x))) for x in leaves)),
         "devices": len(jax.devices()),
     }
 
@@ -171,7 +217,8 @@ def main() -> int:
     job = json.loads(sys.stdin.read())
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     kind = job["kind"]
-    result = {"ours": run_ours, "povray": run_povray, "mitsuba": run_mitsuba}[kind](job)
+    jobs = {"ours": run_ours, "ours_grad": run_ours_grad, "povray": run_povray, "mitsuba": run_mitsuba}
+    result = jobs[kind](job)
     sys.stdout.write("\n" + json.dumps(result) + "\n")
     return 0
 

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks import accuracy, speed
+from benchmarks import accuracy, scaling, speed
 from benchmarks._common import SCENES, md_table, scene_variant
 
 
@@ -105,3 +105,23 @@ def test_accuracy_entry_point_writes_json_markdown_and_plot(tmp_path):
         assert np.isfinite(row["rmse"]) and row["rmse"] >= 0 and row["max_err"] >= row["rmse"]
     assert (tmp_path / "accuracy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "### seed" in (tmp_path / "accuracy.md").read_text()
+
+
+def test_scaling_scene_files_parse_with_the_expected_geometry(tmp_path):
+    from raytracer import Mesh, Sphere, load_scene
+
+    spheres_file = tmp_path / "spheres.pov"
+    spheres_file.write_text(scaling.spheres_scene(10))
+    scene = load_scene(spheres_file, width=16, height=12)
+    assert sum(isinstance(o.shape, Sphere) for o in scene.objects) == 10
+    assert len(scene.objects) == 11  # and the checker plane
+
+    mesh_file = tmp_path / "mesh.pov"
+    mesh_file.write_text(scaling.mesh_scene(200))
+    (mesh,) = load_scene(mesh_file, width=16, height=12).objects
+    assert isinstance(mesh.shape, Mesh) and mesh.shape.triangles.shape == (200, 3, 3)
+
+    copies_file = tmp_path / "copies.pov"
+    copies_file.write_text(scaling.mesh_scene(200, copies=4))
+    copies = load_scene(copies_file, width=16, height=12).objects
+    assert [o.shape.triangles.shape[0] for o in copies] == [200] * 4
