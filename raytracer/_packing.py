@@ -26,20 +26,27 @@ import numpy as np
 
 
 class Frozen:
-    """A static value compared and hashed by its pickled bytes (numpy arrays included)."""
+    """A static value compared and hashed by content: its pickled bytes (numpy arrays included), or
+    ``key`` when given. The hash is computed once, so a jit cache lookup does not walk the value."""
 
     __slots__ = ("value", "_key", "_hash")
 
-    def __init__(self, value):
+    def __init__(self, value, key=None):
         self.value = value
-        self._key = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        self._key = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL) if key is None else key
         self._hash = hash(self._key)
+
+    @classmethod
+    def tree(cls, tree) -> Frozen:
+        """A pytree of hashable leaves (a :func:`skeleton`), keyed by its structure and leaves."""
+        leaves, treedef = jax.tree_util.tree_flatten(tree)
+        return cls(tree, (treedef, tuple(leaves)))
 
     def __hash__(self):
         return self._hash
 
     def __eq__(self, other):
-        return isinstance(other, Frozen) and self._key == other._key
+        return isinstance(other, Frozen) and (self is other or self._key == other._key)
 
 
 def register_packed(cls, arrays: tuple[str, ...]):

@@ -19,6 +19,10 @@
 // 4 items unless splitting does not pay, a median split when every centroid falls in one bin.
 
 #include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -368,8 +372,47 @@ ffi::Error build_impl(ffi::Buffer<DT> boxes, ffi::ResultBuffer<DT> node_box, ffi
   return ffi::Error::Success();
 }
 
+// Runs body(begin, end) over chunks of [0, n) on XLA's intra-op thread pool and the calling thread.
+// The caller takes chunks too and then waits only for chunks that a pool thread has already started
+// (they are running, so they finish): it never waits on a task still queued behind other work, so
+// two queries running at once on a busy pool cannot deadlock. A task that starts after every chunk
+// is taken touches nothing but the shared counters it holds.
+template <typename Body>
+void parallel_for(ffi::ThreadPool& pool, int64_t n, const Body& body) {
+  constexpr int64_t CHUNK = 256;
+  const int64_t chunks = (n + CHUNK - 1) / CHUNK;
+  const int64_t helpers = std::min<int64_t>(pool.num_threads(), chunks - 1);
+  if (helpers <= 0) {
+    body(0, n);
+    return;
+  }
+  struct State {
+    std::atomic<int64_t> next{0}, done{0};
+    std::mutex mutex;
+    std::condition_variable cv;
+  };
+  auto state = std::make_shared<State>();
+  auto work = [state, chunks, n, &body] {
+    int64_t c;
+    while ((c = state->next.fetch_add(1)) < chunks) {
+      body(c * CHUNK, std::min(n, (c + 1) * CHUNK));
+      if (state->done.fetch_add(1) + 1 == chunks) {
+        std::lock_guard<std::mutex> lock(state->mutex);
+        state->cv.notify_all();
+      }
+    }
+  };
+  for (int64_t i = 0; i < helpers; ++i) {
+    // a late task finds no chunk left and only reads the counters it keeps alive
+    pool.Schedule([state, work] { work(); });
+  }
+  work();
+  std::unique_lock<std::mutex> lock(state->mutex);
+  state->cv.wait(lock, [&] { return state->done.load() == chunks; });
+}
+
 template <ffi::DataType DT>
-ffi::Error query_impl(bool any_hit, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
+ffi::Error query_impl(ffi::ThreadPool pool, bool any_hit, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
                       ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
                       ffi::Buffer<DT> params, ffi::Buffer<DT> origin, ffi::Buffer<DT> direction,
                       ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want,
@@ -384,36 +427,42 @@ ffi::Error query_impl(bool any_hit, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh query: inconsistent operand sizes");
   const T* o = origin.typed_data();
   const T* d = direction.typed_data();
+  const T* t0 = tmin.typed_data();
+  const T* t1 = tmax.typed_data();
+  const int32_t* w = want.typed_data();
   int32_t* out = item->typed_data();
   T* tout = t_out->typed_data();
-  for (int64_t r = 0; r < rays; ++r) {
-    double oo[3] = {double(o[3 * r]), double(o[3 * r + 1]), double(o[3 * r + 2])};
-    double dd[3] = {double(d[3 * r]), double(d[3 * r + 1]), double(d[3 * r + 2])};
-    double t = INFINITY;
-    int32_t hit = -1;
-    const double lo = double(tmin.typed_data()[r]), hi = double(tmax.typed_data()[r]);
-    if (std::isfinite(oo[0] + oo[1] + oo[2] + dd[0] + dd[1] + dd[2]) && lo < hi)
-      hit = traverse(s, oo, dd, lo, hi, want.typed_data()[r], any_hit, &t);
-    out[r] = hit;
-    tout[r] = static_cast<T>(hit >= 0 ? t : INFINITY);
-  }
+  auto trace = [&](int64_t begin, int64_t end) {
+    for (int64_t r = begin; r < end; ++r) {
+      double oo[3] = {double(o[3 * r]), double(o[3 * r + 1]), double(o[3 * r + 2])};
+      double dd[3] = {double(d[3 * r]), double(d[3 * r + 1]), double(d[3 * r + 2])};
+      double t = INFINITY;
+      int32_t hit = -1;
+      const double lo = double(t0[r]), hi = double(t1[r]);
+      if (std::isfinite(oo[0] + oo[1] + oo[2] + dd[0] + dd[1] + dd[2]) && lo < hi)
+        hit = traverse(s, oo, dd, lo, hi, w[r], any_hit, &t);
+      out[r] = hit;
+      tout[r] = static_cast<T>(hit >= 0 ? t : INFINITY);
+    }
+  };
+  parallel_for(pool, rays, trace);
   return ffi::Error::Success();
 }
 
 template <ffi::DataType DT>
-ffi::Error closest_impl(ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
+ffi::Error closest_impl(ffi::ThreadPool pool, ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
                         ffi::Buffer<ffi::S32> m, ffi::Buffer<DT> p, ffi::Buffer<DT> o, ffi::Buffer<DT> d,
                         ffi::Buffer<DT> t0, ffi::Buffer<DT> t1, ffi::Buffer<ffi::S32> w,
                         ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t) {
-  return query_impl<DT>(false, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
+  return query_impl<DT>(pool, false, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
 }
 
 template <ffi::DataType DT>
-ffi::Error any_impl(ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
+ffi::Error any_impl(ffi::ThreadPool pool, ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
                     ffi::Buffer<ffi::S32> m, ffi::Buffer<DT> p, ffi::Buffer<DT> o, ffi::Buffer<DT> d,
                     ffi::Buffer<DT> t0, ffi::Buffer<DT> t1, ffi::Buffer<ffi::S32> w,
                     ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t) {
-  return query_impl<DT>(true, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
+  return query_impl<DT>(pool, true, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
 }
 
 }  // namespace
@@ -421,6 +470,7 @@ ffi::Error any_impl(ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi:
 // node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item, t
 #define QUERY_BINDING(DT)                                                                                  \
   ffi::Ffi::Bind()                                                                                       \
+      .Ctx<ffi::ThreadPool>()                                                                            \
       .Arg<ffi::Buffer<DT>>()                                                                            \
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
