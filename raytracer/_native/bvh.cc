@@ -39,6 +39,8 @@ constexpr int ITEM_PARAMS = 24;
 constexpr int KIND_SPHERE = 0;
 constexpr int KIND_BOX = 1;
 constexpr int KIND_TRIANGLE = 2;
+constexpr int KIND_FRUSTUM = 3;  // cylinder and cone: base, base radius, cap, cap radius, open
+constexpr int KIND_DISC = 4;     // centre, normal, radius, hole radius
 constexpr int BINS = 16;
 constexpr int MAX_LEAF = 4;
 constexpr int STACK = 128;
@@ -219,6 +221,58 @@ inline RayD to_object(const double* m, const double* o, const double* d) {
 
 inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
+inline void keep_first(double t, double tmin, double& best) {
+  if (t > tmin && t < best) best = t;
+}
+
+// The first crossing of a cylinder or cone (a frustum: |p⊥|² = r(h)², r(h) = r_base + k h for the
+// height h along the axis, 0 ≤ h ≤ L) and, unless open, its two end caps, with t in (tmin, tmax).
+inline double frustum_hit(const double* q, const RayD& r, double tmin, double tmax) {
+  const double *base = q, *cap = q + 4;
+  const double rb = q[3], rc = q[7];
+  const bool open = q[8] != 0.0;
+  double axis[3] = {cap[0] - base[0], cap[1] - base[1], cap[2] - base[2]};
+  const double length = std::sqrt(dot3(axis, axis));
+  if (!(length > 0.0)) return INFINITY;
+  for (double& a : axis) a /= length;
+  const double slope = (rc - rb) / length;
+  double l[3] = {r.o[0] - base[0], r.o[1] - base[1], r.o[2] - base[2]};
+  const double h0 = dot3(l, axis), hd = dot3(r.d, axis);
+  double lp[3], dp[3];
+  for (int k = 0; k < 3; ++k) {
+    lp[k] = l[k] - h0 * axis[k];
+    dp[k] = r.d[k] - hd * axis[k];
+  }
+  const double r0 = rb + slope * h0;
+  const double A = dot3(dp, dp) - (slope * hd) * (slope * hd);
+  const double B = 2.0 * (dot3(lp, dp) - slope * hd * r0);
+  const double C = dot3(lp, lp) - r0 * r0;
+  double best = tmax;
+  auto side = [&](double t) {
+    const double h = h0 + t * hd;
+    if (h >= 0.0 && h <= length) keep_first(t, tmin, best);
+  };
+  if (A != 0.0) {
+    const double disc = B * B - 4.0 * A * C;
+    if (disc >= 0.0) {
+      const double qq = -0.5 * (B + std::copysign(std::sqrt(disc), B));
+      side(qq / A);
+      if (qq != 0.0) side(C / qq);
+    }
+  } else if (B != 0.0) {
+    side(-C / B);
+  }
+  if (!open && hd != 0.0) {
+    const double ends[2][2] = {{0.0, rb}, {length, rc}};
+    for (const auto& end : ends) {
+      const double t = (end[0] - h0) / hd;
+      double p[3] = {lp[0] + t * dp[0], lp[1] + t * dp[1], lp[2] + t * dp[2]};
+      if (dot3(p, p) <= end[1] * end[1]) keep_first(t, tmin, best);
+    }
+  }
+  return best < tmax ? best : INFINITY;
+}
+
 // The first crossing of the item with t in (tmin, tmax), or INFINITY.
 template <typename T>
 inline double item_hit(int32_t kind, const T* params, const double* o, const double* d, double tmin,
@@ -274,6 +328,20 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     double v = dot3(r.d, qv) * inv;
     if (v < -tol || u + v > 1.0 + tol) return INFINITY;
     t0 = dot3(e2, qv) * inv;
+  } else if (kind == KIND_FRUSTUM) {
+    return frustum_hit(q, r, tmin, tmax);
+  } else if (kind == KIND_DISC) {
+    double n[3] = {q[3], q[4], q[5]};
+    double nn = std::sqrt(dot3(n, n));
+    if (!(nn > 0.0)) return INFINITY;
+    double l[3] = {r.o[0] - q[0], r.o[1] - q[1], r.o[2] - q[2]};
+    double dn = dot3(n, r.d) / nn, ln = dot3(n, l) / nn;
+    if (dn == 0.0) return INFINITY;
+    double t = -ln / dn;
+    double p[3] = {l[0] + t * r.d[0], l[1] + t * r.d[1], l[2] + t * r.d[2]};
+    double rho2 = dot3(p, p);
+    if (rho2 > q[6] * q[6] || rho2 < q[7] * q[7]) return INFINITY;
+    t0 = t;
   } else {
     return INFINITY;
   }

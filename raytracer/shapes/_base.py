@@ -168,11 +168,12 @@ class AbstractShape(eqx.Module):
 
     # The acceleration structure (``shading/_accel.py``) can choose among shapes that name one of
     # its native kernels. It only chooses: the hit is then computed again by ``sub_hits``.
-    native_kernel: ClassVar[int | None] = None  # NATIVE_SPHERE / NATIVE_BOX / NATIVE_TRIANGLE
+    native_kernel: ClassVar[int | None] = None  # one of the NATIVE_* kernels below
 
     def native_items(self) -> tuple[Float[Array, "k 12"], Float[Array, "k V 3"]]:
         """The shape as ``k`` items of ``native_kernel`` (object space): their parameters (k, 12)
-        (sphere: centre, radius; box: two corners; triangle: three vertices; zero padded) and
+        (sphere: centre, radius; box: two corners; triangle: three vertices; frustum: base, base
+        radius, cap, cap radius, open; disc: centre, normal, radius, hole radius; zero padded) and
         points whose hull holds each item (k, V, 3) (its bounding box comes from them)."""
         raise NotImplementedError(f"{self.kind} has no native kernel")
 
@@ -204,7 +205,8 @@ class AbstractShape(eqx.Module):
         raise NoEquivalent(self.kind, "no Mitsuba primitive; tessellation would be an approximation")
 
 
-NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE = 0, 1, 2  # the kernels of raytracer/_native/bvh.cc
+# the kernels of raytracer/_native/bvh.cc
+NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC = 0, 1, 2, 3, 4
 
 
 def box_corners(lo, hi):

@@ -16,6 +16,7 @@ from .._dtype import as_float
 from ..kernels._common import masked_hits, points_at
 from ..kernels._numerics import as_float_arrays, safe_div, safe_normalize, solve_linear, solve_quadratic
 from ._base import (
+    NATIVE_FRUSTUM,
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
@@ -23,7 +24,9 @@ from ._base import (
     affine,
     apply_point,
     array_module,
+    box_corners,
     frame,
+    native_params,
     similarity_scale,
     unit,
 )
@@ -188,6 +191,12 @@ class Cylinder(AbstractShape):
     def bounds(self):
         return _segment_bounds(self.base, self.cap, self.radius, self.radius)
 
+    native_kernel: ClassVar[int] = NATIVE_FRUSTUM
+
+    def native_items(self):
+        return (native_params(self.base, self.radius, self.cap, self.radius, float(self.open)),
+                box_corners(*self.bounds())[None])
+
 
     def to_mitsuba(self, m, camera_origin):
         s = similarity_scale(m)
@@ -228,6 +237,12 @@ class Cone(AbstractShape):
 
     def bounds(self):
         return _segment_bounds(self.base, self.cap, self.base_radius, self.cap_radius)
+
+    native_kernel: ClassVar[int] = NATIVE_FRUSTUM
+
+    def native_items(self):
+        return (native_params(self.base, self.base_radius, self.cap, self.cap_radius, float(self.open)),
+                box_corners(*self.bounds())[None])
 
 
 

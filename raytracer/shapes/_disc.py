@@ -11,6 +11,7 @@ from .._dtype import as_float
 from ..kernels._common import masked_hits, points_at
 from ..kernels._numerics import as_float_arrays, safe_normalize, solve_linear
 from ._base import (
+    NATIVE_DISC,
     AbstractShape,
     MitsubaShape,
     NoEquivalent,
@@ -18,7 +19,9 @@ from ._base import (
     affine,
     apply_point,
     array_module,
+    box_corners,
     frame,
+    native_params,
     unit,
 )
 
@@ -91,6 +94,12 @@ class Disc(AbstractShape):
     def bounds(self):
         r = array_module(self.radius).abs(self.radius)
         return self.center - r, self.center + r
+
+    native_kernel: ClassVar[int] = NATIVE_DISC
+
+    def native_items(self):
+        return (native_params(self.center, self.normal, self.radius, self.hole_radius),
+                box_corners(*self.bounds())[None])
 
     @classmethod
     def parse_sdl(cls, keyword, args):

@@ -24,16 +24,21 @@ light_source { <-8, 14, -9> color rgb 1 }
 light_source { <9, 6, -4> color rgb 0.4 }
 plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
 #declare R = seed(7);
-#for (i, 0, 59)
+#for (i, 0, 69)
   #declare P = <rand(R) * 10 - 5, rand(R) * 1.5, rand(R) * 8 - 3>;
-  #switch (mod(i, 4))
+  #switch (mod(i, 7))
   #case (0) sphere { 0, 0.2 + 0.3 * rand(R) scale <1, 0.5 + rand(R), 1> rotate <0, 0, 40 * rand(R)>
                      translate P pigment { rgb <rand(R), 0.5, 0.7> } finish { phong 0.6 } } #break
   #case (1) box { -0.3, <0.2, 0.5, 0.3> rotate <30 * rand(R), 60 * rand(R), 0> translate P
                   pigment { rgb <0.9, rand(R), 0.2> } } #break
   #case (2) triangle { <-0.5, 0, 0>, <0.5, 0, 0.2>, <0, 0.8, -0.1> rotate <0, 90 * rand(R), 0>
                        translate P pigment { rgb <0.2, 0.8, rand(R)> } } #break
-  #else smooth_triangle { <-0.4, 0, 0>, <0, 0, -1>, <0.4, 0, 0>, <1, 0, -1>, <0, 0.7, 0>, <-1, 1, -1>
+  #case (4) cylinder { <0, -0.3, 0>, <0.2, 0.4, 0.1>, 0.15 + 0.2 * rand(R) #if (mod(i, 2)) open #end
+                       rotate <50 * rand(R), 0, 0> translate P pigment { rgb <0.5, 0.2, rand(R)> } } #break
+  #case (5) cone { <0, -0.3, 0>, 0.4 * rand(R), <0, 0.4, 0.2>, 0.3 #if (mod(i, 2)) open #end
+                   scale <1, 1.5, 1> translate P pigment { rgb <rand(R), 1, 0.4> } } #break
+  #case (6) disc { P, <rand(R), 1, rand(R) - 0.5>, 0.5, 0.2 * rand(R) pigment { rgb <1, 0.4, rand(R)> } } #break
+  #case (3) smooth_triangle { <-0.4, 0, 0>, <0, 0, -1>, <0.4, 0, 0>, <1, 0, -1>, <0, 0.7, 0>, <-1, 1, -1>
                           translate P pigment { rgb 0.8 } }
   #end
 #end
@@ -68,9 +73,9 @@ def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
     geo = pack_geometry(plan, jnp.float32)
     held = {p for g in geo.groups if g.accelerated for p in g.prims}
     kinds = {plan.prims[i].kind for i in held}
-    assert kinds == {"sphere", "box", "triangle", "smooth_triangle", "mesh"}
-    # the loop's 60, the mesh's 3 triangles, the mirror sphere and the three flagged spheres
-    assert geo.accel.n_items == 60 + 3 + 4
+    assert kinds == {"sphere", "box", "triangle", "smooth_triangle", "cylinder", "cone", "disc", "mesh"}
+    # the loop's 70, the mesh's 3 triangles, the mirror sphere and the three flagged spheres
+    assert geo.accel.n_items == 70 + 3 + 4
     left = [plan.prims[i] for i in range(len(plan.prims)) if i not in held]
     # the plane (unbounded), the glass sphere (transparent), the box and sphere of the difference
     assert sorted(p.kind for p in left) == ["box", "plane", "sphere", "sphere"]
