@@ -13,6 +13,8 @@ which the same static plan is made inside.
 * :func:`register_packed`: registers a dataclass as a pytree of its array fields.
 * :func:`stack`: numpy or jnp stacking, whichever the values allow.
 * :func:`skeleton`: the structure of a pytree with placeholders for its arrays.
+* :func:`inverse_affines`, :func:`with_field`: packing steps that do not grow with the scene in
+  JAX dispatches or tree walks.
 """
 
 from __future__ import annotations
@@ -35,12 +37,6 @@ class Frozen:
         self.value = value
         self._key = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL) if key is None else key
         self._hash = hash(self._key)
-
-    @classmethod
-    def tree(cls, tree) -> Frozen:
-        """A pytree of hashable leaves (a :func:`skeleton`), keyed by its structure and leaves."""
-        leaves, treedef = jax.tree_util.tree_flatten(tree)
-        return cls(tree, (treedef, tuple(leaves)))
 
     def __hash__(self):
         return self._hash
@@ -69,14 +65,44 @@ def is_traced(*xs) -> bool:
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
 
 
+def _any_traced(xs) -> bool:
+    """``is_traced`` for a flat list of arrays and numbers (no tree walk)."""
+    return any(isinstance(x, jax.core.Tracer) for x in xs)
+
+
 def stack(xs, dtype=None):
     """``jnp.stack(xs)`` (cast to ``dtype``); numpy's when every entry is a concrete value, so
     packing a large scene is not one JAX dispatch per object."""
-    if not is_traced(xs):
+    if not _any_traced(xs):
         out = np.stack([np.asarray(x) for x in xs])
         return out if dtype is None else out.astype(dtype)
     out = jnp.stack([jnp.asarray(x) for x in xs])
     return out if dtype is None else out.astype(dtype)
+
+
+def inverse_affines(m):
+    """(n, 4, 4) inverses of affine matrices: numpy's batched inverse for concrete values (no
+    compilation for each new n), ``jax.vmap(inverse_affine)`` (differentiable) for traced ones."""
+    from .scene._transform import inverse_affine
+
+    if is_traced(m):
+        return jax.vmap(inverse_affine)(m)
+    m = np.asarray(m)
+    a_inv = np.linalg.inv(m[:, :3, :3])
+    out = np.zeros_like(m)
+    out[:, :3, :3] = a_inv
+    out[:, :3, 3] = -np.einsum("nij,nj->ni", a_inv, m[:, :3, 3])
+    out[:, 3, 3] = 1.0
+    return out
+
+
+def with_field(module, name: str, value):
+    """A copy of Equinox module ``module`` with field ``name`` set to ``value``, without walking the
+    tree (``eqx.tree_at`` flattens the whole scene: 8 s for 10,000 objects) or running converters."""
+    new = object.__new__(type(module))
+    for f in dataclasses.fields(module):
+        object.__setattr__(new, f.name, value if f.name == name else getattr(module, f.name))
+    return new
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,11 +117,19 @@ class Placeholder:
         return len(self.shape)
 
 
-def skeleton(tree):
-    """``tree`` with every array leaf (numpy, JAX, tracer) replaced by its :class:`Placeholder`."""
+def skeleton(tree) -> Frozen:
+    """``tree`` with every array leaf (numpy, JAX, tracer) replaced by its :class:`Placeholder`, as
+    one :class:`Frozen` value keyed by its structure and placeholders (one walk of the tree)."""
+    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    made: dict = {}
+
     def leaf(x):
         if isinstance(x, (np.ndarray, jax.Array, np.generic)):
-            return Placeholder(tuple(np.shape(x)), str(x.dtype))
+            key = (np.shape(x), x.dtype)
+            if key not in made:
+                made[key] = Placeholder(tuple(np.shape(x)), str(x.dtype))
+            return made[key]
         return x
 
-    return jax.tree_util.tree_map(leaf, tree)
+    placeholders = [leaf(x) for x in leaves]
+    return Frozen(treedef.unflatten(placeholders), (treedef, tuple(placeholders)))

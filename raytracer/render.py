@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._packing import Frozen, is_traced, skeleton
+from ._packing import Frozen, is_traced, skeleton, with_field
 from ._plan import Plan, make_plan
 from .scene import Scene
 from .shading import _accel
@@ -72,7 +72,7 @@ class Packed(NamedTuple):
     @property
     def scene(self) -> Scene:
         """The scene's skeleton: the objects with placeholders for their arrays."""
-        return eqx.tree_at(lambda s: s.objects, self.rest, self.objects.value)
+        return with_field(self.rest, "objects", self.objects.value)
 
 
 _PACKED: dict[tuple, tuple[Scene, Packed]] = {}  # the last few concrete scenes packed (by identity)
@@ -88,9 +88,8 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
         return cached[1]
     scene_plan = make_plan(scene) if scene_plan is None else scene_plan
     dtype = scene.camera.location.dtype
-    rest = eqx.tree_at(lambda s: s.objects, scene, ())
-    packed = Packed(rest, Frozen.tree(skeleton(scene.objects)), pack_geometry(scene_plan, dtype),
-                    pack_materials(scene_plan, dtype))
+    packed = Packed(with_field(scene, "objects", ()), skeleton(scene.objects),
+                    pack_geometry(scene_plan, dtype), pack_materials(scene_plan, dtype))
     if not is_traced(scene) and all(isinstance(x, np.ndarray) and not x.flags.writeable
                                     for x in jax.tree_util.tree_leaves(scene.objects)):
         while len(_PACKED) >= 4:

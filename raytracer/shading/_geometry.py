@@ -19,10 +19,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._packing import register_packed, stack
+from .._packing import inverse_affines, register_packed, stack
 from .._plan import InAll, InDiff, InPrim, InsideTree, Plan
 from ..kernels import safe_normalize
-from ..scene._transform import inverse_affine
 from ..shapes import AbstractShape
 from . import _accel
 from ._accel import Accel
@@ -109,7 +108,7 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
         shapes.append(_stack(members))
         transforms = [plan.prims[i].world_from_object() for i in ids]
         wfo.append(stack([np.eye(4) if t is None else t.matrix for t in transforms], dtype))
-        ofw.append(jax.vmap(inverse_affine)(jnp.asarray(wfo[-1])))
+        ofw.append(inverse_affines(wfo[-1]))
         for j, i in enumerate(ids):
             where[i] = (len(groups) - 1, j)
             if not accelerated:

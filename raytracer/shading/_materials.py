@@ -11,10 +11,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import patterns
-from .._packing import is_traced, register_packed, stack
+from .._packing import inverse_affines, is_traced, register_packed, stack
 from .._plan import Plan
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
-from ..scene._transform import inverse_affine
 
 
 @dataclasses.dataclass
@@ -55,8 +54,8 @@ class PackedMaterials:
     transparent: np.ndarray  # (N,) static: every layer's pigment can carry filter/transmit
 
 
-def _finish_arrays(f: Finish) -> dict:
-    r = f.reflection if f.reflection is not None else Reflection()
+def _finish_arrays(f: Finish, no_reflection: Reflection) -> dict:
+    r = f.reflection if f.reflection is not None else no_reflection
     return {
         "ambient": f.ambient, "emission": f.emission, "diffuse": f.diffuse,
         "brilliance": f.brilliance,
@@ -86,13 +85,15 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
               for p in plan.prims for k in range(n_layers)]
     pigments: list[Pigment] = [layer.pigment for layer in layers]
     finishes: list[Finish] = [layer.finish for layer in layers]
-    interiors = [p.interior if p.interior is not None else Interior() for p in plan.prims]
+    air = Interior()  # one default, not one module built per primitive
+    interiors = [p.interior if p.interior is not None else air for p in plan.prims]
     names = tuple(sorted({pg.pattern for pg in pigments}))
     m = max(pg.values.shape[0] for pg in pigments)
     world_from_pattern = stack([np.eye(4) if pg.transform is None else pg.transform.matrix
                                 for pg in pigments], dtype)
     zero3 = np.zeros(3)
-    fin = [_finish_arrays(f) for f in finishes]
+    no_reflection = Reflection()
+    fin = [_finish_arrays(f, no_reflection) for f in finishes]
     return PackedMaterials(
         n_layers=n_layers,
         layer_present=present,
@@ -104,7 +105,7 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         waves=np.array([pat_wave_index(pg) for pg in pigments], dtype=np.int32),
         values=_padded([pg.values for pg in pigments], m, dtype),
         colors=_padded([pg.colors for pg in pigments], m, dtype),
-        pattern_from_world=jax.vmap(inverse_affine)(jnp.asarray(world_from_pattern)),
+        pattern_from_world=inverse_affines(world_from_pattern),
         vector=stack([pg.vector for pg in pigments], dtype),
         frequency=stack([pg.frequency for pg in pigments], dtype),
         phase=stack([pg.phase for pg in pigments], dtype),
