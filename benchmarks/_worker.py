@@ -37,10 +37,11 @@ Optional keys of the ``ours`` and ``povray`` jobs (``benchmarks/sample_renders.p
 * ``quiet``: silence the scene's warnings on stderr (ours; they are counted in the result anyway).
 
 Ours also reports ``warnings`` (how many the scene has), ``warning_features`` (their count per
-feature), ``warning_texts`` (the first few), ``first_image_s`` (the age of the worker process when the
-first image was ready: interpreter start, imports, parse, compile and one render, as a user of a fresh
-``raytracer`` process waits) and ``nonfinite`` (NaN or infinite values in the image). POV-Ray's
-result has ``wall_s``, the wall time of the whole ``povray`` process (median over the runs).
+feature), ``warning_examples`` (the first message of each feature), ``warning_texts`` (the first
+few), ``first_image_s`` (the age of the worker process when the first image was ready: interpreter
+start, imports, parse, compile and one render, as a user of a fresh ``raytracer`` process waits)
+and ``nonfinite`` (NaN or infinite values in the image). POV-Ray's result has ``wall_s``, the wall
+time of the whole ``povray`` process (median over the runs).
 """
 
 from __future__ import annotations
@@ -52,7 +53,6 @@ import resource
 import statistics
 import sys
 import time
-
 
 _T0 = time.perf_counter()  # as early as this process measures anything (see _process_age_s)
 WARNING_TEXTS = 5  # ours: how many warning texts the result carries
@@ -91,8 +91,13 @@ def _animation(job: dict):
 def _animation_info(anim) -> dict | None:
     if anim is None:
         return None
-    return {"frame": anim.frame, "initial_frame": anim.initial_frame, "final_frame": anim.final_frame,
-            "clock": anim.clock, "cyclic": anim.cyclic}
+    return {
+        "frame": anim.frame,
+        "initial_frame": anim.initial_frame,
+        "final_frame": anim.final_frame,
+        "clock": anim.clock,
+        "cyclic": anim.cyclic,
+    }
 
 
 def _rss_mb(who=resource.RUSAGE_SELF) -> float:
@@ -135,14 +140,29 @@ def run_ours(job: dict) -> dict:
     _stage(job, "parse")
     anim = _animation(job)
     t0 = time.perf_counter()
-    scene = load_scene(job["scene"], width=job["width"], height=job["height"],
-                       include_paths=job.get("include_paths", ()), animation=anim)
+    scene = load_scene(
+        job["scene"],
+        width=job["width"],
+        height=job["height"],
+        include_paths=job.get("include_paths", ()),
+        animation=anim,
+    )
     parse_s = time.perf_counter() - t0
     features: dict[str, int] = {}
+    examples: dict[str, str] = {}
     for w in scene.warnings:
         features[w.feature] = features.get(w.feature, 0) + 1
-    _stage(job, "compile", parse_s=parse_s, animation=_animation_info(anim), warnings=len(scene.warnings),
-           warning_features=features, warning_texts=[str(w) for w in scene.warnings[:WARNING_TEXTS]])
+        examples.setdefault(w.feature, w.message)
+    _stage(
+        job,
+        "compile",
+        parse_s=parse_s,
+        animation=_animation_info(anim),
+        warnings=len(scene.warnings),
+        warning_features=features,
+        warning_examples=examples,
+        warning_texts=[str(w) for w in scene.warnings[:WARNING_TEXTS]],
+    )
     base_mb = _rss_mb()
     c0, t0 = time.process_time(), time.perf_counter()
     run = compile_render(scene, width=job["width"], height=job["height"], spp=job.get("spp", 1))
@@ -311,7 +331,12 @@ def _error(e: BaseException, phase: str | None) -> dict:
 
     from raytracer.errors import SceneError
 
-    out = {"type": type(e).__name__, "message": str(e), "phase": phase, "scene_error": isinstance(e, SceneError)}
+    out = {
+        "type": type(e).__name__,
+        "message": str(e),
+        "phase": phase,
+        "scene_error": isinstance(e, SceneError),
+    }
     stderr = getattr(e, "stderr", None)  # validation.povray.PovrayError: POV-Ray's own messages
     if stderr:
         out["log_tail"] = "\n".join(stderr.strip().splitlines()[-40:])
