@@ -26,9 +26,11 @@ a ``.npy`` path to write the last image to):
 Optional keys of the ``ours`` and ``povray`` jobs (``benchmarks/sample_renders.py`` uses them):
 
 * ``include_paths``: further ``#include`` folders (ours: ``load_scene(include_paths=)``; POV-Ray: ``+L``).
-* ``ini``: a POV-Ray ``.ini``; if it describes an animation (``Final_Frame`` ≠ ``Initial_Frame``) both
-  render its first frame (ours: :class:`raytracer.sdl.Animation`; POV-Ray: the same frame range and
-  clocks with ``+SF``/``+EF`` set to that frame). The result's ``animation`` says which frame, or None.
+* ``ini`` (ours): a POV-Ray ``.ini`` whose animation's first frame is loaded
+  (``Animation.from_ini``); the result's ``animation`` says which frame. ``extra_args`` (POV-Ray):
+  further command-line options, such as :func:`validation.povray.animation_args` of that frame. (The
+  POV-Ray worker does not read the .ini itself: importing ``raytracer`` there would make a child of
+  the size of a JAX process, and ``RUSAGE_CHILDREN`` would count it as POV-Ray's peak memory.)
 * ``catch``: report a failure as the result ``{"error": {"type", "message", "phase", …}, …}`` (with
   what was measured before it) instead of exiting non-zero; ``phase`` is ``parse``, ``compile`` or
   ``render`` (ours) or ``povray``.
@@ -79,13 +81,12 @@ def _stage(job: dict, phase: str, **measured) -> None:
 
 
 def _animation(job: dict):
-    """The first frame of the animation ``job["ini"]`` describes, or None (no .ini, or not an animation)."""
+    """The first frame of the animation ``job["ini"]`` describes, or None (no .ini)."""
     if not job.get("ini"):
         return None
     from raytracer.sdl import Animation
 
-    anim = Animation.from_ini(job["ini"])
-    return anim if anim.final_frame != anim.initial_frame else None
+    return Animation.from_ini(job["ini"])
 
 
 def _animation_info(anim) -> dict | None:
@@ -244,14 +245,11 @@ _CPU = re.compile(r"Trace Time:.*?\n\s*using (\d+) thread\(s\) with ([0-9.]+) CP
 
 
 def run_povray(job: dict) -> dict:
-    from validation.povray import animation_args
     from validation.povray import run_povray as run
 
     aa = job.get("aa")
     results = []
     _stage(job, "povray")
-    anim = _animation(job)
-    extra = animation_args(anim) if anim is not None else []
 
     def once():
         t0 = time.perf_counter()
@@ -263,7 +261,7 @@ def run_povray(job: dict) -> dict:
             threads=job.get("threads", 2),
             timeout=job.get("timeout", 900.0),
             include_paths=job.get("include_paths", ()),
-            extra_args=extra,
+            extra_args=job.get("extra_args", ()),
         )
         results.append((r, time.perf_counter() - t0))
         return r
@@ -284,7 +282,6 @@ def run_povray(job: dict) -> dict:
         "threads": threads[-1] if threads else None,
         "peak_mb": _rss_mb(resource.RUSAGE_CHILDREN),
         "command": " ".join(r.command[:-1]),
-        "animation": _animation_info(anim),
     }
 
 

@@ -18,9 +18,10 @@ produce the linear image POV-Ray writes to a ``+FE`` EXR (semantics §3.1: ``_ou
 the two linear images compare like with like. Includes come from the scene's folder and POV-Ray's
 include folder (ours: ``load_scene``'s search path; POV-Ray: ``+L`` and its ``povray.ini``). A scene
 next to a ``.ini`` of the same name that describes an animation (``Final_Frame`` ≠ ``Initial_Frame``:
-the portfolio, ``animations/``, ``advanced/desk``) is rendered at the animation's first frame by both,
-as ``benchmarks/sample_scenes.py`` loads such scenes (POV-Ray gets the same frame range and clocks
-and renders only that frame).
+the portfolio, ``animations/``, ``advanced/desk``) is rendered at the animation's first frame by both
+(``benchmarks/sample_scenes.py`` loads a scene at that frame when it fails without; here every
+animation is, so that both renderers see the same ``clock`` and ``frame_number``: POV-Ray gets the
+animation's frame range and clocks and renders only that frame).
 
 Every measurement is a fresh worker process (``benchmarks/_worker.py``), one at a time, with a
 timeout (``--timeout`` s per renderer and scene) and a memory limit (``--max-memory-mb``: resident
@@ -131,10 +132,15 @@ def select(
 
 
 def animation_ini(scene: Path) -> Path | None:
-    """The ``.ini`` of the same name next to ``scene``, if there is one (the worker renders its first
-    frame if it describes an animation)."""
+    """The ``.ini`` of the same name next to ``scene`` if it describes an animation (``Final_Frame`` ≠
+    ``Initial_Frame``), whose first frame both renderers then render; else None."""
     ini = scene.with_suffix(".ini")
-    return ini if ini.is_file() else None
+    if not ini.is_file():
+        return None
+    from raytracer.sdl import Animation
+
+    anim = Animation.from_ini(ini)
+    return ini if anim.final_frame != anim.initial_frame else None
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -268,6 +274,14 @@ def measure(scene: str, root: Path, opts, work: Path, images: Path, stamp: dict)
     path = root / scene
     width, height = opts.size
     ini = animation_ini(path)
+    frame, pov_args = None, []
+    if ini is not None:
+        from raytracer.sdl import Animation
+        from validation.povray import animation_args
+
+        anim = Animation.from_ini(ini)
+        pov_args = animation_args(anim)
+        frame = {"frame": anim.frame, "final_frame": anim.final_frame, "clock": anim.clock}
     common = {
         "scene": path,
         "width": width,
@@ -275,7 +289,6 @@ def measure(scene: str, root: Path, opts, work: Path, images: Path, stamp: dict)
         "repeats": opts.repeats,
         "max_total_s": opts.timeout / 4,
         "catch": True,
-        "ini": ini,
     }
     ours_npy, pov_npy = work / "ours.npy", work / "pov.npy"
     for f in (ours_npy, pov_npy):
@@ -285,6 +298,7 @@ def measure(scene: str, root: Path, opts, work: Path, images: Path, stamp: dict)
             {
                 **common,
                 "kind": "ours",
+                "ini": ini,
                 "spp": 1,
                 "quiet": True,
                 "image": ours_npy,
@@ -300,6 +314,7 @@ def measure(scene: str, root: Path, opts, work: Path, images: Path, stamp: dict)
             {
                 **common,
                 "kind": "povray",
+                "extra_args": pov_args,
                 "aa": None,
                 "threads": opts.threads,
                 "timeout": opts.timeout,
@@ -327,7 +342,7 @@ def measure(scene: str, root: Path, opts, work: Path, images: Path, stamp: dict)
         "width": width,
         "height": height,
         "ini": None if ini is None else ini.relative_to(root).as_posix(),
-        "animation": ours.get("animation") or pov.get("animation"),
+        "animation": frame,
         "status": ours["status"],
         "ours": ours,
         "povray": pov,
