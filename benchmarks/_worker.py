@@ -41,8 +41,10 @@ Optional keys of the ``ours`` and ``povray`` jobs (``benchmarks/sample_renders.p
 Ours also reports ``warnings`` (how many the scene has), ``warning_features`` (their count per
 feature), ``warning_examples`` (the first message of each feature), ``warning_texts`` (the first
 few), ``first_image_s`` (the age of the worker process when the first image was ready: interpreter
-start, imports, parse, compile and one render, as a user of a fresh ``raytracer`` process waits)
-and ``nonfinite`` (NaN or infinite values in the image). POV-Ray's result has ``wall_s``, the wall
+start, imports, parse, compile and one render, as a user of a fresh ``raytracer`` process waits),
+``nonfinite`` (NaN or infinite values in the image) and ``accel`` (``native``: the renders used the
+native bounding volume hierarchy; ``none``: every ray tested every primitive, ``accel_reason`` says
+why). POV-Ray's result has ``wall_s``, the wall
 time of the whole ``povray`` process (median over the runs).
 """
 
@@ -196,7 +198,17 @@ def run_ours(job: dict) -> dict:
         "nonfinite": int(np.sum(~np.isfinite(np.asarray(image)))),
         "dtype": str(image.dtype),
         "devices": len(jax.devices()),
+        **_acceleration(),
     }
+
+
+def _acceleration() -> dict:
+    """Whether renders used the native hierarchy (``accel``: native or none) and, if not, why (asked
+    after the measured work, so that it adds nothing to it)."""
+    from raytracer.shading import _accel
+
+    mode = _accel.mode()
+    return {"accel": mode, "accel_reason": _accel.unavailable_reason() if mode == "none" else None}
 
 
 def run_ours_grad(job: dict) -> dict:

@@ -583,6 +583,16 @@ def markdown(records: list[dict], info: dict | None, options: dict | None, sourc
         )
     if source:
         md.append(f"Rewritten from `{source}`.")
+    accel = collections.Counter(r["ours"].get("accel") for r in records if r["ours"]["status"] == "ok")
+    if accel and set(accel) != {"native"}:
+        reasons = sorted({r["ours"]["accel_reason"] for r in records if r["ours"].get("accel_reason")})
+        parts = [f"native BVH in {accel['native']} scenes"] if accel.get("native") else []
+        if accel.get("none"):
+            why = f" ({'; '.join(reasons)})" if reasons else ""
+            parts.append(f"none in {accel['none']} scenes{why}: every ray tested every primitive")
+        if accel.get(None):
+            parts.append(f"not recorded in {accel[None]} scenes")
+        md.append(f"**Acceleration**: {'; '.join(parts)}.")
     md += [
         "",
         "Ours: parse = `load_scene`, compile = `compile_render`, warm = the compiled render (spp 1, "
