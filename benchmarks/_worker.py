@@ -362,6 +362,9 @@ def main() -> int:
     if not job.get("catch"):
         result = jobs[kind](job)
     else:
+        import faulthandler
+
+        faulthandler.enable()  # a fatal signal (a native crash) prints the Python stack on stderr
         try:
             result = jobs[kind](job)
         except Exception as e:  # noqa: BLE001 - reported to the caller, who classifies it

@@ -39,8 +39,10 @@ memory of the worker and what it started; the machine has no swap):
   peak 1), when both finished.
 
 Our status per scene: ``ok``, ``parse_error`` (a ``SceneError``: the scene uses something we do not
-read), ``crash`` (any other failure, in parse, compile or render, or the worker died), ``timeout``
-or ``memory`` (with the phase it was in). POV-Ray's: ``ok``, ``error``, ``timeout``, ``memory``.
+read), ``crash`` (any other failure, in parse, compile or render, or the worker died of a signal such
+as SIGSEGV), ``timeout`` or ``memory`` (with the phase it was in), or ``killed`` (SIGTERM, SIGKILL…
+from outside the benchmark: not the scene's doing, so a resumed run measures it again). POV-Ray's:
+``ok``, ``error``, ``timeout``, ``memory``, ``killed``.
 
 The run is resumable: each scene's record is appended to ``DIR/sample_renders.jsonl`` as it
 finishes and scenes already there (at this size) are skipped, so an interrupted run (hours for all
@@ -60,6 +62,7 @@ import math
 import os
 import random
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -204,12 +207,29 @@ def attempt(job: dict, timeout: float, max_rss_mb: float | None) -> dict:
         }
     except JobFailed as e:
         got = where()
-        lines = [x for x in str(e).splitlines() if x.strip()]
+        head, _, stderr = str(e).partition("\n")
+        m = re.search(r"job failed \((-?\d+)\)", head)
+        code = int(m.group(1)) if m else None
+        how = f"exit code {code}" if code is not None else "no result"
+        if code is not None and code < 0:
+            try:
+                how += f" ({signal.Signals(-code).name})"
+            except ValueError:
+                pass
+        tail = [x.strip() for x in stderr.splitlines() if x.strip()]
+        # faulthandler's report of a fatal signal: its first line, then the innermost frame first
+        fatal = next((i for i, x in enumerate(tail) if x.startswith("Fatal Python error")), None)
+        if fatal is not None:
+            frame = next((x for x in tail[fatal:] if x.startswith("File ")), "")
+            last = f"{tail[fatal]} {frame}".strip()
+        else:
+            last = tail[-1] if tail else ""
         return {
             **got,
             "status": "died",
-            "message": (lines[0] if lines else "failed")[:300],
-            "detail": "\n".join(lines[-15:])[-3000:],
+            "exit_code": code,
+            "message": f"the worker died: {how}" + (f" / {last[:250]}" if last else ""),
+            "detail": "\n".join(tail[-15:])[-3000:],
             "phase": got.pop("phase", None),
             "job_wall_s": time.perf_counter() - t0,
         }
@@ -222,10 +242,20 @@ def attempt(job: dict, timeout: float, max_rss_mb: float | None) -> dict:
     return res
 
 
+# a worker ended by one of these did not fail: something outside the benchmark stopped it (the
+# kernel's OOM killer sends SIGKILL too); its scene is measured again when the run is resumed
+KILLED = {-signal.SIGTERM, -signal.SIGKILL, -signal.SIGINT, -signal.SIGHUP}
+
+
+def _died(res: dict, failed: str) -> None:
+    res["status"] = "killed" if res.get("exit_code") in KILLED else failed
+
+
 def _ours_status(res: dict) -> dict:
-    """Our result with its status named for the report: ok, parse_error, crash, timeout, memory."""
+    """Our result with its status named for the report: ok, parse_error, crash, timeout, memory or
+    killed (stopped from outside)."""
     if res["status"] == "died":
-        res["status"] = "crash"
+        _died(res, "crash")
     elif res["status"] == "error":
         err = res["error"]
         text = f"{err.get('type')}: {err.get('message')}"
@@ -242,9 +272,9 @@ def _ours_status(res: dict) -> dict:
 
 
 def _pov_status(res: dict) -> dict:
-    """POV-Ray's result with its status: ok, error, timeout, memory."""
+    """POV-Ray's result with its status: ok, error, timeout, memory or killed."""
     if res["status"] == "died":
-        res["status"] = "error"
+        _died(res, "error")
     elif res["status"] == "error":
         res["message"] = _pov_message(res["error"])
         if "timed out" in res["error"].get("message", ""):
@@ -399,6 +429,11 @@ def append_record(path: Path, record: dict) -> None:
         f.write(json.dumps(record) + "\n")
         f.flush()
         os.fsync(f.fileno())
+
+
+def killed(record: dict) -> bool:
+    """Whether a renderer of this record was stopped from outside (the scene is measured again)."""
+    return "killed" in (record["ours"]["status"], record["povray"]["status"])
 
 
 def latest(records: list[dict], size: tuple[int, int] | None = None) -> list[dict]:
@@ -853,7 +888,7 @@ def main(argv=None) -> int:
     scenes = select(args.root, args.scenes, args.list, args.limit, args.seed)
     log = args.out / JSONL
     size = tuple(args.size)
-    done = {r["scene"] for r in latest(read_records(log), size)}
+    done = {r["scene"] for r in latest(read_records(log), size) if not killed(r)}
     todo = [s for s in scenes if s not in done]
     _log(
         f"sample_renders: {len(scenes)} scenes selected, {len(scenes) - len(todo)} already in {log}, "
