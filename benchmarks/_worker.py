@@ -22,6 +22,30 @@ a ``.npy`` path to write the last image to):
   :func:`validation.mitsuba.to_mitsuba`, loaded once, then rendered ``repeats + 1`` times to a
   box-filtered film: the first call JIT-compiles Dr.Jit's kernels (``first_s``; run with an empty
   ``$HOME`` so that Dr.Jit's on-disk kernel cache is cold), the others are warm.
+
+Optional keys of the ``ours`` and ``povray`` jobs (``benchmarks/sample_renders.py`` uses them):
+
+* ``include_paths``: further ``#include`` folders (ours: ``load_scene(include_paths=)``; POV-Ray: ``+L``).
+* ``ini`` (ours): a POV-Ray ``.ini`` whose animation's first frame is loaded
+  (``Animation.from_ini``); the result's ``animation`` says which frame. ``extra_args`` (POV-Ray):
+  further command-line options, such as :func:`validation.povray.animation_args` of that frame. (The
+  POV-Ray worker does not read the .ini itself: importing ``raytracer`` there would make a child of
+  the size of a JAX process, and ``RUSAGE_CHILDREN`` would count it as POV-Ray's peak memory.)
+* ``catch``: report a failure as the result ``{"error": {"type", "message", "phase", …}, …}`` (with
+  what was measured before it) instead of exiting non-zero; ``phase`` is ``parse``, ``compile`` or
+  ``render`` (ours) or ``povray``.
+* ``progress``: a file path; ours writes the phase it is in and what it has measured so far there
+  (JSON), so a caller that kills the worker on a timeout knows where it was.
+* ``quiet``: silence the scene's warnings on stderr (ours; they are counted in the result anyway).
+
+Ours also reports ``warnings`` (how many the scene has), ``warning_features`` (their count per
+feature), ``warning_examples`` (the first message of each feature), ``warning_texts`` (the first
+few), ``first_image_s`` (the age of the worker process when the first image was ready: interpreter
+start, imports, parse, compile and one render, as a user of a fresh ``raytracer`` process waits),
+``nonfinite`` (NaN or infinite values in the image) and ``accel`` (``native``: the renders used the
+native bounding volume hierarchy; ``none``: every ray tested every primitive, ``accel_reason`` says
+why). POV-Ray's result has ``wall_s``, the wall
+time of the whole ``povray`` process (median over the runs).
 """
 
 from __future__ import annotations
@@ -33,6 +57,50 @@ import resource
 import statistics
 import sys
 import time
+
+_T0 = time.perf_counter()  # as early as this process measures anything (see _process_age_s)
+WARNING_TEXTS = 5  # ours: how many warning texts the result carries
+
+
+def _process_age_s() -> float:
+    """Seconds since this process started (the interpreter's start included, from /proc on Linux;
+    elsewhere since this module was imported)."""
+    try:
+        start_ticks = int(open("/proc/self/stat").read().rsplit(")", 1)[1].split()[19])  # field 22
+        uptime = float(open("/proc/uptime").read().split()[0])
+        return max(0.0, uptime - start_ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return time.perf_counter() - _T0
+
+
+def _stage(job: dict, phase: str, **measured) -> None:
+    """Notes that ``job`` has reached ``phase`` with ``measured`` so far (for ``catch`` and ``progress``)."""
+    job["_phase"] = phase
+    job.setdefault("_partial", {}).update(measured)
+    if job.get("progress"):
+        with open(job["progress"], "w") as f:
+            json.dump({"phase": phase, **job["_partial"]}, f)
+
+
+def _animation(job: dict):
+    """The first frame of the animation ``job["ini"]`` describes, or None (no .ini)."""
+    if not job.get("ini"):
+        return None
+    from raytracer.sdl import Animation
+
+    return Animation.from_ini(job["ini"])
+
+
+def _animation_info(anim) -> dict | None:
+    if anim is None:
+        return None
+    return {
+        "frame": anim.frame,
+        "initial_frame": anim.initial_frame,
+        "final_frame": anim.final_frame,
+        "clock": anim.clock,
+        "cyclic": anim.cyclic,
+    }
 
 
 def _rss_mb(who=resource.RUSAGE_SELF) -> float:
@@ -63,35 +131,84 @@ def _timed_runs(fn, repeats: int, max_total_s: float):
 def run_ours(job: dict) -> dict:
     import jax
 
+    if job.get("quiet"):
+        import logging
+
+        logging.getLogger("raytracer").setLevel(logging.ERROR)
     if job.get("x64"):
         jax.config.update("jax_enable_x64", True)  # before the scene (and its arrays) exist
     from raytracer import load_scene
     from raytracer.render import compile_render
 
+    _stage(job, "parse")
+    anim = _animation(job)
     t0 = time.perf_counter()
-    scene = load_scene(job["scene"], width=job["width"], height=job["height"])
+    scene = load_scene(
+        job["scene"],
+        width=job["width"],
+        height=job["height"],
+        include_paths=job.get("include_paths", ()),
+        animation=anim,
+    )
     parse_s = time.perf_counter() - t0
+    features: dict[str, int] = {}
+    examples: dict[str, str] = {}
+    for w in scene.warnings:
+        features[w.feature] = features.get(w.feature, 0) + 1
+        examples.setdefault(w.feature, w.message)
+    _stage(
+        job,
+        "compile",
+        parse_s=parse_s,
+        animation=_animation_info(anim),
+        warnings=len(scene.warnings),
+        warning_features=features,
+        warning_examples=examples,
+        warning_texts=[str(w) for w in scene.warnings[:WARNING_TEXTS]],
+    )
     base_mb = _rss_mb()
     c0, t0 = time.process_time(), time.perf_counter()
     run = compile_render(scene, width=job["width"], height=job["height"], spp=job.get("spp", 1))
     compile_s = time.perf_counter() - t0
     compile_cpu_s = time.process_time() - c0
-    walls, cpus, image = _timed_runs(
-        lambda: jax.block_until_ready(run(scene)), job.get("repeats", 3), job.get("max_total_s", 120.0)
-    )
+    _stage(job, "render", compile_s=compile_s, compile_cpu_s=compile_cpu_s)
+    first = []
+
+    def once():
+        image = jax.block_until_ready(run(scene))
+        if not first:
+            first.append(_process_age_s())
+        return image
+
+    walls, cpus, image = _timed_runs(once, job.get("repeats", 3), job.get("max_total_s", 120.0))
     _save(job.get("image"), image)
+    import numpy as np
+
     return {
+        **job["_partial"],
         "parse_s": parse_s,
         "compile_s": compile_s,
         "compile_cpu_s": compile_cpu_s,
         "times_s": walls,
         "cpu_s": cpus,
         "time_s": statistics.median(walls),
+        "first_image_s": first[0],
         "peak_mb": _rss_mb(),
         "base_mb": base_mb,
+        "nonfinite": int(np.sum(~np.isfinite(np.asarray(image)))),
         "dtype": str(image.dtype),
         "devices": len(jax.devices()),
+        **_acceleration(),
     }
+
+
+def _acceleration() -> dict:
+    """Whether renders used the native hierarchy (``accel``: native or none) and, if not, why (asked
+    after the measured work, so that it adds nothing to it)."""
+    from raytracer.shading import _accel
+
+    mode = _accel.mode()
+    return {"accel": mode, "accel_reason": _accel.unavailable_reason() if mode == "none" else None}
 
 
 def run_ours_grad(job: dict) -> dict:
@@ -144,6 +261,7 @@ def run_povray(job: dict) -> dict:
 
     aa = job.get("aa")
     results = []
+    _stage(job, "povray")
 
     def once():
         t0 = time.perf_counter()
@@ -154,6 +272,8 @@ def run_povray(job: dict) -> dict:
             antialias=tuple(aa) if aa else None,
             threads=job.get("threads", 2),
             timeout=job.get("timeout", 900.0),
+            include_paths=job.get("include_paths", ()),
+            extra_args=job.get("extra_args", ()),
         )
         results.append((r, time.perf_counter() - t0))
         return r
@@ -213,12 +333,42 @@ def run_mitsuba(job: dict) -> dict:
     }
 
 
+def _error(e: BaseException, phase: str | None) -> dict:
+    """What the caller needs of a failure: its type and message, where it happened and, for a failure
+    that is not a scene error, the last lines of its traceback."""
+    import traceback
+
+    from raytracer.errors import SceneError
+
+    out = {
+        "type": type(e).__name__,
+        "message": str(e),
+        "phase": phase,
+        "scene_error": isinstance(e, SceneError),
+    }
+    stderr = getattr(e, "stderr", None)  # validation.povray.PovrayError: POV-Ray's own messages
+    if stderr:
+        out["log_tail"] = "\n".join(stderr.strip().splitlines()[-40:])
+    if not out["scene_error"] and stderr is None:
+        out["traceback"] = "".join(traceback.format_exception(e)[-12:])[-4000:]
+    return out
+
+
 def main() -> int:
     job = json.loads(sys.stdin.read())
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     kind = job["kind"]
     jobs = {"ours": run_ours, "ours_grad": run_ours_grad, "povray": run_povray, "mitsuba": run_mitsuba}
-    result = jobs[kind](job)
+    if not job.get("catch"):
+        result = jobs[kind](job)
+    else:
+        import faulthandler
+
+        faulthandler.enable()  # a fatal signal (a native crash) prints the Python stack on stderr
+        try:
+            result = jobs[kind](job)
+        except Exception as e:  # noqa: BLE001 - reported to the caller, who classifies it
+            result = {**job.get("_partial", {}), "error": _error(e, job.get("_phase"))}
     sys.stdout.write("\n" + json.dumps(result) + "\n")
     return 0
 

@@ -6,11 +6,12 @@ Nothing here checks a time: speed is measured by ``benchmarks/``, never asserted
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
 
-from benchmarks import accuracy, scaling, speed
+from benchmarks import accuracy, sample_renders, scaling, speed
 from benchmarks._common import SCENES, md_table, scene_variant
 
 
@@ -125,3 +126,73 @@ def test_scaling_scene_files_parse_with_the_expected_geometry(tmp_path):
     copies_file.write_text(scaling.mesh_scene(200, copies=4))
     copies = load_scene(copies_file, width=16, height=12).objects
     assert [o.shape.triangles.shape[0] for o in copies] == [200] * 4
+
+
+def _sample_record(scene, psnr, features=None, ours="ok", povray="ok", compile_s=1.0):
+    done = ours == "ok" and povray == "ok"
+    return {
+        "scene": scene,
+        "width": 16,
+        "height": 12,
+        "status": ours,
+        "ours": {
+            "status": ours,
+            "parse_s": 0.1,
+            "compile_s": compile_s,
+            "time_s": 0.5,
+            "first_image_s": 4.0,
+            "peak_mb": 300.0,
+            "warnings": sum((features or {}).values()),
+            "warning_features": features or {},
+            "warning_examples": {f: f"{f} is not supported" for f in features or {}},
+        },
+        "povray": {"status": povray, "parse_s": 0.0, "time_s": 0.1, "wall_s": 0.5},
+        "ratio_warm_to_trace": 5.0 if done else None,
+        "ratio_process": 8.0 if done else None,
+        "psnr_vs_povray": psnr if done else None,
+        "image": None,
+    }
+
+
+def test_sample_renders_subset_is_deterministic_and_summary_statistics_are_right(tmp_path):
+    for name in ("a/one.pov", "a/two.pov", "b/three.pov", "b/c/four.pov", "five.pov", "six.pov", "a/x.inc"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("")
+    everything = sample_renders.select(tmp_path)
+    assert everything == sorted(everything) and len(everything) == 6  # .pov files only
+    three = sample_renders.select(tmp_path, limit=3, seed=1)
+    assert three == sample_renders.select(tmp_path, limit=3, seed=1)
+    assert sample_renders.select(tmp_path, limit=5, seed=1)[:3] == three  # a larger limit keeps them
+    assert sorted(sample_renders.select(tmp_path, limit=6, seed=2)) == everything
+    assert sample_renders.select(tmp_path, ["a/*.pov"]) == ["a/one.pov", "a/two.pov"]
+    listed = tmp_path / "list.txt"
+    listed.write_text("# chosen\nfive.pov\n\nb/c/four.pov  # nested\n")
+    assert sample_renders.select(tmp_path, ["a/one.pov"], listed) == ["a/one.pov", "b/c/four.pov", "five.pov"]
+
+    records = [
+        _sample_record("s1", 10.0, {"fog": 2}, compile_s=9.0),
+        _sample_record("s2", 20.0, {"fog": 1, "text": 3}),
+        _sample_record("s3", 30.0, {"text": 1}, compile_s=5.0),
+        _sample_record("s4", 40.0),
+        _sample_record("s5", math.inf),  # identical images
+        _sample_record("s6", None, {"media": 1}, ours="parse_error"),
+        _sample_record("s7", None, ours="ok", povray="error"),
+    ]
+    s = sample_renders.summarize(records)
+    assert (s["tried"], s["finished_by_both"], s["scored"]) == (7, 5, 5)
+    assert s["ours"] == {"ok": 6, "parse_error": 1} and s["povray"] == {"ok": 6, "error": 1}
+    assert s["stats"]["psnr_db"] == {"n": 5, "q1": 20.0, "median": 30.0, "q3": 40.0}
+    assert s["stats"]["warm_over_trace"]["median"] == 5.0 and s["stats"]["process_over_process"]["n"] == 5
+    assert s["worst_psnr"] == ["s1", "s2", "s3", "s4", "s5"]
+    assert s["slowest_compiles"][:2] == ["s1", "s3"]
+    text, fog, media = s["warnings"]  # most scenes first, then most occurrences
+    assert (text["feature"], text["scenes"], text["occurrences"]) == ("text", 2, 4)
+    assert (text["median_psnr_with"], text["delta_db"], text["median_psnr_alone"]) == (25.0, -15.0, 30.0)
+    assert (fog["feature"], fog["scenes"], fog["occurrences"], fog["median_psnr_with"]) == ("fog", 2, 3, 15.0)
+    assert fog["median_psnr_without"] == 40.0 and fog["delta_db"] == -25.0  # without: 30, 40, inf
+    assert (fog["alone_scored"], fog["median_psnr_alone"]) == (1, 10.0)
+    assert (media["feature"], media["scored"], media["median_psnr_with"]) == ("media", 0, None)
+    assert sample_renders.main_warning(records[1]) == ("text", 3)
+    md = sample_renders.markdown(records, None, None)
+    assert "finished by both renderers: **5**" in md
+    assert "| s1 | 10 | 2 | fog ×2: fog is not supported |" in md

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PovrayError", "PovrayRender", "PovrayUnavailable", "povray_executable", "read_exr",
-           "render_povray", "run_povray"]
+__all__ = ["PovrayError", "PovrayRender", "PovrayUnavailable", "animation_args", "povray_executable",
+           "read_exr", "render_povray", "run_povray"]
 
 
 class PovrayUnavailable(RuntimeError):
@@ -87,6 +87,19 @@ def _parse_seconds(log: str, label: str) -> float | None:
     return float(m.group(1)) if m else None
 
 
+def animation_args(animation) -> list[str]:
+    """Options that make POV-Ray render one frame of an animation: the frame range, clocks and
+    cyclic flag of ``animation`` (a :class:`raytracer.sdl.Animation`), with the subset of frames
+    (``+SF``/``+EF``) set to its ``frame`` alone, so that ``clock``, ``clock_delta``,
+    ``frame_number`` and ``final_frame`` are those of that frame of the whole animation. POV-Ray
+    then names the output file after the frame (``out01.exr``); :func:`run_povray` finds it.
+    """
+    a = animation
+    return [f"+KFI{int(a.initial_frame)}", f"+KFF{int(a.final_frame)}", f"+KI{float(a.initial_clock):.17g}",
+            f"+KF{float(a.final_clock):.17g}", "+KC" if a.cyclic else "-KC", f"+SF{int(a.frame)}",
+            f"+EF{int(a.frame)}"]
+
+
 def _is_scene_path(scene) -> bool:
     if isinstance(scene, os.PathLike):
         return True
@@ -147,6 +160,9 @@ def run_povray(scene, width: int, height: int, *, antialias: tuple[float, int] |
             raise PovrayError(f"povray timed out after {timeout:g} s", log) from None
         log = proc.stdout + proc.stderr
         out = tmp_path / "out.exr"
+        frames = sorted(tmp_path.glob("out*.exr"))
+        if not out.is_file() and len(frames) == 1:  # one frame of an animation: out<frame>.exr
+            out = frames[0]
         if proc.returncode != 0 or not out.is_file():
             raise PovrayError(f"povray failed (exit code {proc.returncode})", log)
         image = read_exr(out)
