@@ -52,10 +52,17 @@ def register_packed(cls, arrays: tuple[str, ...]):
     static = tuple(n for n in names if n not in arrays)
 
     def flatten(x):
-        return [getattr(x, n) for n in arrays], Frozen({n: getattr(x, n) for n in static})
+        # the static half is pickled once per instance (a jit call flattens its arguments)
+        aux = x.__dict__.get("_packed_static")
+        if aux is None:
+            aux = Frozen({n: getattr(x, n) for n in static})
+            object.__setattr__(x, "_packed_static", aux)
+        return [getattr(x, n) for n in arrays], aux
 
     def unflatten(aux, children):
-        return cls(**dict(zip(arrays, children, strict=True)), **aux.value)
+        x = cls(**dict(zip(arrays, children, strict=True)), **aux.value)
+        object.__setattr__(x, "_packed_static", aux)
+        return x
 
     jax.tree_util.register_pytree_node(cls, flatten, unflatten)
     return cls
