@@ -94,9 +94,9 @@ def truthy(p, v, loc=None) -> bool:
     return abs(as_float(p, v, loc)) > EPSILON
 
 
-def check_string_length(p, length: int, loc, what: str) -> None:
-    """A SceneError when a string of ``length`` characters would exceed ``Limits.max_string_length``."""
-    limit = p.limits.max_string_length
+def check_string_length(p, length: int, loc, what: str, limit_name: str = "max_string_length") -> None:
+    """A SceneError when ``length`` characters would exceed ``Limits.<limit_name>``."""
+    limit = getattr(p.limits, limit_name)
     if length > limit:
-        raise p.error(f"expected a string of at most {limit} characters (Limits.max_string_length), "
+        raise p.error(f"expected at most {limit} characters (Limits.{limit_name}), "
                       f"{what} would make {length}", loc)

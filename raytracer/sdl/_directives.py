@@ -508,7 +508,8 @@ class Directives:
                 break
             text = _file_text(parse_expr(self))
             self.written_chars[name] += len(text)
-            check_string_length(self, self.written_chars[name], tok.loc, f'#write to "{name}"')
+            check_string_length(self, self.written_chars[name], tok.loc, f'#write to "{name}"',
+                                "max_written_chars")
             self.virtual_files[name].append(text)
 
     def _fread(self, tok):

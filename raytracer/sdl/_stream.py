@@ -32,7 +32,9 @@ class Limits:
         max_tokens:          tokens read in total (a budget for the whole scene).
         max_array_elements:  elements of one array (``array[1000000000]`` would need 8 GB).
         max_string_length:   characters of one string (``concat`` doubling a string 34 times
-                             reached 6.4 GB) and of one file a scene writes with ``#write``.
+                             reached 6.4 GB).
+        max_written_chars:   characters of one file a scene writes with ``#write`` (kept in
+                             memory; POV-Ray's ``meshcam_persp_demo.pov`` writes 17 M at 640×480).
     """
 
     max_loop_iterations: int = 1_000_000
@@ -41,6 +43,7 @@ class Limits:
     max_tokens: int = 50_000_000
     max_array_elements: int = 16_777_216
     max_string_length: int = 16_777_216
+    max_written_chars: int = 268_435_456
 
 
 @dataclasses.dataclass

@@ -216,14 +216,17 @@ def test_include_outside_the_scene_folders_is_refused_without_reading_it(tmp_pat
     load_scene(main, include_paths=[secret.parent])
 
 
-def test_runaway_strings_and_written_files_stop_at_the_string_limit():
-    # issue 13 item 10: doubling a string 34 times reached 6.4 GB
-    limits = Limits(max_string_length=4096)
+def test_runaway_strings_and_written_files_stop_at_their_limits():
+    # issue 13 item 10: doubling a string 34 times reached 6.4 GB; a written file has its own,
+    # larger limit (POV-Ray's meshcam_persp_demo.pov writes 17 M characters at 640×480)
+    assert Limits().max_written_chars > 17_000_000
+    limits = Limits(max_string_length=4096, max_written_chars=4096)
     e = error_of('#declare S = "ab";\n#for (I, 1, 34) #declare S = concat(S, S); #end', limits=limits)
     assert "Limits.max_string_length" in str(e) and "concat() would make 8192" in str(e)
     assert e.location.line == 2
     e = error_of('#fopen F "out.inc" write\n#for (I, 1, 1000) #write (F, "0123456789") #end', limits=limits)
-    assert '#write to "out.inc" would make 4100' in str(e) and e.location.line == 2
+    assert '#write to "out.inc" would make 4100' in str(e) and "Limits.max_written_chars" in str(e)
+    assert e.location.line == 2
     # a string at the limit is fine, and reopening a file for writing starts it again
     load_scene('#declare S = "ab"; #for (I, 1, 11) #declare S = concat(S, S); #end\n'  # 4096 characters
                '#fopen F "o.inc" write #write (F, S) #fclose F\n'

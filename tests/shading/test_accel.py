@@ -37,7 +37,8 @@ plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
                        rotate <50 * rand(R), 0, 0> translate P pigment { rgb <0.5, 0.2, rand(R)> } } #break
   #case (5) cone { <0, -0.3, 0>, 0.4 * rand(R), <0, 0.4, 0.2>, 0.3 #if (mod(i, 2)) open #end
                    scale <1, 1.5, 1> translate P pigment { rgb <rand(R), 1, 0.4> } } #break
-  #case (6) disc { P, <rand(R), 1, rand(R) - 0.5>, 0.5, 0.2 * rand(R) pigment { rgb <1, 0.4, rand(R)> } } #break
+  #case (6) disc { P, <rand(R), 1, rand(R) - 0.5>, 0.5, 0.2 * rand(R)
+                   pigment { rgb <1, 0.4, rand(R)> } } #break
   #case (3) smooth_triangle { <-0.4, 0, 0>, <0, 0, -1>, <0.4, 0, 0>, <1, 0, -1>, <0, 0.7, 0>, <-1, 1, -1>
                           translate P pigment { rgb 0.8 } }
   #end
