@@ -168,11 +168,11 @@ def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: 
 
 
 @eqx.filter_jit
-def _assemble(scene: Scene, parts, width: int, height: int, k: int):
+def _assemble(settings, parts, width: int, height: int, k: int):
     n = width * height * k * k
     colours = jnp.concatenate([c.reshape(-1, 3) for c in parts])[:n]
     img = colours.reshape(height, width, k * k, 3).mean(axis=2)
-    return _output_transfer(img, scene.settings)
+    return _output_transfer(img, settings)
 
 
 def _background_only(scene: Scene, width: int, height: int):
@@ -185,7 +185,7 @@ def _background_only(scene: Scene, width: int, height: int):
 def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: int | None = None):
     """The image and the number of rays dropped for lack of ``capacity`` (0 when None)."""
     colours, dropped = _render_tiles(packed, make_plan(packed.scene), width, height, k, 1, 0, capacity)
-    return _assemble(packed.scene, [colours], width, height, k), dropped
+    return _assemble(packed.rest.settings, [colours], width, height, k), dropped
 
 
 def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None = None):
@@ -271,7 +271,7 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
                 if progress is not None:
                     progress(i + 1, n_parts)
             if dropped == 0 or state["capacity"] is None:
-                return _assemble(s, parts, width, height, k)
+                return _assemble(s.settings, parts, width, height, k)
             state["capacity"] *= 4  # some tree level was wider: exact re-render with more room
             state["compiled"] = build()
 
