@@ -88,6 +88,10 @@ class Interpreter(Stream, Directives):
         kw = t.value
         if is_object_start(self, t):
             rec = parse_object(self)
+            if isinstance(rec, ObjRec):
+                # semantics §2.1: the parts left without a texture take the #default current when
+                # the object is placed (its top-level statement ends), not when it was declared
+                rec.default_layer = self.default_layer
             self.items.append(rec)
         elif kw == "camera":
             self.next()

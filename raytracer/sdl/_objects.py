@@ -59,7 +59,7 @@ def parse_object(p):
         return _parse_csg(p, t)
     if kw in UNSUPPORTED_OBJECTS:
         return _parse_unsupported(p, t)
-    rec = ObjRec(kw, loc=t.loc, default_layer=p.default_layer)
+    rec = ObjRec(kw, loc=t.loc)
     p.expect_op("{", f"'{{' after {kw}")
     rec.shape = SDL_KEYWORDS[kw].parse_sdl(kw, _ShapeArgs(p, rec))
     object_modifiers(p, rec)
@@ -116,7 +116,7 @@ def _parse_csg(p, t):
     if kw == "light_group":
         p.warn("light_group", "light_group is treated as a union (its lights light everything)", t.loc)
         kw = "union"
-    rec = ObjRec(kw, loc=t.loc, default_layer=p.default_layer)
+    rec = ObjRec(kw, loc=t.loc)
     p.expect_op("{", f"'{{' after {t.value}")
     object_modifiers(p, rec, csg=True)
     if not rec.children:

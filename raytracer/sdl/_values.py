@@ -226,7 +226,7 @@ class ObjRec:
     interior: InteriorRec | None = None
     clipped_by: list = dataclasses.field(default_factory=list)
     flags: dict = dataclasses.field(default_factory=dict)
-    default_layer: LayerRec | None = None
+    default_layer: LayerRec | None = None  # the #default when placed at top level (§2.1)
     layers_given: bool = False
     bounded_by: list = dataclasses.field(default_factory=list)
     supported: bool = True

@@ -181,6 +181,45 @@ def test_default_texture_applies_to_later_objects():
     assert float(s.objects[0].texture.layers[0].finish.ambient[0]) == pytest.approx(0.5)
 
 
+DEFAULT_AT_PLACEMENT = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 0, -6> look_at 0 right x*4/3 }
+light_source { <2, 4, -5> rgb 1 }
+background { rgb <0.1, 0.2, 0.3> }
+#declare Bare = sphere { <-2, 1, 0>, 0.9 }
+#declare FinishOnly = sphere { <0, 1, 0>, 0.9 finish { ambient 0.5 diffuse 0.3 } }
+#default { texture { pigment { rgb <1, 0, 0> } } }
+#declare InUnion = union { object { Bare translate -2*y } sphere { <0, -1, 0>, 0.9 } }
+#default { texture { pigment { rgb <0, 1, 0> } finish { ambient 0.3 } } }
+object { Bare }
+object { FinishOnly }
+object { InUnion }
+union {
+  sphere { <2, 1, 0>, 0.9 }
+  #default { texture { pigment { rgb <0, 0, 1> } } }
+  sphere { <2, -1, 0>, 0.9 }
+}
+"""
+
+
+@pytest.mark.povray
+def test_default_texture_is_the_one_current_when_the_object_is_placed(tmp_path):
+    # issue 13 item 3, measured with povray 3.7: an object without texture takes the #default of
+    # the end of its top-level statement (Bare and InUnion green, the last union's spheres both
+    # blue); a partial texture is completed from the #default of when it was written
+    # (FinishOnly black)
+    import numpy as np
+
+    import raytracer as rt
+    from validation import metrics
+    from validation.povray import render_povray
+
+    path = tmp_path / "default.pov"
+    path.write_text(DEFAULT_AT_PLACEMENT)
+    ours = np.asarray(rt.render(rt.load_scene(path), width=32, height=24))
+    assert metrics.psnr(ours, render_povray(path, 32, 24)) >= 40.0  # measured 86 dB (12 dB before)
+
+
 def test_conditional_inside_a_declaration():
     assert value("#declare R = #if (0) 1 #else 2 #end;") == 2.0
 
