@@ -190,12 +190,7 @@ class AbstractShape(eqx.Module):
     def parse_sdl(cls, keyword: str, args: ShapeArgs) -> dict:
         """The fields read after ``keyword {`` (up to the object modifiers): by default the
         comma-separated ``sdl_arguments``; shapes with other syntax override this."""
-        fields = {}
-        for i, (name, kind) in enumerate(cls.sdl_arguments):
-            if i:
-                args.comma()
-            fields[name] = args.vector() if kind == "vector" else args.float()
-        return fields
+        return read_arguments(cls, args)
 
     @classmethod
     def from_sdl(cls, fields: dict) -> AbstractShape:
@@ -203,6 +198,16 @@ class AbstractShape(eqx.Module):
 
     def to_mitsuba(self, world_from_object: np.ndarray, camera_origin: np.ndarray) -> MitsubaShape:
         raise NoEquivalent(self.kind, "no Mitsuba primitive; tessellation would be an approximation")
+
+
+def read_arguments(cls: type[AbstractShape], args: ShapeArgs) -> dict:
+    """``cls.sdl_arguments``, comma-separated, as a dict of fields."""
+    fields = {}
+    for i, (name, kind) in enumerate(cls.sdl_arguments):
+        if i:
+            args.comma()
+        fields[name] = args.vector() if kind == "vector" else args.float()
+    return fields
 
 
 # the kernels of raytracer/_native/bvh.cc

@@ -17,7 +17,7 @@ from jaxtyping import Array, Float
 
 from .._build import build
 from .._dtype import as_float
-from ._base import NATIVE_TRIANGLE, AbstractShape, MitsubaShape, mesh_entry
+from ._base import NATIVE_TRIANGLE, AbstractShape, MitsubaShape, mesh_entry, read_arguments
 from ._triangle import smooth_triangle_hits, triangle_hits
 
 _MESH2_SECTIONS = ("vertex_vectors", "normal_vectors", "uv_vectors", "texture_list", "face_indices",
@@ -93,7 +93,8 @@ def _parse_mesh(args) -> dict:
     tris, norms, smooth = [], [], False
     while (kw := args.keyword("triangle", "smooth_triangle")) is not None:
         args.expect("{", f"'{{' after {kw}")
-        s = (Triangle if kw == "triangle" else SmoothTriangle).parse_sdl(kw, args)
+        # a mesh keeps a smooth triangle that alone would be degenerate (_mesh_fields)
+        s = read_arguments(Triangle if kw == "triangle" else SmoothTriangle, args)
         tris.append((s["p1"], s["p2"], s["p3"]))
         if kw == "smooth_triangle":
             smooth = True
@@ -179,12 +180,34 @@ def _check_indices(args, faces, n: int, what: str, into: str, loc) -> None:
                 raise args.error(f"expected {what} from 0 to {n - 1} (the {into} entries), found {i}", loc)
 
 
+# POV-Ray 3.7 (measured): a mesh face whose unit normals agree within this, component by
+# component, is flat (7.2e-6 apart: flat; 1.07e-5: smooth)
+_SAME_NORMAL = 1e-5
+
+
+def _mesh_normals(args, nn) -> tuple | None:
+    """A smooth face's normals as POV-Ray 3.7 keeps them in a mesh (semantics §4.1): a zero
+    normal becomes <1,0,0> (its warning "Normal vector in mesh cannot be zero"); None when the
+    three then agree (the face is flat)."""
+    nn = [np.asarray(v, np.float64) for v in nn]
+    zero = [not np.any(v) for v in nn]
+    if any(zero):
+        args.warn("mesh normal", "a zero normal in a mesh is changed to <1,0,0>, as POV-Ray does")
+        nn = [np.array([1.0, 0.0, 0.0]) if z else v for v, z in zip(nn, zero, strict=True)]
+    units = [v / np.linalg.norm(v) for v in nn]
+    if all(np.all(np.abs(u - units[0]) <= _SAME_NORMAL) for u in units[1:]):
+        return None
+    return tuple(nn)
+
+
 def _mesh_fields(args, tris, norms, smooth) -> dict:
     if not tris:
         args.leave_out("empty mesh; left out")
         return {}
     n = None
     if smooth:
+        norms = [None if nn is None else _mesh_normals(args, nn) for nn in norms]
+    if any(nn is not None for nn in norms):
         n = []
         for tri, nn in zip(tris, norms, strict=True):
             if nn is None:  # a flat face of a smooth mesh: its face normal at every vertex

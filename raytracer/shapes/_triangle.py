@@ -134,6 +134,15 @@ class Triangle(AbstractShape):
         return MitsubaShape([mesh_entry(tris, None, m)], closed=False, planar=True)
 
 
+def normals_on_one_side(p1, p2, p3, n1, n2, n3) -> bool:
+    """Whether the three vertex normals point strictly to one side of the triangle's plane (what
+    POV-Ray 3.7 asks of a ``smooth_triangle`` outside a mesh; semantics §4.1)."""
+    p1, p2, p3 = (np.asarray(v, np.float64) for v in (p1, p2, p3))
+    face = np.cross(p2 - p1, p3 - p1)
+    dots = np.array([np.dot(np.asarray(n, np.float64), face) for n in (n1, n2, n3)])
+    return bool(np.all(dots > 0) or np.all(dots < 0))
+
+
 class SmoothTriangle(AbstractShape):
     """``smooth_triangle { p1, n1, p2, n2, p3, n3 }``: normals interpolated barycentrically."""
 
@@ -165,10 +174,12 @@ class SmoothTriangle(AbstractShape):
     @classmethod
     def parse_sdl(cls, keyword, args):
         fields = super().parse_sdl(keyword, args)
-        if not any(np.any(np.asarray(fields[n], np.float64)) for n in ("n1", "n2", "n3")):
+        if not normals_on_one_side(*(fields[n] for n in ("p1", "p2", "p3", "n1", "n2", "n3"))):
             # POV-Ray 3.7: "Parse Warning: Degenerate triangle. Please remove." and draws nothing
-            args.leave_out("smooth_triangle with all three normals zero is degenerate; left out, as "
-                           "POV-Ray does")
+            # (measured: a zero normal, one in the triangle's plane, or one on its other side)
+            args.leave_out("smooth_triangle whose normals do not all point to one side of it (a "
+                           "zero normal, one in its plane or one on its other side) is degenerate; "
+                           "left out, as POV-Ray does")
         return fields
 
     def to_mitsuba(self, m, camera_origin):
