@@ -32,9 +32,10 @@ class Pigment(eqx.Module):
 
     Attributes:
         pattern:     static name, a key of ``raytracer.patterns.REGISTRY`` (``PATTERNS``).
-        values:      (M,) colour-map positions, ascending ([0, 1] for continuous patterns).
+        values:      (M,) colour-map positions, ascending ([0, 1] for continuous patterns). A
+                     discrete pattern does not read them: it picks its list entry by index.
         colors:      (M, 5) colour-map entries, RGBFT. A solid pigment has M = 1; a discrete pattern
-                     (checker, hexagon, brick) has its listed colours at positions 0, 1, ….
+                     (checker, hexagon, brick) has its listed colours, chosen by the indices 0, 1, ….
         transform:   ``world_from_pattern``; the pattern sees the inverse-transformed hit point.
         vector:      (3,) pattern direction (``gradient``'s vector), unused by others.
         frequency, phase: the value is ``fmod(v·frequency + phase, 1.00001)`` unless frequency is 0

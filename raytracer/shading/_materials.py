@@ -177,7 +177,22 @@ def pigment_at(mats: PackedMaterials, prim, p):
         waved = jnp.stack([patterns.apply_wave(v, name) for name in WAVES])
         v = waved[wave]
     c = _color_map(v, mats.values[prim], mats.colors[prim])
+    if any(patterns.REGISTRY[name].discrete for name in mats.pattern_names):
+        c = jnp.where(discrete, _list_entry(v, mats.colors[prim]), c)
     return jnp.where(pid == _solid_index(mats), mats.colors[prim, 0], c)
+
+
+def _list_entry(v, colors):
+    """The colour a discrete pattern chooses (semantics §5.2): its value is the index of a list
+    entry, taken by integer index — the entries sit at the fixed positions 0, 1, …, so the map's
+    ``values`` play no part and a choice has no derivative with respect to them. A wave can map the
+    index between two entries (``sine_wave`` takes a checker's 0 and 1 to 0.5: POV-Ray shows the
+    mean of its two colours); the fraction then blends the two."""
+    last = colors.shape[0] - 1
+    x = jnp.clip(v, 0, last)
+    i = jnp.floor(x).astype(jnp.int32)
+    f = x - i
+    return colors[i] * (1 - f) + colors[jnp.minimum(i + 1, last)] * f
 
 
 def _solid_index(mats: PackedMaterials) -> int:

@@ -380,3 +380,49 @@ def test_noise_patterns_match_povray_statistics(name, pigment, turb, tol):
     assert s_ours["mean"] == pytest.approx(s_pov["mean"], abs=tol[0]), (s_ours, s_pov)
     assert s_ours["std"] == pytest.approx(s_pov["std"], rel=tol[1]), (s_ours, s_pov)
     assert s_ours["ac_half"] == pytest.approx(s_pov["ac_half"], abs=tol[2]), (s_ours, s_pov)
+
+
+# --------------------------------------------------------------------------------------------------
+# Discrete patterns choose a list entry
+
+
+DISCRETE_WALL = """
+camera { orthographic location <0, 0, -5> look_at 0 right x*6 up y*4 }
+box { <-3, -2, 0>, <-1, 2, 1> pigment { checker rgb <0.9, 0.2, 0.1>, rgb <0.1, 0.3, 0.8> scale 0.7 }
+      finish { ambient 1 diffuse 0 } }
+box { <-1, -2, 0>, <1, 2, 1> pigment { hexagon rgb <0.2, 0.8, 0.3>, rgb <0.7, 0.6, 0.1>,
+                                       rgb <0.5, 0.1, 0.6> rotate -90*x scale 0.6 }
+      finish { ambient 1 diffuse 0 } }
+box { <1, -2, 0>, <3, 2, 1> pigment { brick rgb <0.8, 0.8, 0.7>, rgb <0.6, 0.2, 0.1> scale 0.15 }
+      finish { ambient 1 diffuse 0 } }
+"""
+
+
+def test_discrete_pattern_colour_has_no_derivative_through_map_positions(x64):
+    # issue 13 item 6: checker, hexagon and brick pick their list entry by integer index; their
+    # colour was a colour map over positions that were parameters, with a kink at them, so a JVP
+    # moving the positions disagreed with central differences on every pixel of the pattern
+    import equinox as eqx
+
+    import raytracer as rt
+    from raytracer import params
+
+    scene = rt.load_scene(DISCRETE_WALL)
+    p, rest = eqx.partition(scene, eqx.is_inexact_array)
+
+    def image(q):
+        return rt.render(eqx.combine(q, rest), width=6, height=4)
+
+    names = [n for n in params.parameters(p) if n.endswith((".pigment.values", ".pigment.colors"))]
+    assert len(names) == 6
+    t = params.random_tangent(p, jax.random.PRNGKey(0), names)
+    run = jax.jit(lambda q, t: jax.jvp(image, (q,), (t,)))
+    _, jvp = run(p, t)
+
+    def shifted(h):
+        return run(jax.tree_util.tree_map(lambda a, b: a + h * b, p, t), t)[0]
+
+    h = 1e-6
+    fd = (np.asarray(shifted(h)) - np.asarray(shifted(-h))) / (2 * h)
+    assert np.abs(jvp).max(axis=-1).min() > 0.05  # every pixel is a pattern pixel
+    np.testing.assert_allclose(np.asarray(jvp), fd, atol=1e-7)
