@@ -89,7 +89,7 @@ def build(boxes):
     # ---- Morton codes of the centroids in the centroids' box, sorted (ties keep index order)
     cen = 0.5 * (lo + hi)
     cen = jnp.where(jnp.isfinite(cen), cen, 0)
-    cmin, cmax = cen.min(axis=0), cen.max(axis=0)
+    cmin, cmax = cen.min(axis=0, keepdims=True), cen.max(axis=0, keepdims=True)
     extent = cmax - cmin
     unit = jnp.where(extent > 0, (cen - cmin) / jnp.where(extent > 0, extent, 1), 0)
     cells = 1 << MORTON_BITS
@@ -113,25 +113,32 @@ def build(boxes):
     # the direction of i's range: towards the neighbour sharing the longer prefix
     direction = jnp.where(prefix(i, i + 1) > prefix(i, i - 1), 1, -1).astype(jnp.int32)
     floor_prefix = prefix(i, i - direction)  # every key of the range shares more than this with i
-    # an upper bound of the range's length (a power of two), then its exact other end
-    reach = jnp.full(n - 1, 2, jnp.int32)
-    for _ in range(steps):
-        reach = jnp.where(prefix(i, i + reach * direction) > floor_prefix, reach * 2, reach)
-    length = jnp.zeros(n - 1, jnp.int32)
-    for b in reversed(range(steps + 1)):
-        t = 1 << b
+    # an upper bound of the range's length (a power of two), then its exact other end (the loops
+    # are fori_loops: unrolled, XLA's CPU compiler takes seconds over the fused searches)
+    def grow(_, reach):
+        return jnp.where(prefix(i, i + reach * direction) > floor_prefix, reach * 2, reach)
+
+    reach = lax.fori_loop(0, steps, grow, jnp.full(n - 1, 2, jnp.int32))
+
+    def extend(b, length):
+        t = jnp.left_shift(jnp.int32(1), steps - b)  # 2^steps, ..., 2, 1
         longer = (t < reach) & (prefix(i, i + (length + t) * direction) > floor_prefix)
-        length = jnp.where(longer, length + t, length)
+        return jnp.where(longer, length + t, length)
+
+    length = lax.fori_loop(0, steps + 1, extend, jnp.zeros(n - 1, jnp.int32))
     j = i + length * direction
     node_prefix = prefix(i, j)
-    # the split: the last key (from i's side) that shares more than node_prefix with i
-    split = jnp.zeros(n - 1, jnp.int32)
-    for s in range(steps + 1):
-        t = (length + (1 << (s + 1)) - 1) >> (s + 1)  # ceil(length / 2^(s+1))
-        previous = (length + (1 << s) - 1) >> s  # the step before (the search ends after t = 1)
-        live = (previous > 1) if s else jnp.ones(n - 1, bool)
+
+    # the split: the last key (from i's side) that shares more than node_prefix with i, by
+    # steps of ceil(length / 2), ceil(length / 4), ... down to 1 (taken once)
+    def advance(s, split):
+        t = (length + jnp.left_shift(jnp.int32(1), s + 1) - 1) >> (s + 1)
+        previous = (length + jnp.left_shift(jnp.int32(1), s) - 1) >> s
+        live = (s == 0) | (previous > 1)
         further = live & (prefix(i, i + (split + t) * direction) > node_prefix)
-        split = jnp.where(further, split + t, split)
+        return jnp.where(further, split + t, split)
+
+    split = lax.fori_loop(0, steps + 1, advance, jnp.zeros(n - 1, jnp.int32))
     gamma = i + split * direction + jnp.minimum(direction, 0)
     first, last = jnp.minimum(i, j), jnp.maximum(i, j)
     left = jnp.where(first == gamma, n - 1 + gamma, gamma)
@@ -515,5 +522,19 @@ def _query_fn(any_hit: bool):
     return query
 
 
-closest_query = _query_fn(any_hit=False)
-any_query = _query_fn(any_hit=True)
+_closest = _query_fn(any_hit=False)
+_any = _query_fn(any_hit=True)
+
+
+def _without_gradient(query):
+    def call(tables, o, d, tmin, tmax, want):
+        # the custom_vmap primitive has no derivative rule: it must see no tangents at all
+        sg = lax.stop_gradient
+        return query(jax.tree_util.tree_map(sg, tables), sg(o), sg(d), sg(tmin), sg(tmax), want)
+
+    call.__doc__ = query.__doc__
+    return call
+
+
+closest_query = _without_gradient(_closest)
+any_query = _without_gradient(_any)
