@@ -310,25 +310,31 @@ _KERNELS = {KIND_SPHERE: _sphere, KIND_BOX: _box, KIND_TRIANGLE: _triangle, KIND
             KIND_DISC: _disc}
 
 
+def _first_crossing(kernel, p, o, d, tmin, tmax):
+    """The first crossing in (tmin, tmax) of an item of ``kernel``'s kind (``p``: its 24 numbers)."""
+    inf = jnp.asarray(jnp.inf, p.dtype)
+    m = [p[k] for k in range(12)]
+    ro = tuple(m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2] + m[4 * r + 3] for r in range(3))
+    rd = tuple(m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2] for r in range(3))
+    t0, t1 = kernel(tuple(p[12 + k] for k in range(12)), ro, rd, tmin, tmax)
+    return jnp.where((t0 > tmin) & (t0 < tmax), t0, jnp.where((t1 > tmin) & (t1 < tmax), t1, inf))
+
+
 def _item_hit(kind, p, o, d, tmin, tmax, present=None):
     """The first crossing of one item (``kind``, ``p`` its 24 parameters) by the ray with t in
     (tmin, tmax), or +inf: the kernels of ``bvh.cc``. Under ``vmap`` every kernel is computed and
     one kept; ``present`` (one unbatched bool per kind, or None) skips, through ``lax.cond``, the
     kinds that no item has (a scene of spheres pays for spheres only)."""
     inf = jnp.asarray(jnp.inf, p.dtype)
-    m = [p[k] for k in range(12)]
-    ro = tuple(m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2] + m[4 * r + 3] for r in range(3))
-    rd = tuple(m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2] for r in range(3))
-    q = tuple(p[12 + k] for k in range(12))
-    t0, t1 = inf, inf
+    t = inf
     for k, kernel in _KERNELS.items():
+        crossing = functools.partial(_first_crossing, kernel)
         if present is None:
-            a, b = kernel(q, ro, rd, tmin, tmax)
-        else:
-            a, b = lax.cond(present[k], kernel, lambda *_: (inf, inf), q, ro, rd, tmin, tmax)
-        mine = kind == k
-        t0, t1 = jnp.where(mine, a, t0), jnp.where(mine, b, t1)
-    return jnp.where((t0 > tmin) & (t0 < tmax), t0, jnp.where((t1 > tmin) & (t1 < tmax), t1, inf))
+            here = crossing(p, o, d, tmin, tmax)
+        else:  # the cond's operands are the gathered rows: slicing them fuses into the kernel
+            here = lax.cond(present[k], crossing, lambda *_: inf, p, o, d, tmin, tmax)
+        t = jnp.where(kind == k, here, t)
+    return t
 
 
 # ================================================================ traversal
