@@ -87,6 +87,10 @@ def _rotation(rng):
     return q * np.sign(np.diag(r))
 
 
+def _corners(lo, hi):
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
 def random_items(rng, n):
     """(kind (n,), params (n, 24) float64, world boxes (n, 6)): spheres, boxes, triangles,
     cylinders and cones (open and closed), discs (some with a hole); half of them under a random
@@ -99,11 +103,11 @@ def random_items(rng, n):
         c = rng.uniform(-0.5, 0.5, 3)
         if kind == J.KIND_SPHERE:
             q[:4] = [*c, rng.uniform(0.05, 0.5)]
-            corners = c + q[3] * np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+            corners = _corners(c - q[3], c + q[3])
         elif kind == J.KIND_BOX:
             a, b = c - rng.uniform(0.05, 0.5, 3), c + rng.uniform(0.05, 0.5, 3)
             q[:6] = [*b, *a] if rng.random() < 0.5 else [*a, *b]  # either corner first
-            corners = np.array([[x, y, z] for x in (a[0], b[0]) for y in (a[1], b[1]) for z in (a[2], b[2])])
+            corners = _corners(a, b)
         elif kind == J.KIND_TRIANGLE:
             corners = c + rng.uniform(-0.6, 0.6, (3, 3))
             q[:9] = corners.reshape(9)
@@ -114,11 +118,11 @@ def random_items(rng, n):
             q[:9] = [*base, rb, *cap, rc, float(rng.random() < 0.5)]
             r = max(rb, rc)
             lo, hi = np.minimum(base, cap) - r, np.maximum(base, cap) + r
-            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            corners = _corners(lo, hi)
         else:
             r = rng.uniform(0.1, 0.5)
             q[:8] = [*c, *rng.normal(size=3), r, rng.uniform(0, 0.8 * r) if rng.random() < 0.5 else 0.0]
-            corners = c + r * np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+            corners = _corners(c - r, c + r)
         # world_from_object: a rotation, scales and a shift (identity for half the items)
         linear = _rotation(rng) @ np.diag(rng.uniform(0.5, 2.0, 3)) if rng.random() < 0.5 else np.eye(3)
         shift = rng.uniform(-4.5, 4.5, 3)
@@ -299,7 +303,8 @@ def _check_queries(boxes, tail, rays, ref, want, rtol, atol):
     best_item, _, spread, shaky = want
     np.testing.assert_array_equal((any_item >= 0)[~shaky], (best_item >= 0)[~shaky])
     hit = np.flatnonzero((any_item >= 0) & ~shaky)
-    np.testing.assert_allclose(any_t[hit], ref[hit, any_item[hit]], rtol=rtol, atol=atol + 4 * spread[hit].max())
+    np.testing.assert_allclose(any_t[hit], ref[hit, any_item[hit]], rtol=rtol,
+                               atol=atol + 4 * spread[hit].max())
 
 
 def test_closest_and_any_hit_agree_with_brute_force_in_float32():
