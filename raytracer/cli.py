@@ -164,7 +164,7 @@ def _acceleration_text(p) -> str:
         return (f"acceleration: none (fewer than {_accel.MIN_ITEMS} primitives or triangles it can hold): "
                 "every ray tests every primitive")
     items = sum(prim.obj.shape.n_native_items() for prim, ok in zip(p.prims, held, strict=True) if ok)
-    return (f"acceleration: native BVH over {n} of {len(p.prims)} primitives ({items} items); "
+    return (f"acceleration: {_accel.mode()} BVH over {n} of {len(p.prims)} primitives ({items} items); "
             f"every ray tests the other {len(p.prims) - n}")
 
 

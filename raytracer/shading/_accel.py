@@ -66,15 +66,16 @@ def _library() -> str | None:
 
 
 def mode() -> str:
-    """``"native"`` when renders use the native hierarchy, ``"none"`` when they test every primitive.
+    """``"native"`` when renders use the native hierarchy, ``"none"`` when they test every primitive,
+    ``"jax"`` when they use its pure-JAX twin (``_accel_jax``; only when asked for).
 
     ``$RAYTRACER_ACCEL``: ``auto`` (default: native when the library is built and the default device
-    is a CPU), ``native`` (an error when unavailable) or ``none``."""
+    is a CPU), ``native`` (an error when unavailable), ``none`` or ``jax``."""
     want = os.environ.get("RAYTRACER_ACCEL", "auto").strip().lower() or "auto"
-    if want not in ("auto", "native", "none"):
-        raise ValueError(f"RAYTRACER_ACCEL must be auto, native or none, not {want!r}")
-    if want == "none":
-        return "none"
+    if want not in ("auto", "native", "none", "jax"):
+        raise ValueError(f"RAYTRACER_ACCEL must be auto, native, none or jax, not {want!r}")
+    if want in ("none", "jax"):
+        return want
     problem = _library()
     if problem is None and jax.default_backend() != "cpu":
         problem = f"the native BVH runs on the CPU and the default device is {jax.default_backend()}"
@@ -181,7 +182,7 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         first += n * k
     boxes = jnp.concatenate(boxes).astype(dtype)
     item_prim = np.concatenate(prims)
-    node_box, node_info, order = _build(boxes)
+    node_box, node_info, order = _hierarchy()[0](boxes)
     tables = (node_box, node_info, order, jnp.asarray(np.concatenate(kinds)),
               jnp.asarray(np.asarray(prim_mask, np.int32)[item_prim]), jnp.concatenate(params).astype(dtype))
     return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first)
@@ -193,7 +194,7 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
     applied); ``t`` is +inf where nothing is found."""
     sg = jax.lax.stop_gradient
     want = jnp.asarray(want, jnp.int32)
-    item, _ = _closest_query(accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
+    item, _ = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
     chosen = jnp.maximum(item, 0)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
     for ag in accel.groups:
@@ -217,5 +218,16 @@ def blocked(accel: Accel, o, d, t_min, t_max):
     """Whether a shadow-casting item lies on the segment ``t_min < t < t_max`` of the ray."""
     sg = jax.lax.stop_gradient
     want = jnp.asarray(MASK_SHADOW, jnp.int32)
-    item, _ = _any_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
+    item, _ = _hierarchy()[2](accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
     return item >= 0
+
+
+# ---------------------------------------------------------------- RAYTRACER_ACCEL=jax
+def _hierarchy():
+    """(build, closest query, any query) of the renders: the native ones, or with
+    ``RAYTRACER_ACCEL=jax`` their pure-JAX twins (``_accel_jax``: the same tables, any device)."""
+    if mode() == "jax":
+        from . import _accel_jax
+
+        return _accel_jax.build, _accel_jax.closest_query, _accel_jax.any_query
+    return _build, _closest_query, _any_query

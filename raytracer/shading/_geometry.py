@@ -86,7 +86,7 @@ def visibility_bits(prim) -> int:
 def accelerated_prims(plan: Plan, accelerate: bool | None = None) -> list[bool]:
     """Which primitives the native hierarchy chooses among (see ``pack_geometry``)."""
     if accelerate is None:
-        accelerate = _accel.mode() == "native"
+        accelerate = _accel.mode() != "none"  # native, or its JAX twin (RAYTRACER_ACCEL=jax)
     held = [accelerate and _accelerable(p) for p in plan.prims]
     items = sum(p.obj.shape.n_native_items() for p, ok in zip(plan.prims, held, strict=True) if ok)
     return held if items >= _accel.MIN_ITEMS else [False] * len(plan.prims)

@@ -1,6 +1,8 @@
 """The native hierarchy (``shading/_accel.py``) only chooses the hit: images and gradients must be
 those of the candidate path, which tests every primitive (the reference here)."""
 
+import os
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -11,7 +13,10 @@ from raytracer._plan import make_plan
 from raytracer.shading import _accel
 from raytracer.shading._geometry import pack_geometry
 
-pytestmark = pytest.mark.skipif(_accel.unavailable_reason() is not None,
+# the hierarchy under test: the native one, or its JAX twin when the run has RAYTRACER_ACCEL=jax
+ACCEL = "jax" if os.environ.get("RAYTRACER_ACCEL", "").strip().lower() == "jax" else "native"
+
+pytestmark = pytest.mark.skipif(ACCEL == "native" and _accel.unavailable_reason() is not None,
                                 reason=str(_accel.unavailable_reason()))
 
 # every kind the hierarchy holds, transformed, next to what it must leave to the candidates
@@ -69,7 +74,7 @@ def _render(scene, mode, monkeypatch):
 
 
 def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
-    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    monkeypatch.setenv("RAYTRACER_ACCEL", ACCEL)
     plan = make_plan(scene)
     geo = pack_geometry(plan, jnp.float32)
     held = {p for g in geo.groups if g.accelerated for p in g.prims}
@@ -84,7 +89,7 @@ def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
 
 
 def test_native_hierarchy_renders_the_candidate_paths_image(scene, monkeypatch):
-    ours = _render(scene, "native", monkeypatch)
+    ours = _render(scene, ACCEL, monkeypatch)
     reference = _render(scene, "none", monkeypatch)
     assert np.isfinite(ours).all()
     diff = np.abs(ours - reference).max(axis=-1)
@@ -99,18 +104,20 @@ def test_gradient_through_the_chosen_hit_equals_the_candidate_path(scene, monkey
         return jnp.mean(render(s, width=16, height=12) ** 2)
 
     grads = {}
-    for mode in ("native", "none"):
+    for mode in (ACCEL, "none"):
         monkeypatch.setenv("RAYTRACER_ACCEL", mode)
         jax.clear_caches()
         g = jax.grad(loss)(scene)
         grads[mode] = jax.tree_util.tree_leaves(g)
-    for a, b in zip(grads["native"], grads["none"], strict=True):
+    for a, b in zip(grads[ACCEL], grads["none"], strict=True):
         assert np.isfinite(np.asarray(a)).all()
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-6)
 
 
-def test_closest_and_any_hit_queries_in_float64(x64):
+def test_closest_and_any_hit_queries_in_float64(x64, monkeypatch):
     """The query's distances against a brute-force minimum over the same items (float64)."""
+    monkeypatch.setenv("RAYTRACER_ACCEL", ACCEL)
+    build, closest_query, any_query = _accel._hierarchy()
     rng = np.random.default_rng(3)
     n = 300
     centres = rng.uniform(-5, 5, (n, 3))
@@ -118,13 +125,13 @@ def test_closest_and_any_hit_queries_in_float64(x64):
     eye = np.broadcast_to(np.eye(4)[:3].reshape(12), (n, 12))
     params = np.concatenate([eye, centres, radii[:, None], np.zeros((n, 8))], axis=1)
     boxes = np.concatenate([centres - radii[:, None], centres + radii[:, None]], axis=1)
-    node_box, node_info, order = _accel._build(jnp.asarray(boxes))
+    node_box, node_info, order = build(jnp.asarray(boxes))
     tables = (node_box, node_info, order, jnp.zeros(n, jnp.int32), jnp.full(n, 7, jnp.int32),
               jnp.asarray(params))
     o = rng.uniform(-6, 6, (500, 3))
     d = rng.normal(size=(500, 3))
-    item, t = _accel._closest_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500),
-                                    jnp.full(500, 1e7), jnp.ones(500, jnp.int32))
+    item, t = closest_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500),
+                            jnp.full(500, 1e7), jnp.ones(500, jnp.int32))
     # brute force: the smaller positive root of every sphere
     oc = o[:, None, :] - centres[None]
     a = np.sum(d * d, axis=1)[:, None]
@@ -138,6 +145,6 @@ def test_closest_and_any_hit_queries_in_float64(x64):
     np.testing.assert_array_equal(np.asarray(item), want_item)
     hit = want_item >= 0
     np.testing.assert_allclose(np.asarray(t)[hit], roots.min(axis=1)[hit], rtol=1e-12)
-    blocked, _ = _accel._any_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500), jnp.full(500, 1e7),
-                                   jnp.ones(500, jnp.int32))
+    blocked, _ = any_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500), jnp.full(500, 1e7),
+                           jnp.ones(500, jnp.int32))
     np.testing.assert_array_equal(np.asarray(blocked) >= 0, hit)
