@@ -67,17 +67,21 @@ def _library() -> str | None:
 
 def mode() -> str:
     """``"native"`` when renders use the native hierarchy, ``"none"`` when they test every primitive,
-    ``"jax"`` when they use its pure-JAX twin (``_accel_jax``; only when asked for).
+    ``"jax"`` when they use its pure-JAX twin (``_accel_jax``).
 
     ``$RAYTRACER_ACCEL``: ``auto`` (default: native when the library is built and the default device
-    is a CPU), ``native`` (an error when unavailable), ``none`` or ``jax``."""
+    is a CPU; the pure-JAX twin when the default device is not a CPU — the native code runs on the
+    host only; every primitive tested when the library is missing on a CPU), ``native`` (an error
+    when unavailable), ``none`` or ``jax``."""
     want = os.environ.get("RAYTRACER_ACCEL", "auto").strip().lower() or "auto"
     if want not in ("auto", "native", "none", "jax"):
         raise ValueError(f"RAYTRACER_ACCEL must be auto, native, none or jax, not {want!r}")
     if want in ("none", "jax"):
         return want
     problem = _library()
-    if problem is None and jax.default_backend() != "cpu":
+    if jax.default_backend() != "cpu":
+        if want == "auto":
+            return "jax"  # the portable path: a GPU or TPU traverses the tables itself
         problem = f"the native BVH runs on the CPU and the default device is {jax.default_backend()}"
     if problem is not None:
         if want == "native":

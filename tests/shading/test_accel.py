@@ -148,3 +148,15 @@ def test_closest_and_any_hit_queries_in_float64(x64, monkeypatch):
     blocked, _ = any_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500), jnp.full(500, 1e7),
                            jnp.ones(500, jnp.int32))
     np.testing.assert_array_equal(np.asarray(blocked) >= 0, hit)
+
+
+def test_auto_mode_picks_the_native_hierarchy_on_a_cpu_and_the_jax_one_elsewhere(monkeypatch):
+    monkeypatch.setenv("RAYTRACER_ACCEL", "auto")
+    assert _accel.mode() == "native"
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    assert _accel.mode() == "jax"
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    with pytest.raises(_accel.AccelUnavailable, match="default device is gpu"):
+        _accel.mode()
+    monkeypatch.setenv("RAYTRACER_ACCEL", "none")
+    assert _accel.mode() == "none"
