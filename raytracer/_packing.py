@@ -119,10 +119,6 @@ class Placeholder:
     shape: tuple[int, ...]
     dtype: str
 
-    @property
-    def ndim(self) -> int:
-        return len(self.shape)
-
 
 def skeleton(tree) -> Frozen:
     """``tree`` with every array leaf (numpy, JAX, tracer) replaced by its :class:`Placeholder`, as

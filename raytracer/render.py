@@ -101,7 +101,7 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
 def _trace_tiles(packed: Packed, scene_plan: Plan, origins, dirs, tile: int, capacity: int | None):
     """Colours of a stack of tiles (T, tile, 3), one tile at a time, and the dropped-ray count.
     ``scene_plan`` is ``make_plan(packed.scene)``."""
-    scene = packed.scene
+    scene = packed.rest
     ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
                        scene.camera.location.dtype)
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
@@ -139,7 +139,7 @@ def _render_part(packed: Packed, width: int, height: int, k: int, n_parts: int, 
 def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: int, n_parts: int, part,
                   capacity: int | None):
     """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(packed.scene)``."""
-    scene = packed.scene
+    scene = packed.rest
     dtype = scene.camera.location.dtype
     x0, y0 = image_coords(width, height, k, dtype)
     origins, dirs = camera_rays(scene.camera, x0, y0)

@@ -479,8 +479,8 @@ void parallel_for(ffi::ThreadPool& pool, int64_t n, const Body& body) {
   state->cv.wait(lock, [&] { return state->done.load() == chunks; });
 }
 
-template <ffi::DataType DT>
-ffi::Error query_impl(ffi::ThreadPool pool, bool any_hit, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
+template <ffi::DataType DT, bool any_hit>
+ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
                       ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
                       ffi::Buffer<DT> params, ffi::Buffer<DT> origin, ffi::Buffer<DT> direction,
                       ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want,
@@ -517,22 +517,6 @@ ffi::Error query_impl(ffi::ThreadPool pool, bool any_hit, ffi::Buffer<DT> node_b
   return ffi::Error::Success();
 }
 
-template <ffi::DataType DT>
-ffi::Error closest_impl(ffi::ThreadPool pool, ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
-                        ffi::Buffer<ffi::S32> m, ffi::Buffer<DT> p, ffi::Buffer<DT> o, ffi::Buffer<DT> d,
-                        ffi::Buffer<DT> t0, ffi::Buffer<DT> t1, ffi::Buffer<ffi::S32> w,
-                        ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t) {
-  return query_impl<DT>(pool, false, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
-}
-
-template <ffi::DataType DT>
-ffi::Error any_impl(ffi::ThreadPool pool, ffi::Buffer<DT> a, ffi::Buffer<ffi::S32> b, ffi::Buffer<ffi::S32> c, ffi::Buffer<ffi::S32> k,
-                    ffi::Buffer<ffi::S32> m, ffi::Buffer<DT> p, ffi::Buffer<DT> o, ffi::Buffer<DT> d,
-                    ffi::Buffer<DT> t0, ffi::Buffer<DT> t1, ffi::Buffer<ffi::S32> w,
-                    ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t) {
-  return query_impl<DT>(pool, true, a, b, c, k, m, p, o, d, t0, t1, w, item, t);
-}
-
 }  // namespace
 
 // node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item, t
@@ -565,7 +549,7 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhBuildF64, build_impl<ffi::F64>,
                                   .Ret<ffi::Buffer<ffi::F64>>()
                                   .Ret<ffi::Buffer<ffi::S32>>()
                                   .Ret<ffi::Buffer<ffi::S32>>());
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF32, closest_impl<ffi::F32>, QUERY_BINDING(ffi::F32));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF64, closest_impl<ffi::F64>, QUERY_BINDING(ffi::F64));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF32, any_impl<ffi::F32>, QUERY_BINDING(ffi::F32));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF64, any_impl<ffi::F64>, QUERY_BINDING(ffi::F64));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF32, (query_impl<ffi::F32, false>), QUERY_BINDING(ffi::F32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF64, (query_impl<ffi::F64, false>), QUERY_BINDING(ffi::F64));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF32, (query_impl<ffi::F32, true>), QUERY_BINDING(ffi::F32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF64, (query_impl<ffi::F64, true>), QUERY_BINDING(ffi::F64));

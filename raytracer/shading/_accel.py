@@ -39,7 +39,7 @@ from ..kernels import safe_normalize
 
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
 MIN_ITEMS = 8  # fewer items: every primitive is a candidate (measured: no faster either way at 10)
-T_MAX = 1e7  # as ``_geometry.closest_hit``: crossings beyond are ignored
+T_MAX = 1e7  # crossings beyond are ignored (the hierarchy's queries and ``_geometry.closest_hit``)
 MASK_CAMERA, MASK_REFLECT, MASK_SHADOW = 1, 2, 4  # item visibility bits (bvh.cc's ``want``)
 
 

@@ -304,7 +304,7 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     best_prim = jnp.zeros((), jnp.int32)
     if geo.n_candidates:
         t, n = all_crossings(geo, o, d)
-        ok = visible & (t > t_min) & jnp.isfinite(t) & (t < 1e7)
+        ok = visible & (t > t_min) & jnp.isfinite(t) & (t < _accel.T_MAX)
         ok = ok & csg_mask(geo, plan, o, d, t)
         tt = jnp.where(ok, t, jnp.inf)
         c = jnp.argmin(tt)

@@ -49,7 +49,14 @@ from ..kernels import safe_pow
 from ..scene import Light, Settings
 from ..scene._lights import light_types, point_geometry
 from . import _accel, lighting
-from ._geometry import PackedGeometry, all_crossings, closest_hit, csg_mask, static_prim_mask
+from ._geometry import (
+    PackedGeometry,
+    all_crossings,
+    closest_hit,
+    csg_mask,
+    static_prim_mask,
+    visibility_bits,
+)
 from ._materials import PackedMaterials, pigment_at
 
 
@@ -130,17 +137,16 @@ class TraceContext:
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
                  background, dtype) -> TraceContext:
     prims = plan.prims
+    bits = np.array([visibility_bits(p) for p in prims], np.int32)  # the hierarchy's items use them too
     return TraceContext(
         plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
         background=background.astype(dtype), dtype=dtype,
         eps=2e-5 if dtype == jnp.float32 else 1e-9,
-        vis_camera=static_prim_mask(geo, lambda i: prims[i].rendered and "no_image" not in prims[i].flags),
-        vis_reflect=static_prim_mask(geo, lambda i: prims[i].rendered
-                                     and "no_reflection" not in prims[i].flags),
-        casts_shadow=static_prim_mask(geo, lambda i: prims[i].rendered
-                                      and "no_shadow" not in prims[i].flags),
+        vis_camera=(bits[geo.cand_prim] & _accel.MASK_CAMERA) != 0,
+        vis_reflect=(bits[geo.cand_prim] & _accel.MASK_REFLECT) != 0,
+        casts_shadow=(bits[geo.cand_prim] & _accel.MASK_SHADOW) != 0,
         transparent_cands=static_prim_mask(geo, lambda i: bool(mats.transparent[i])),
-        inverse_sign=np.where(static_prim_mask(geo, lambda i: prims[i].inverse), -1.0, 1.0),
+        inverse_sign=geo.prim_sign[geo.cand_prim],
         fading_cands=np.flatnonzero(static_prim_mask(
             geo, lambda i: bool(mats.transparent[i]) and prims[i].interior is not None
             and prims[i].interior.fade_distance is not None
