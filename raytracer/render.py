@@ -9,6 +9,7 @@ the forward render nor its gradient holds more than one tile's rays at a time.
 from __future__ import annotations
 
 import math
+import warnings
 from typing import NamedTuple
 
 import equinox as eqx
@@ -22,7 +23,7 @@ from .scene import Scene
 from .shading import _accel
 from .shading._geometry import PackedGeometry, pack_geometry
 from .shading._materials import PackedMaterials, pack_materials
-from .shading.camera import camera_rays, image_coords
+from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import make_context, slots_per_camera_ray, trace
 
 RAYS_PER_TILE = 1 << 18  # ray slots in the widest level of one tile's Whitted tree (memory bound)
@@ -41,11 +42,13 @@ def plan(scene: Scene) -> Plan:
     return make_plan(scene)
 
 
-def _tile_size(scene_plan: Plan, n_rays: int, capacity: int | None = None) -> int:
-    """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE``."""
+def _tile_size(scene_plan: Plan, n_rays: int, samples: int, capacity: int | None = None) -> int:
+    """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE``, and
+    a tile holds whole pixels (a multiple of ``samples`` rays, so its samples average in the tile)."""
     width = slots_per_camera_ray(scene_plan.effects, capacity)
-    size = max(64, min(MAX_TILE, RAYS_PER_TILE // width)) // CHUNKS_PER_TILE * CHUNKS_PER_TILE
-    return min(size, -(-n_rays // CHUNKS_PER_TILE) * CHUNKS_PER_TILE)
+    quantum = samples * CHUNKS_PER_TILE
+    size = max(quantum, max(64, min(MAX_TILE, RAYS_PER_TILE // width)) // quantum * quantum)
+    return min(size, -(-n_rays // quantum) * quantum)
 
 
 def _output_transfer(img, settings):
@@ -98,31 +101,38 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
     return packed
 
 
-def _trace_tiles(packed: Packed, scene_plan: Plan, origins, dirs, tile: int, capacity: int | None):
-    """Colours of a stack of tiles (T, tile, 3), one tile at a time, and the dropped-ray count.
+def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: int, k: int, tile: int,
+                 capacity: int | None):
+    """Pixel colours (T, tile/k², 3) of the tiles numbered ``tiles`` (T,), one tile at a time, and
+    the dropped-ray count. A tile's camera rays are made in the tile, so no image-sized array of
+    rays exists; its k² samples per pixel are averaged in it, so supersampling widens nothing.
     ``scene_plan`` is ``make_plan(packed.scene)``."""
     scene = packed.rest
+    dtype = scene.camera.location.dtype
     ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
-                       scene.camera.location.dtype)
+                       dtype)
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
     chunk = pool if pool <= UNCHUNKED_POOL else tile // CHUNKS_PER_TILE
+    samples = k * k
 
-    def one_tile(args):
-        o, d = args
-        return trace(ctx, o, d, chunk=chunk, capacity=capacity)
+    def one_tile(t):
+        o, d = camera_rays(scene.camera, *sample_coords(t * tile + jnp.arange(tile), width, height, k, dtype))
+        colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity)
+        return colours.reshape(tile // samples, samples, 3).mean(axis=1), dropped
 
-    if origins.shape[0] == 1:
+    if tiles.shape[0] == 1:
         # one tile: nothing to bound by rematerialising it, and reverse mode then keeps the tile's
         # residuals instead of tracing (and compiling) its forward pass a second time
-        colours, dropped = one_tile((origins[0], dirs[0]))
+        colours, dropped = one_tile(tiles[0])
         return colours[None], jnp.sum(dropped)[None]
-    colours, dropped = jax.lax.map(jax.checkpoint(one_tile), (origins, dirs))
+    colours, dropped = jax.lax.map(jax.checkpoint(one_tile), tiles)
     return colours, jnp.sum(dropped)[None]
 
 
-def _layout(scene_plan: Plan, n: int, n_parts: int, capacity: int | None) -> tuple[int, int, int]:
+def _layout(scene_plan: Plan, n: int, samples: int, n_parts: int,
+            capacity: int | None) -> tuple[int, int, int]:
     """``(tile, tiles per part, devices)`` for ``n`` camera rays split into ``n_parts`` parts."""
-    tile = _tile_size(scene_plan, n, capacity)
+    tile = _tile_size(scene_plan, n, samples, capacity)
     n_dev = len(jax.devices()) if math.ceil(n / tile) >= len(jax.devices()) * n_parts else 1
     per_part = -(-math.ceil(n / tile) // (n_dev * n_parts)) * n_dev
     return tile, per_part, n_dev
@@ -131,48 +141,37 @@ def _layout(scene_plan: Plan, n: int, n_parts: int, capacity: int | None) -> tup
 @eqx.filter_jit
 def _render_part(packed: Packed, width: int, height: int, k: int, n_parts: int, part,
                  capacity: int | None = None):
-    """Colours (tiles, tile, 3) of part ``part`` (traced) of the image's tiles, in ``n_parts`` parts,
-    and the number of rays dropped for lack of ``capacity`` (see ``whitted.trace``)."""
+    """Pixel colours (tiles, pixels per tile, 3) of part ``part`` (traced) of the image's tiles, in
+    ``n_parts`` parts, and the number of rays dropped for lack of ``capacity`` (``whitted.trace``)."""
     return _render_tiles(packed, make_plan(packed.scene), width, height, k, n_parts, part, capacity)
 
 
 def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: int, n_parts: int, part,
                   capacity: int | None):
-    """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(packed.scene)``."""
-    scene = packed.rest
-    dtype = scene.camera.location.dtype
-    x0, y0 = image_coords(width, height, k, dtype)
-    origins, dirs = camera_rays(scene.camera, x0, y0)
-    n = width * height * k * k
-    tile, per_part, n_dev = _layout(scene_plan, n, n_parts, capacity)
-    total = per_part * n_parts * tile
-    origins = jnp.concatenate([origins.reshape(n, 3), jnp.zeros((total - n, 3), dtype)])
-    dirs = jnp.concatenate([dirs.reshape(n, 3), jnp.broadcast_to(jnp.asarray([0, 0, 1], dtype),
-                                                                 (total - n, 3))])
-    origins = jax.lax.dynamic_slice_in_dim(origins.reshape(-1, tile, 3), part * per_part, per_part)
-    dirs = jax.lax.dynamic_slice_in_dim(dirs.reshape(-1, tile, 3), part * per_part, per_part)
+    """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(packed.scene)``.
+    Rays beyond the image (the last tile's tail) are traced and cut off by ``_assemble``."""
+    tile, per_part, n_dev = _layout(scene_plan, width * height * k * k, k * k, n_parts, capacity)
+    tiles = part * per_part + jnp.arange(per_part)
     if n_dev > 1:
         # tiles are independent: shard them over the devices (CPU devices with
         # --xla_force_host_platform_device_count, or GPUs); the packed scene is replicated
-        def trace_shard(p, o, d):
-            return _trace_tiles(p, scene_plan, o, d, tile=tile, capacity=capacity)
+        def trace_shard(p, t):
+            return _trace_tiles(p, scene_plan, t, width, height, k, tile=tile, capacity=capacity)
 
         mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.devices(),
                              axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-        colours, dropped = jax.shard_map(trace_shard, mesh=mesh, in_specs=(replicated, spec, spec),
-                                         out_specs=(spec, spec), check_vma=False)(packed, origins, dirs)
+        colours, dropped = jax.shard_map(trace_shard, mesh=mesh, in_specs=(replicated, spec),
+                                         out_specs=(spec, spec), check_vma=False)(packed, tiles)
         return colours, jnp.sum(dropped)
-    colours, dropped = _trace_tiles(packed, scene_plan, origins, dirs, tile=tile, capacity=capacity)
+    colours, dropped = _trace_tiles(packed, scene_plan, tiles, width, height, k, tile=tile, capacity=capacity)
     return colours, jnp.sum(dropped)
 
 
 @eqx.filter_jit
 def _assemble(settings, parts, width: int, height: int, k: int):
-    n = width * height * k * k
-    colours = jnp.concatenate([c.reshape(-1, 3) for c in parts])[:n]
-    img = colours.reshape(height, width, k * k, 3).mean(axis=2)
-    return _output_transfer(img, settings)
+    colours = jnp.concatenate([c.reshape(-1, 3) for c in parts])[:width * height]
+    return _output_transfer(colours.reshape(height, width, 3), settings)
 
 
 def _background_only(scene: Scene, width: int, height: int):
@@ -205,33 +204,61 @@ def _check(width: int, height: int, spp: int) -> int:
     return k
 
 
-def render(scene: Scene, *, width: int, height: int, spp: int = 1) -> jax.Array:
+def _warn_dropped(dropped, capacity: int) -> None:
+    if int(dropped) > 0:
+        warnings.warn(
+            f"{int(dropped)} rays of the ray tree did not fit the compiled room of {capacity} slots per "
+            "camera ray and were left out of this image and its gradient: pass a larger capacity= to "
+            "render (or capacity=None, the exact full-width tree), or call it outside jit/vmap, where "
+            "the room grows until every ray fits", RuntimeWarning, stacklevel=2)
+
+
+def render(scene: Scene, *, width: int, height: int, spp: int = 1,
+           capacity: int | None | str = "auto") -> jax.Array:
     """Renders ``scene`` to a linear RGB image of shape (height, width, 3), row 0 at the top.
 
-    One jit-compiled program (cached per scene structure, image size and spp); differentiable in
-    every inexact array leaf of ``scene`` with ``jax.grad``, ``jax.jvp`` and ``jax.vjp``. Called on
-    a traced scene it renders the full-width Whitted tree; called on values it compacts live rays
-    between trace levels (recompiling with more room if a level did not fit): the same image.
+    One jit-compiled program (cached per scene structure, image size, spp and capacity);
+    differentiable in every inexact array leaf of ``scene`` with ``jax.grad``, ``jax.jvp`` and
+    ``jax.vjp``.
+
+    The ray tree (reflected and refracted children, level by level) is held in pools of
+    ``capacity`` slots per camera ray, the live rays of each level compacted into them, so memory
+    is bounded by a tile of camera rays times ``capacity`` times the depth, forward and reverse,
+    whatever the scene's ``max_trace_level``.
 
     Args:
         scene:  the scene.
         width, height: image size in pixels.
         spp:    samples per pixel: 1 = one ray through each pixel centre (POV-Ray ``-A``);
                 k² = a deterministic k×k grid of sub-pixel centres, averaged (box filter).
+        capacity: ``"auto"``: ``FORWARD_CAPACITY``, grown fourfold (and compiled again) until no
+                ray is left out, so the image is exact; with values and under eager ``jax.grad``,
+                ``jvp`` and ``vjp``. Under ``jit`` or ``vmap`` the count is known only when the
+                program runs: it keeps ``FORWARD_CAPACITY`` and warns (``RuntimeWarning``) if a
+                tree level was wider. ``int``: that room (warns likewise). ``None``: the exact
+                full-width tree (``branch^(depth-1)`` slots per camera ray: only for shallow trees).
     """
     k = _check(width, height, spp)
-    if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(scene)):
-        # under jit / grad / vmap: the exact full-width tree in one program
-        return _render(scene, width, height, k)[0]
-    # called with values: compact live rays between levels, and grow the room until nothing is
-    # dropped (same image, far less work in deep reflective/refractive trees)
-    capacity = FORWARD_CAPACITY
+    grow = capacity == "auto"
+    if grow:
+        capacity = FORWARD_CAPACITY
+    elif capacity is not None and (type(capacity) is not int or capacity < 1):
+        raise ValueError(f"capacity must be a positive int, None or 'auto', got {capacity!r}")
     while True:
         image, dropped = _render(scene, width, height, k, capacity)
-        if int(dropped) == 0:
+        if capacity is None:
+            return image
+        if isinstance(dropped, jax.core.Tracer):
+            # under jit / vmap the count is known only when the program runs
+            jax.debug.callback(_warn_dropped, dropped, capacity)
+            return image
+        # with values, and under eager jax.grad / jvp / vjp too (an integer output carries no
+        # tangent: its value is known here), a tree level wider than the room renders again with
+        # four times the room: the same image, exact
+        if int(dropped) == 0 or not grow:
+            _warn_dropped(dropped, capacity)
             return image
         capacity *= 4
-
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,

@@ -1,15 +1,20 @@
-"""The compiled program does not grow with the number of objects (issue 11 item 2): the scene is
-packed before the jit boundary, so 20 and 200 spheres give programs of the same operations and a
-handful of arguments, not ~16 per object."""
+"""The compiled program does not grow with the scene (issue 11): the scene is packed before the jit
+boundary, so 20 and 200 spheres give programs of the same operations and a handful of arguments,
+not ~16 per object; and the ray tree is held in pools of a bounded width, forward and reverse."""
 
+import math
 import re
 from collections import Counter
 
+import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 import pytest
 
+import raytracer as rt
 from raytracer import load_scene
-from raytracer.render import _render_part, pack
+from raytracer.render import FORWARD_CAPACITY, _render_part, pack
 from raytracer.shading import _accel
 
 
@@ -38,3 +43,82 @@ def test_program_has_the_same_operations_for_20_and_200_spheres(tmp_path, monkey
     (ops20, args20), (ops200, args200) = programs
     assert ops20 == ops200
     assert args20 == args200 < 100
+
+
+# ---------------------------------------------------------------- memory of the ray tree (item 3)
+_GLASS_BOX = """#version 3.7;
+global_settings { assumed_gamma 1.0 max_trace_level 20 }
+camera { location <0, 1.5, -4> look_at <0, 0.5, 0> right x*4/3 angle 45 }
+light_source { <-5, 10, -8> color rgb 1 }
+plane { y, 0 pigment { checker rgb 0.9, rgb 0.1 } }
+box { <-0.6, 0, -0.6>, <0.6, 1.2, 0.6> rotate <0, 45, 0>
+  pigment { rgbf <1, 1, 1, 0.9> }
+  finish { ambient 0 diffuse 0 reflection { 0, 1 fresnel on } conserve_energy } interior { ior 1.6 } }
+"""
+
+
+def _largest_array_bytes(jaxpr) -> int:
+    """The largest array any equation of ``jaxpr`` (and of the programs nested in it) makes."""
+    best = 0
+    for eqn in jaxpr.eqns:
+        for v in eqn.outvars:
+            if hasattr(v.aval, "shape"):
+                best = max(best, math.prod(v.aval.shape) * v.aval.dtype.itemsize)
+        for param in eqn.params.values():
+            for sub in param if isinstance(param, (list, tuple)) else (param,):
+                inner = getattr(sub, "jaxpr", sub)
+                if hasattr(inner, "eqns"):
+                    best = max(best, _largest_array_bytes(inner))
+    return best
+
+
+@pytest.mark.parametrize("capacity", ["auto", None])
+def test_reverse_mode_program_of_a_depth_20_tree_holds_a_tile_not_the_full_tree(tmp_path, capacity):
+    # the glass box at max_trace_level 20 (issue 11: "Out of memory allocating 112457682608 bytes"):
+    # the exact full-width tree needs 2^19 slots per camera ray; the default compacts each level's
+    # live rays into FORWARD_CAPACITY slots per camera ray, so the largest array of jax.grad's
+    # program is bounded by pixels × capacity × depth × a few colour channels
+    path = tmp_path / "box.pov"
+    path.write_text(_GLASS_BOX)
+    scene = load_scene(path, width=32, height=24)
+    params, rest = eqx.partition(scene, eqx.is_inexact_array)
+
+    def loss(p):
+        return jnp.mean(rt.render(eqx.combine(p, rest), width=32, height=24, capacity=capacity))
+
+    largest = _largest_array_bytes(jax.make_jaxpr(jax.grad(loss))(params).jaxpr)
+    itemsize = scene.camera.location.dtype.itemsize
+    if capacity is None:
+        assert largest >= 32 * 24 * 2 ** 19 * itemsize
+    else:
+        assert largest <= 32 * 24 * FORWARD_CAPACITY * 20 * 8 * itemsize
+
+
+_FULL_GLASS = """#version 3.7;
+global_settings { assumed_gamma 1.0 max_trace_level 6 adc_bailout 0 }
+camera { location <0, 0, -1.6> look_at 0 angle 40 }
+light_source { <-5, 10, -8> color rgb 1 }
+plane { y, -2 pigment { checker rgb 0.9, rgb 0.1 } }
+sphere { 0, 1 pigment { rgbf <1, 1, 1, 0.9> } finish { reflection { 0, 1 fresnel on } conserve_energy }
+  interior { ior 1.5 } }
+"""
+
+
+def test_a_tree_wider_than_the_compiled_room_warns_at_run_time_and_auto_finds_the_room(tmp_path):
+    # every pixel sees the glass sphere, and with adc_bailout 0 each ray has two live children at
+    # the second level: one slot per camera ray is too few. Under jit the values are unknown when
+    # the program is made, so the loss is reported when it runs; outside jit "auto" grows the room
+    path = tmp_path / "glass.pov"
+    path.write_text(_FULL_GLASS)
+    scene = load_scene(path, width=8, height=6)
+    params, rest = eqx.partition(scene, eqx.is_inexact_array)
+    with pytest.warns(RuntimeWarning, match="did not fit the compiled room of 1 slots"):
+        jax.block_until_ready(jax.jit(lambda p: rt.render(eqx.combine(p, rest), width=8, height=6,
+                                                          capacity=1))(params))
+    exact = rt.render(scene, width=8, height=6, capacity=None)
+    np.testing.assert_allclose(rt.render(scene, width=8, height=6), exact, rtol=1e-6, atol=1e-7)
+    g_exact = jax.grad(lambda p: jnp.sum(rt.render(eqx.combine(p, rest), width=8, height=6,
+                                                  capacity=None)))(params)
+    g_auto = jax.grad(lambda p: jnp.sum(rt.render(eqx.combine(p, rest), width=8, height=6)))(params)
+    for a, b in zip(jax.tree_util.tree_leaves(g_auto), jax.tree_util.tree_leaves(g_exact), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)

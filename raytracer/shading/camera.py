@@ -8,18 +8,18 @@ from ..kernels import safe_normalize
 from ..scene import Camera
 
 
-def image_coords(width: int, height: int, k: int = 1, dtype=jnp.float32):
-    """Image-plane coordinates ``(x0, y0)`` of every sample, each (height, width, k*k).
+def sample_coords(ray, width: int, height: int, k: int = 1, dtype=jnp.float32):
+    """Image-plane coordinates ``(x0, y0)`` of the samples numbered ``ray`` (int array), where
+    sample ``s`` of pixel ``p`` is number ``p·k² + s`` and pixels run row by row from the top left.
 
     Pixel (i, j) (column i from the left, row j from the top) spans ``x0 ∈ [i/W − ½, (i+1)/W − ½]``
     and ``y0 ∈ [½ − (j+1)/H, ½ − j/H]``. ``k = 1`` samples the pixel centre (as POV-Ray ``-A``);
-    ``k > 1`` a deterministic k×k grid at the centres of k×k sub-cells.
+    ``k > 1`` a deterministic k×k grid at the centres of k×k sub-cells (``s = row·k + column``).
     """
+    pixel, sample = ray // (k * k), ray % (k * k)
     sub = (jnp.arange(k, dtype=dtype) + 0.5) / k  # sub-cell centres in [0, 1]
-    i = jnp.arange(width, dtype=dtype)[None, :, None, None] + sub[None, None, None, :]
-    j = jnp.arange(height, dtype=dtype)[:, None, None, None] + sub[None, None, :, None]
-    x0 = jnp.broadcast_to(i / width - 0.5, (height, width, k, k)).reshape(height, width, k * k)
-    y0 = jnp.broadcast_to(0.5 - j / height, (height, width, k, k)).reshape(height, width, k * k)
+    x0 = ((pixel % width).astype(dtype) + sub[sample % k]) / width - 0.5
+    y0 = 0.5 - ((pixel // width).astype(dtype) + sub[sample // k]) / height
     return x0, y0
 
 
