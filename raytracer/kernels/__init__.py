@@ -10,5 +10,6 @@ from ._numerics import safe_normalize as safe_normalize
 from ._numerics import safe_pow as safe_pow
 from ._numerics import safe_sqrt as safe_sqrt
 from ._numerics import solve_linear as solve_linear
+from ._numerics import offset_sq_minus as offset_sq_minus
 from ._numerics import solve_quadratic as solve_quadratic
 from ._numerics import solve_quartic as solve_quartic

@@ -137,6 +137,45 @@ def solve_linear(a: ArrayLike, b: ArrayLike) -> tuple[Array, Array]:
     return t, ok
 
 
+def _two_sum(a: Array, b: Array) -> tuple[Array, Array]:
+    """``a + b`` as ``s + e`` exactly (Knuth's TwoSum: ``s`` the rounded sum, ``e`` its error)."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+def _two_square(a: Array) -> tuple[Array, Array]:
+    """``a²`` as ``p + e`` exactly (Dekker's product with Veltkamp's split; no FMA needed)."""
+    split = 4097.0 if a.dtype == jnp.float32 else 134217729.0  # 2^ceil(p/2) + 1
+    t = split * a
+    hi = t - (t - a)
+    lo = a - hi
+    p = a * a
+    return p, ((hi * hi - p) + 2.0 * hi * lo) + lo * lo
+
+
+def offset_sq_minus(o: Float[Array, "3"], center: Float[Array, "3"], radius: ArrayLike) -> Array:
+    """``|o - center|² - radius²`` to the working precision of its result, where the plain formula
+    cancels: a ray near a huge sphere (a "ground sphere" ``<0, -1e6-1, 0>, 1e6``) gives
+    ``|o - center|² ≈ radius² ≈ 1e12``, whose float32 rounding (~6e4) exceeds the answer (~2e6).
+
+    ``o - center`` is kept with its rounding error (TwoSum), the squares with theirs (Dekker), and
+    the terms are added in order of size. Only the value is compensated: the derivative is the plain
+    formula's, ``2 (o - center)·d(o - center) - 2 radius·d radius``."""
+    radius = jnp.asarray(radius, o.dtype)
+    l = o - center
+    plain = jnp.dot(l, l) - radius * radius
+    hi, lo = _two_sum(o, -center)
+    p, e = _two_square(hi)
+    pr, er = _two_square(radius)
+    total, err = _two_sum(p[0], -pr)
+    for x in (p[1], p[2]):
+        total, e2 = _two_sum(total, x)
+        err = err + e2
+    exact = total + (err + jnp.sum(e) - er + jnp.sum(2.0 * hi * lo + lo * lo))
+    return plain + jax.lax.stop_gradient(exact - plain)
+
+
 def solve_quadratic(
     a: ArrayLike, b: ArrayLike, c: ArrayLike, disc: ArrayLike | None = None
 ) -> tuple[Array, Array, Array]:

@@ -9,7 +9,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .._dtype import as_float
 from ..kernels._common import masked_hits, points_at
-from ..kernels._numerics import as_float_arrays, safe_normalize, solve_quadratic
+from ..kernels._numerics import as_float_arrays, offset_sq_minus, safe_normalize, solve_quadratic
 from ._base import (
     NATIVE_SPHERE,
     AbstractShape,
@@ -48,7 +48,7 @@ def sphere_hits(
     l = o - center
     a = jnp.dot(d, d)
     b = 2.0 * jnp.dot(d, l)
-    c = jnp.dot(l, l) - radius * radius
+    c = offset_sq_minus(o, center, radius)  # compensated: no cancellation near huge spheres
     # b² - 4ac = 4 (r² |d|² - |d × l|²): the squared distance of the line from the centre appears
     # directly, so it does not cancel for distant rays (Hearn & Baker's form, as in pbrt-v4).
     cross = jnp.cross(d, l)

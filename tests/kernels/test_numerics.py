@@ -8,6 +8,7 @@ import pytest
 
 from raytracer.kernels import (
     differentiable_root,
+    offset_sq_minus,
     safe_arccos,
     safe_div,
     safe_mask,
@@ -64,6 +65,21 @@ def test_quadratic_keeps_the_small_root_in_float32():
     t0, t1, ok = solve_quadratic(jnp.float32(1.0), jnp.float32(-(1e4 + 1e-4)), jnp.float32(1.0))
     assert bool(ok)
     np.testing.assert_allclose([t0, t1], [1e-4, 1e4], rtol=1e-6)
+
+
+def test_offset_sq_minus_is_exact_to_float32_near_a_huge_sphere():
+    # |o - c|² - r² for points a few units above a radius-1e6 "ground sphere": ~2e6, while each term
+    # is ~1e12 (float32 rounding ~6e4). Against float64; its gradient is the plain formula's.
+    rng = np.random.default_rng(0)
+    o = rng.uniform(-5, 5, (64, 3)).astype(np.float32)
+    c, r = np.float32([0.3, -1e6 - 1, 0.7]), np.float32(1e6)
+    exact = np.sum((o.astype(np.float64) - c.astype(np.float64)) ** 2, axis=1) - np.float64(r) ** 2
+    ours = jax.vmap(lambda p: offset_sq_minus(p, jnp.asarray(c), r))(jnp.asarray(o))
+    np.testing.assert_allclose(ours, exact, rtol=4 * np.finfo(np.float32).eps)
+    naive = np.sum((o - c) ** 2, axis=1) - r * r
+    assert np.max(np.abs(naive - exact) / np.abs(exact)) > 1e-3  # what the plain formula gives
+    g = jax.grad(lambda p: offset_sq_minus(p, jnp.asarray(c), r))(jnp.asarray(o[0]))
+    np.testing.assert_allclose(g, 2 * (o[0].astype(np.float64) - c), rtol=1e-6)
 
 
 @pytest.mark.parametrize(
