@@ -3,6 +3,7 @@
 implicit-function-theorem root. Every function is finite, with finite gradients, for finite input."""
 
 from ._numerics import differentiable_root as differentiable_root
+from ._numerics import offset_sq_minus as offset_sq_minus
 from ._numerics import safe_arccos as safe_arccos
 from ._numerics import safe_div as safe_div
 from ._numerics import safe_mask as safe_mask
@@ -10,6 +11,5 @@ from ._numerics import safe_normalize as safe_normalize
 from ._numerics import safe_pow as safe_pow
 from ._numerics import safe_sqrt as safe_sqrt
 from ._numerics import solve_linear as solve_linear
-from ._numerics import offset_sq_minus as offset_sq_minus
 from ._numerics import solve_quadratic as solve_quadratic
 from ._numerics import solve_quartic as solve_quartic
