@@ -105,7 +105,11 @@ class Lowerer:
             if not kids:
                 return None
             return build(S.CSG, operation=rec.kind, children=tuple(kids), **common)
-        return build(S.Object, shape=lower_shape(rec), **common)
+        shape = lower_shape(rec)
+        folded = None if rec.transform is None else shape.absorb_transform(rec.transform)
+        if folded is not None:
+            shape, common["transform"] = folded, None
+        return build(S.Object, shape=shape, **common)
 
 
 def lower_shape(rec: ObjRec) -> S.AbstractShape:

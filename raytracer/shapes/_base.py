@@ -199,6 +199,14 @@ class AbstractShape(eqx.Module):
     def to_mitsuba(self, world_from_object: np.ndarray, camera_origin: np.ndarray) -> MitsubaShape:
         raise NoEquivalent(self.kind, "no Mitsuba primitive; tessellation would be an approximation")
 
+    def absorb_transform(self, world_from_object: np.ndarray) -> AbstractShape | None:
+        """This shape with ``world_from_object`` (a concrete 4×4, at load time) folded into its own
+        parameters, or None when it cannot be. A folded shape is intersected where it is, not
+        through a ray moved into its object space: a float32 origin moved by a translation of
+        1e6 keeps 1/16 of a unit (issue 13 item 7). Textures are placed in world space, so only
+        the geometry changes hands."""
+        return None
+
 
 def read_arguments(cls: type[AbstractShape], args: ShapeArgs) -> dict:
     """``cls.sdl_arguments``, comma-separated, as a dict of fields."""

@@ -7,6 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
+from .._build import build
 from .._dtype import as_float
 from ..kernels._common import masked_hits, points_at
 from ..kernels._numerics import as_float_arrays, offset_sq_minus, safe_normalize, solve_quadratic
@@ -95,6 +96,14 @@ class Sphere(AbstractShape):
     def native_items(self):
         return native_params(self.center, self.radius), box_corners(*self.bounds())[None]
 
+    def absorb_transform(self, world_from_object):
+        m = np.asarray(world_from_object, np.float64)
+        a = m[:3, :3]
+        s2 = np.trace(a.T @ a) / 3.0
+        if not (s2 > 0 and np.allclose(a.T @ a, s2 * np.eye(3), rtol=0.0, atol=1e-12 * s2)):
+            return None  # an ellipsoid
+        return build(Sphere, center=apply_point(m, self.center),
+                     radius=np.sqrt(s2) * np.asarray(self.radius, np.float64))
 
     def to_mitsuba(self, m, camera_origin):
         s = similarity_scale(m)

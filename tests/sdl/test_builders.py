@@ -314,9 +314,22 @@ def test_an_object_identifier_first_in_braces_copies_that_object():
         union { S scale 2 }""")
     a, b, c = s.objects
     assert isinstance(a.shape, S.Sphere) and isinstance(b.shape, S.Box) and isinstance(c.shape, S.Sphere)
-    np.testing.assert_allclose(np.asarray(a.transform.matrix)[:3, 3], [-1.5, 0, 0])
+    # a sphere's similarity transforms are folded into its centre and radius (absorb_transform)
+    assert a.transform is None and c.transform is None
+    np.testing.assert_allclose(a.shape.center, [-1.5, 0, 0])
     np.testing.assert_allclose(rgbft(b), [0, 1, 0, 0, 0])
-    np.testing.assert_allclose(np.asarray(c.transform.matrix)[:3, :3], 2 * np.eye(3))
+    np.testing.assert_allclose(c.shape.radius, 2.0)
+
+
+def test_a_spheres_similarity_transform_is_folded_into_it_and_an_ellipsoid_keeps_its_own():
+    s = load_scene("sphere { <1, 0, 0>, 0.5 scale 2 rotate 90*z translate <0, 0, 1e6> }\n"
+                   "sphere { <1, 0, 0>, 0.5 scale <1, 2, 1> }")
+    folded, ellipsoid = s.objects
+    assert folded.transform is None
+    np.testing.assert_allclose(folded.shape.center, [0, 2, 1e6], atol=1e-12)
+    np.testing.assert_allclose(folded.shape.radius, 1.0)
+    np.testing.assert_allclose(np.asarray(ellipsoid.transform.matrix)[:3, :3], np.diag([1, 2, 1]))
+    np.testing.assert_allclose(ellipsoid.shape.center, [1, 0, 0])
 
 
 def test_only_modifiers_may_follow_an_object_identifier():
