@@ -102,10 +102,11 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
 
 
 def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: int, k: int, tile: int,
-                 capacity: int | None):
-    """Pixel colours (T, tile/k², 3) of the tiles numbered ``tiles`` (T,), one tile at a time, and
-    the dropped-ray count. A tile's camera rays are made in the tile, so no image-sized array of
-    rays exists; its k² samples per pixel are averaged in it, so supersampling widens nothing.
+                 stride: int, capacity: int | None):
+    """Pixel colours (T, tile/k², 3) of the tiles numbered ``tiles`` (T,) of ``stride`` tiles in
+    all, one tile at a time, and the dropped-ray count. A tile's camera rays are made in the tile,
+    so no image-sized array of rays exists; its k² samples per pixel are averaged in it, so
+    supersampling widens nothing.
     ``scene_plan`` is ``make_plan(packed.scene)``."""
     scene = packed.rest
     dtype = scene.camera.location.dtype
@@ -115,10 +116,17 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     chunk = pool if pool <= UNCHUNKED_POOL else tile // CHUNKS_PER_TILE
     samples = k * k
 
+    pixels = tile // samples
+
     def one_tile(t):
-        o, d = camera_rays(scene.camera, *sample_coords(t * tile + jnp.arange(tile), width, height, k, dtype))
+        # tile t holds pixels t, t + stride, t + 2·stride, …: spread over the whole image, so its
+        # live secondary rays are the image's average (a compacted pool sized by that average
+        # fits), not those of one glass-covered patch; a pixel's samples stay together
+        pixel = t + stride * jnp.arange(pixels)
+        ray = (pixel[:, None] * samples + jnp.arange(samples)[None, :]).reshape(tile)
+        o, d = camera_rays(scene.camera, *sample_coords(ray, width, height, k, dtype))
         colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity)
-        return colours.reshape(tile // samples, samples, 3).mean(axis=1), dropped
+        return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
 
     if tiles.shape[0] == 1:
         # one tile: nothing to bound by rematerialising it, and reverse mode then keeps the tile's
@@ -152,11 +160,13 @@ def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: 
     Rays beyond the image (the last tile's tail) are traced and cut off by ``_assemble``."""
     tile, per_part, n_dev = _layout(scene_plan, width * height * k * k, k * k, n_parts, capacity)
     tiles = part * per_part + jnp.arange(per_part)
+    stride = per_part * n_parts
     if n_dev > 1:
         # tiles are independent: shard them over the devices (CPU devices with
         # --xla_force_host_platform_device_count, or GPUs); the packed scene is replicated
         def trace_shard(p, t):
-            return _trace_tiles(p, scene_plan, t, width, height, k, tile=tile, capacity=capacity)
+            return _trace_tiles(p, scene_plan, t, width, height, k, tile=tile, stride=stride,
+                                capacity=capacity)
 
         mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.devices(),
                              axis_types=(jax.sharding.AxisType.Auto,))
@@ -164,13 +174,15 @@ def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: 
         colours, dropped = jax.shard_map(trace_shard, mesh=mesh, in_specs=(replicated, spec),
                                          out_specs=(spec, spec), check_vma=False)(packed, tiles)
         return colours, jnp.sum(dropped)
-    colours, dropped = _trace_tiles(packed, scene_plan, tiles, width, height, k, tile=tile, capacity=capacity)
+    colours, dropped = _trace_tiles(packed, scene_plan, tiles, width, height, k, tile=tile,
+                                    stride=stride, capacity=capacity)
     return colours, jnp.sum(dropped)
 
 
 @eqx.filter_jit
 def _assemble(settings, parts, width: int, height: int, k: int):
-    colours = jnp.concatenate([c.reshape(-1, 3) for c in parts])[:width * height]
+    # parts: (tiles, pixels per tile, 3); tile t holds pixels t, t + tiles, … (``_trace_tiles``)
+    colours = jnp.swapaxes(jnp.concatenate(parts), 0, 1).reshape(-1, 3)[:width * height]
     return _output_transfer(colours.reshape(height, width, 3), settings)
 
 
