@@ -140,7 +140,7 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
 def _layout(scene_plan: Plan, n: int, samples: int, n_parts: int,
             capacity: int | None) -> tuple[int, int, int]:
     """``(tile, tiles per part, devices)`` for ``n`` camera rays split into ``n_parts`` parts."""
-    tile = _tile_size(scene_plan, n, samples, capacity)
+    tile = _tile_size(scene_plan, -(-n // n_parts), samples, capacity)  # a small image: small tiles
     n_dev = len(jax.devices()) if math.ceil(n / tile) >= len(jax.devices()) * n_parts else 1
     per_part = -(-math.ceil(n / tile) // (n_dev * n_parts)) * n_dev
     return tile, per_part, n_dev
@@ -283,8 +283,9 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
     each; the program has no host callback, so JAX's persistent compilation cache can keep it.
 
     ``capacity`` compacts the live rays of each trace level into ``capacity`` slots per camera ray
-    (``None``: the exact full-width tree, as ``render`` uses). If a render drops rays for lack of
-    room, it is recompiled with four times the capacity and rendered again, so the image is exact.
+    (``None``: the exact full-width tree). If a render drops rays for lack of
+    room, it is recompiled with four times the capacity and that part rendered again, so the image
+    is exact.
     """
     k = _check(width, height, spp)
     if not any(prim.rendered for prim in make_plan(scene).prims):
@@ -300,18 +301,20 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
 
     def run(s: Scene) -> jax.Array:
         packed = pack(s)
-        while True:
-            parts, dropped = [], 0
-            for i in range(n_parts):
-                colours, lost = state["compiled"](packed, width, height, k, n_parts, jnp.asarray(i),
-                                                  state["capacity"])
-                parts.append(colours)
-                dropped += int(lost)
-                if progress is not None:
-                    progress(i + 1, n_parts)
-            if dropped == 0 or state["capacity"] is None:
-                return _assemble(s.settings, parts, width, height, k)
-            state["capacity"] *= 4  # some tree level was wider: exact re-render with more room
-            state["compiled"] = build()
+        parts = []
+        while len(parts) < n_parts:
+            colours, lost = state["compiled"](packed, width, height, k, n_parts, jnp.asarray(len(parts)),
+                                              state["capacity"])
+            if state["capacity"] is not None and int(lost) > 0:
+                # a tree level of this part was wider than the room: recompile with four times
+                # the room and render this part again (the parts done are exact: they dropped
+                # nothing, and more room changes nothing where nothing was dropped)
+                state["capacity"] *= 4
+                state["compiled"] = build()
+                continue
+            parts.append(colours)
+            if progress is not None:
+                progress(len(parts), n_parts)
+        return _assemble(s.settings, parts, width, height, k)
 
     return run

@@ -14,7 +14,7 @@ import pytest
 
 import raytracer as rt
 from raytracer import load_scene
-from raytracer.render import FORWARD_CAPACITY, _render_part, pack
+from raytracer.render import FORWARD_CAPACITY, PROGRESS_PARTS, _render_part, compile_render, pack
 from raytracer.shading import _accel
 
 
@@ -122,3 +122,19 @@ def test_a_tree_wider_than_the_compiled_room_warns_at_run_time_and_auto_finds_th
     g_auto = jax.grad(lambda p: jnp.sum(rt.render(eqx.combine(p, rest), width=8, height=6)))(params)
     for a, b in zip(jax.tree_util.tree_leaves(g_auto), jax.tree_util.tree_leaves(g_exact), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+
+
+def test_compiled_render_in_parts_grows_the_room_for_the_part_that_overflowed(tmp_path):
+    # compile_render (the CLI's path) with a progress bar renders in parts; a part that drops rays
+    # is rendered again with four times the room, and the parts already done are kept: the image
+    # is the exact full-width tree's, and progress counts every part once
+    path = tmp_path / "glass.pov"
+    path.write_text(_FULL_GLASS)
+    scene = load_scene(path, width=16, height=12)
+    seen = []
+    run = compile_render(scene, width=16, height=12, capacity=1,
+                         progress=lambda done, total: seen.append((done, total)))
+    image = run(scene)
+    exact = rt.render(scene, width=16, height=12, capacity=None)
+    np.testing.assert_allclose(image, exact, rtol=1e-6, atol=1e-7)
+    assert seen == [(i + 1, PROGRESS_PARTS) for i in range(PROGRESS_PARTS)]
