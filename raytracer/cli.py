@@ -30,6 +30,17 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_SCENE_ERROR, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
+def _positive_float(text: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        x = float("nan")
+    if not (0 < x < float("inf")):
+        raise argparse.ArgumentTypeError(
+            f"expected a positive number of seconds, found {short_numbers(repr(text))}")
+    return x
+
+
 def _positive_int(text: str) -> int:
     try:
         n = int(text)
@@ -91,6 +102,8 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="animation frame to load (sets clock and frame_number; default: the "
                         "INI's first frame, or no animation)")
     p.add_argument("--x64", action="store_true", help="render in float64 (jax_enable_x64)")
+    p.add_argument("--parse-timeout", type=_positive_float, default=None, metavar="SECONDS",
+                   help="stop parsing a scene after this many seconds (default 600)")
     p.add_argument("--debug", action="store_true",
                    help="print the Python traceback of an error (for reporting an internal error)")
     # (compiled programs are cached in $RAYTRACER_CACHE_DIR, default ~/.cache/raytracer/xla; "off" disables)
@@ -117,7 +130,7 @@ def _configure_jax(args) -> None:
 
 def _load(args):
     _configure_jax(args)
-    from .sdl import Animation, load_scene
+    from .sdl import Animation, Limits, load_scene
 
     if not Path(args.scene).is_file():
         raise SceneError(f"cannot open scene file {args.scene!r}")
@@ -127,8 +140,9 @@ def _load(args):
     elif args.frame is not None:
         animation = Animation(frame=args.frame, initial_frame=args.frame, final_frame=args.frame)
     t0 = time.perf_counter()
+    limits = None if args.parse_timeout is None else Limits(max_parse_seconds=args.parse_timeout)
     scene = load_scene(args.scene, include_paths=tuple(args.include_path), strict=args.strict,
-                       width=args.width, height=args.height, animation=animation)
+                       width=args.width, height=args.height, animation=animation, limits=limits)
     return scene, time.perf_counter() - t0
 
 

@@ -78,6 +78,7 @@ def test_info_takes_the_animation_frame_from_an_ini(tmp_path, capsys):
     (["-H", "0"], "-H/--height: expected a positive integer, found 0"),
     (["--spp", "-4"], "--spp: expected a positive integer, found -4"),
     (["--spp", "3"], "--spp: expected a perfect square (1, 4, 9, 16, …), found 3"),
+    (["--parse-timeout", "0"], "--parse-timeout: expected a positive number of seconds, found '0'"),
     (["-H", "-" + "9" * 300], "-H/--height: expected a positive integer, found -9.999e+299"),
 ])
 def test_bad_numbers_on_the_command_line_are_one_line_errors(options, fragment, tmp_path, capsys):

@@ -231,3 +231,12 @@ def test_runaway_strings_and_written_files_stop_at_their_limits():
     load_scene('#declare S = "ab"; #for (I, 1, 11) #declare S = concat(S, S); #end\n'  # 4096 characters
                '#fopen F "o.inc" write #write (F, S) #fclose F\n'
                '#fopen F "o.inc" write #write (F, S) #fclose F', limits=limits)
+
+
+def test_a_parse_past_its_time_limit_stops_with_a_located_error():
+    # issue 13 item 10: a loop that is legal but slow (10^6 iterations, each a few tokens) stops at
+    # the clock, wherever it is, with the limit named
+    e = error_of("#declare I = 0;\n#while (I < 1000000) #declare I = I + 1; #end",
+                 limits=Limits(max_parse_seconds=0.2))
+    assert "more than 0.2 s to parse" in str(e) and "--parse-timeout" in str(e)
+    assert e.location.line == 2
