@@ -58,8 +58,14 @@ def short_numbers(text: str) -> str:
     return _LONG_NUMBER.sub(lambda m: f"{m[0][0]}.{m[0][1:4]}e+{len(m[0]) - 1}", text)
 
 
+_LONGEST_MESSAGE = 1000  # characters of a message (a 100 kB file name is shown by its ends)
+
+
 def _located(message: str, location: SourceLoc | None, chain: tuple[SourceLoc, ...]) -> str:
     message = short_numbers(message)
+    if len(message) > _LONGEST_MESSAGE:
+        half = _LONGEST_MESSAGE // 2
+        message = f"{message[:half]}… ({len(message) - 2 * half} characters left out) …{message[-half:]}"
     text = f"{location}: {message}" if location is not None else message
     if len(chain) > 2 * _CHAIN_SHOWN + 1:
         hidden = len(chain) - 2 * _CHAIN_SHOWN

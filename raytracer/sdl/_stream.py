@@ -185,7 +185,7 @@ class Stream:
         for d in dirs:
             for cand in (name, name.lower()):
                 p = d / cand
-                if p.is_file():
+                if os.path.isfile(p):  # (Path.is_file raises for a name too long)
                     return self._confined(str(p), name, roots, loc)
         where = ", ".join(str(d) for d in dirs)
         raise self.error(f'expected an include file, found no "{name}" in {where}', loc)

@@ -240,3 +240,14 @@ def test_a_parse_past_its_time_limit_stops_with_a_located_error():
                  limits=Limits(max_parse_seconds=0.2))
     assert "more than 0.2 s to parse" in str(e) and "--parse-timeout" in str(e)
     assert e.location.line == 2
+
+
+def test_a_file_name_too_long_for_the_system_is_a_located_error_of_bounded_length(tmp_path):
+    # found by benchmarks/fuzz.py: Path.is_file raised OSError (ENAMETOOLONG) out of the include
+    # search, an internal error; and the message echoed all 5,000 characters of the name
+    main = tmp_path / "main.pov"
+    main.write_text('\n#include "' + "A" * 5000 + '"\n')
+    with pytest.raises(SceneError) as e:
+        load_scene(main)
+    assert e.value.location.line == 2 and "characters left out" in str(e.value)
+    assert len(str(e.value)) < 1200
