@@ -284,9 +284,9 @@ def campaign(cases: int, seed: int, corpus: str, folder: Path, minutes: float | 
              parse_seconds: float = 5.0, render_every: int = 0, on_case=None) -> dict:
     """``cases`` mutated scenes (or as many as fit in ``minutes``) drawn by Hypothesis from ``seed``;
     every ``render_every``-th case that loads is also rendered at 8×6 (0: none)."""
-    from hypothesis import HealthCheck, Phase, given, settings
-
     import logging
+
+    from hypothesis import HealthCheck, Phase, given, settings
 
     logging.getLogger("raytracer").setLevel(logging.ERROR)  # the mutants' warnings are expected
     files = seed_files(corpus)
