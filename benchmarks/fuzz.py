@@ -2,7 +2,7 @@
 or as a ``SceneError`` that says where, and must not read outside the folders a scene may read.
 
     python -m benchmarks.fuzz [--cases N] [--minutes M] [--seed S] [--corpus examples|samples|all]
-                              [--out benchmarks/results/fuzz.json]
+                              [--render-every K] [--workers W] [--out docs/fuzz.json]
 
 **Seeds.** The bundled example scenes, ``benchmarks/fuzz_seed.pov`` (the interpreter's directives:
 macros, loops, arrays, strings, files, functions) and, with ``--corpus samples``, POV-Ray's own
@@ -354,7 +354,7 @@ def main(argv=None) -> int:
     ap.add_argument("--render-every", type=int, default=0,
                     help="render every K-th scene that loads at 8×6 and check it is finite (0: none)")
     ap.add_argument("--workers", type=int, default=1, help="processes, each with seed + its index")
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "fuzz.json")
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "fuzz.json")
     args = ap.parse_args(argv)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     if args.workers > 1:
