@@ -15,7 +15,8 @@ header ``#version 3.7; global_settings { assumed_gamma 1.0 max_trace_level L }``
   (``--quick``: 1k and 10k), 640×480 (``--quick``: 160×120), and the smallest of those meshes
   ``#declare``d once and placed 100 times (``object { M scale 0.1 translate … }``).
 * ``depth``: ``max_trace_level`` 1, 2, 5, 10, 20 on ``benchmarks/scenes/whitted.pov`` (a glass and a
-  mirror sphere over a checker floor), 640×480 (``--quick``: 160×120).
+  mirror sphere over a checker floor), 640×480 (``--quick``: 160×120), reverse mode included: its
+  memory must stay bounded as the ray tree's full width grows as 2^depth.
 * ``size``: the seed scene at 160×120, 640×480, 1920×1080, 3840×2160 (``--quick``: the first two).
 * ``spp``: the seed scene at 160×120 with 1, 4, 16, 64, 256 samples per pixel (``--quick``: 1, 4,
   16). Ours: a k×k grid per pixel. POV-Ray: ``-A`` at spp 1, else ``+A0.0 +AM1 +R<k> -J`` (k²+1
@@ -28,8 +29,8 @@ Every measurement is a fresh worker process (``benchmarks/_worker.py``), one at 
   compile of the render for this scene structure and size), warm s (median of ``--repeats`` runs
   of the compiled function; fewer runs when they add up to more than a quarter of the timeout:
   ``runs`` in the JSON), peak MB (``ru_maxrss`` of the worker: interpreter and JAX included);
-* ours reverse mode (``kind: ours_grad``, spheres with N ≤ 100): compile s, warm s, peak MB of the
-  jitted gradient, and ``grad / fwd``: its warm time over the forward warm time;
+* ours reverse mode (``kind: ours_grad``, spheres with N ≤ 100, every depth): compile s, warm s,
+  peak MB of the jitted gradient, and ``grad / fwd``: its warm time over the forward warm time;
 * POV-Ray (``kind: povray``, ``+WT2``): its own Parse Time and Trace Time (median), peak MB of the
   ``povray`` process;
 * ``ours / POV``: our warm time over POV-Ray's Trace Time; ``PSNR dB``: our image against POV-Ray's
@@ -264,6 +265,7 @@ def cases(family: str, quick: bool, max_n: int | None, max_triangles: int | None
                 level,
                 *big,
                 lambda folder, level=level: scene_variant(SCENES["whitted"], folder, max_trace_level=level),
+                grad=True,  # reverse mode's memory must not grow with 2^depth (issue 11 item 3)
                 details={"max_trace_level": level},
             )
             for level in (1, 2, 5, 10, 20)
