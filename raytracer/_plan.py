@@ -29,8 +29,9 @@ from .scene import (
 from .scene._lights import light_effects
 from .scene._transform import compose
 
-STRAIGHT_PASSES = 8  # straight (ior 1) surfaces a ray path may cross beyond max_trace_level
-MAX_BRANCHING_DEPTH = 12  # with both reflection and transmission, extra levels stop here
+# straight (ior 1) surfaces a ray path may cross beyond max_trace_level: as many as the scene's
+# straight-transmitting primitives can put on one line, up to this bound (the plan warns beyond it)
+STRAIGHT_PASSES = 256
 
 SUPPORTED_PATTERNS = patterns.RENDERED  # registered patterns the renderer evaluates
 
@@ -293,14 +294,18 @@ def make_plan(scene: Scene) -> Plan:
     transmission = any(pig.transparent for pig in pigments)
     refraction = transmission and any(p.interior is not None and p.interior.ior is not None
                                       for p in rendered)
-    # POV-Ray lets rays pass ior-1 surfaces without using a level; allow a few such passes
-    # (bounded by the crossings the straight-transmitting primitives can make)
+    # POV-Ray lets rays pass ior-1 surfaces without using a level: as many passes as the
+    # straight-transmitting primitives can make along one line (levels with no live ray cost a
+    # test, ``_scheduler._shade_pool``)
     straight_prims = [p for p in rendered if transmission
                       and all(layer.pigment.transparent for layer in p.texture.layers)
                       and (p.interior is None or p.interior.ior is None)]
-    straight_passes = min(STRAIGHT_PASSES, sum(p.obj.shape.line_crossings for p in straight_prims))
-    if reflection and transmission:  # the tree branches: keep its width (2^(depth-1)) bounded
-        straight_passes = min(straight_passes, max(0, MAX_BRANCHING_DEPTH - scene.settings.max_trace_level))
+    straight_passes = sum(p.obj.shape.line_crossings for p in straight_prims)
+    if straight_passes > STRAIGHT_PASSES:
+        warnings.append(SceneWarning("straight transmission", (
+            f"rays can cross up to {straight_passes} ior-1 transparent surfaces; those past "
+            f"{STRAIGHT_PASSES} beyond max_trace_level are not traced")))
+        straight_passes = STRAIGHT_PASSES
     depth = scene.settings.max_trace_level + straight_passes if (reflection or transmission) else 1
     casters = [p for p in prims if p.rendered and "no_shadow" not in p.flags]
     effects = Effects(

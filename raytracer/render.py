@@ -24,7 +24,7 @@ from .shading import _accel
 from .shading._geometry import PackedGeometry, pack_geometry
 from .shading._materials import PackedMaterials, pack_materials
 from .shading.camera import camera_rays, sample_coords
-from .shading.whitted import make_context, slots_per_camera_ray, trace
+from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
 
 RAYS_PER_TILE = 1 << 18  # ray slots in the widest level of one tile's Whitted tree (memory bound)
 MAX_TILE = 1 << 13  # camera rays per tile
@@ -115,8 +115,8 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
     chunk = pool if pool <= UNCHUNKED_POOL else tile // CHUNKS_PER_TILE
     samples = k * k
-
     pixels = tile // samples
+    media = initial_media(ctx, scene.camera.frame()[0])  # the interiors around the camera
 
     def one_tile(t):
         # tile t holds pixels t, t + stride, t + 2·stride, …: spread over the whole image, so its
@@ -125,7 +125,7 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
         pixel = t + stride * jnp.arange(pixels)
         ray = (pixel[:, None] * samples + jnp.arange(samples)[None, :]).reshape(tile)
         o, d = camera_rays(scene.camera, *sample_coords(ray, width, height, k, dtype))
-        colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity)
+        colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity, media=media)
         return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
 
     if tiles.shape[0] == 1:

@@ -27,9 +27,9 @@ transmitted ray only if some pigment can be transparent (semantics §2.3, semant
 Modelling shortcuts (stated, not hidden):
   * the layers' reflections are summed and traced along ONE mirror ray, with the top layer's
     ``exponent`` (the plan warns when more than one layer of a texture reflects);
-  * entering/leaving an object is decided from the geometric normal (the ray is assumed to come
-    from air when entering, and to leave into air), rather than POV's per-ray interior list —
-    identical for non-nested objects, including POV's quirk-free cases (semantics §2.7);
+  * entering/leaving an object is decided from the geometric normal; the media on either side come
+    from the ray's list of the interiors it is inside (POV-Ray's per-ray interior list, at most
+    ``MEDIA_SLOTS`` deep), with POV-Ray's quirk at exits from two or more (semantics §2.7);
   * shadow rays go straight through transparent objects (no refraction, no caustics), as POV's;
   * straight transmission (ior 1) does not use up a trace level (as in POV-Ray), but a ray path may
     pass at most ``Effects.straight_passes`` straight surfaces beyond ``max_trace_level`` levels.
@@ -44,7 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._plan import Effects, Plan
+from .._plan import Effects, InPrim, Plan
 from ..kernels import safe_pow
 from ..scene import Light, Settings
 from ..scene._lights import light_types, point_geometry
@@ -52,8 +52,10 @@ from . import _accel, lighting
 from ._geometry import (
     PackedGeometry,
     all_crossings,
+    build_inside_circuit,
     closest_hit,
     csg_mask,
+    evaluate_inside,
     static_prim_mask,
     visibility_bits,
 )
@@ -70,6 +72,9 @@ class Rays(NamedTuple):
     alive:      (...,)   bool; a dead ray hits nothing and sees black (an empty slot of the tree).
     reflection: (...,)   bool; the ray is a mirror ray (``no_reflection`` objects hide from it).
     level:      (...,)   int32 POV-Ray trace level (1 for camera rays).
+    media:      (..., K) int32 the primitives whose interiors the ray is inside, in the order it
+                         entered them, packed at the front, ``-1`` after (K = ``media_slots``; 0
+                         in scenes without refraction).
     """
 
     origin: jax.Array
@@ -78,6 +83,47 @@ class Rays(NamedTuple):
     alive: jax.Array
     reflection: jax.Array
     level: jax.Array
+    media: jax.Array
+
+
+MEDIA_SLOTS = 16  # interiors a ray can be inside at once (POV-Ray's list has no bound)
+
+
+def media_slots(effects: Effects) -> int:
+    """The length of a ray's interior list: only refraction needs to know the medium a ray is in."""
+    return MEDIA_SLOTS if effects.refraction else 0
+
+
+def dead_rays(n: int, dtype, slots: int) -> Rays:
+    """``n`` empty slots of a pool (a unit direction keeps their masked maths finite)."""
+    unit_z = jnp.broadcast_to(jnp.asarray([0.0, 0.0, 1.0], dtype), (n, 3))
+    return Rays(origin=jnp.zeros((n, 3), dtype), direction=unit_z, weight=jnp.zeros(n, dtype),
+                alive=jnp.zeros(n, bool), reflection=jnp.zeros(n, bool), level=jnp.ones(n, jnp.int32),
+                media=jnp.full((n, slots), -1, jnp.int32))
+
+
+def _media_last(media):
+    """The innermost interior of a packed list (-1 if empty)."""
+    count = jnp.sum(media >= 0)
+    return jnp.where(count > 0, media[jnp.maximum(count - 1, 0)], -1)
+
+
+def _media_without(media, prim):
+    """The list with the last entry of ``prim`` taken out (the rest keep their order, packed at the
+    front): a ray inside two overlapping parts of one medium is still inside after leaving one."""
+    index = jnp.arange(media.shape[0])
+    last = jnp.max(jnp.where(media == prim, index, -1))
+    keep = (media >= 0) & (index != last)
+    pos = jnp.where(keep, jnp.cumsum(keep) - 1, media.shape[0])
+    return jnp.full_like(media, -1).at[pos].set(media, mode="drop")
+
+
+def _media_with(media, prim):
+    """The list with ``prim`` entered last (the oldest entry is dropped if the list is full)."""
+    count = jnp.sum(media >= 0)
+    full = count >= media.shape[0]
+    shifted = jnp.where(full, jnp.roll(media, -1), media)
+    return shifted.at[jnp.where(full, media.shape[0] - 1, count)].set(prim)
 
 
 class Child(NamedTuple):
@@ -107,11 +153,49 @@ def child_slots(effects: Effects) -> int:
     return int(effects.reflection) + int(effects.transmission)
 
 
-def camera_rays(origin, direction) -> Rays:
-    """Camera rays (N, 3): alive, weight 1, trace level 1 (POV counts the camera ray as level 1)."""
+def camera_rays(origin, direction, media=None) -> Rays:
+    """Camera rays (N, 3): alive, weight 1, trace level 1 (POV counts the camera ray as level 1),
+    inside the interiors ``media`` (K,) (``initial_media``; None: none)."""
     n = origin.shape[0]
+    media = jnp.zeros((0,), jnp.int32) if media is None else media
     return Rays(origin=origin, direction=direction, weight=jnp.ones(n, origin.dtype),
-                alive=jnp.ones(n, bool), reflection=jnp.zeros(n, bool), level=jnp.ones(n, jnp.int32))
+                alive=jnp.ones(n, bool), reflection=jnp.zeros(n, bool), level=jnp.ones(n, jnp.int32),
+                media=jnp.broadcast_to(media, (n, media.shape[0])))
+
+
+def initial_media(ctx: TraceContext, eye) -> jax.Array:
+    """(K,) the media containing the point ``eye`` (the camera), in scene order: POV-Ray starts
+    every camera ray inside every object that contains the camera, infinite planes included. An
+    object counts once (a hollow glass ``difference`` does not contain its cavity); primitives with
+    no inside (triangles, meshes) contain nothing."""
+    slots = media_slots(ctx.plan.effects)
+    if not slots or not ctx.plan.roots:
+        return jnp.full(slots, -1, jnp.int32)
+    roots = list(ctx.plan.roots)
+    leaves = [sorted(_leaf_prims(tree)) for tree in roots]
+    trees = [(tree, 0) for tree in roots] + [(InPrim(q, ctx.plan.prims[q].inverse), 0)
+                                               for ls in leaves for q in ls]
+    inside = evaluate_inside(ctx.geo, build_inside_circuit(trees), jnp.asarray(eye)[None, :])
+    media, seen, k = [], [], len(roots)
+    for r, ls in enumerate(leaves):  # the media of the leaves inside, where their object is
+        for q in ls:
+            m = int(ctx.medium[q])
+            media.append(jnp.where(inside[r] & inside[k], m, -1))
+            seen.append(m)
+            k += 1
+    ids = jnp.stack(media)
+    # each medium once (its first occurrence inside), packed at the front, the first K kept
+    dup = jnp.asarray(np.array(seen)[:, None] == np.array(seen)[None, :]) & (ids[None, :] >= 0)
+    earlier = jnp.tril(dup, -1).any(axis=1)  # an earlier leaf inside has the same medium
+    keep = (ids >= 0) & ~earlier
+    pos = jnp.where(keep, jnp.cumsum(keep) - 1, slots)
+    return jnp.full(slots, -1, jnp.int32).at[pos].set(ids, mode="drop")
+
+
+def _leaf_prims(tree) -> set[int]:
+    if isinstance(tree, InPrim):
+        return {tree.prim}
+    return set().union(*(_leaf_prims(t) for t in tree.terms))
 
 
 @dataclasses.dataclass
@@ -132,6 +216,7 @@ class TraceContext:
     transparent_cands: np.ndarray  # (C,) candidate belongs to a transparent-capable prim
     inverse_sign: np.ndarray  # (C,) -1 where the prim is inverted
     fading_cands: np.ndarray  # candidate slots of transparent prims whose interior may fade
+    medium: np.ndarray  # (P,) the medium of each prim: the first prim sharing its interior record
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
@@ -151,7 +236,18 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
             geo, lambda i: bool(mats.transparent[i]) and prims[i].interior is not None
             and prims[i].interior.fade_distance is not None
             and prims[i].interior.fade_power is not None)),
+        medium=_medium_ids(prims),
     )
+
+
+def _medium_ids(prims) -> np.ndarray:
+    """Primitives whose interior is one record (the children of a CSG given one ``interior``) are
+    one medium, named by the first of them: a ray that enters a hollow glass ``difference``
+    through its outer sphere leaves it through its inner one. A primitive without an interior is
+    a medium of its own (ior 1)."""
+    first: dict[int, int] = {}
+    return np.array([i if p.interior is None else first.setdefault(id(p.interior), i)
+                     for i, p in enumerate(prims)], np.int32)
 
 
 # ---------------------------------------------------------------- shadows
@@ -377,10 +473,15 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
     tir = tir & t_alive
     straight = jnp.abs(eta_rel - 1.0) < 1e-10
     t_level = jnp.where(straight & ~tir, level, level + 1)
+    media = ray.media
+    if media.shape[-1]:  # through the surface: into its interior, or out of it
+        here = jnp.asarray(ctx.medium)[s.prim]
+        crossed = jnp.where(s.entering, _media_with(media, here), _media_without(media, here))
+        media = jnp.where(tir, media, crossed)
     child = Rays(origin=jnp.where(tir, s.p_out, s.p_in), direction=d_t,
                  weight=jnp.where(tir, weight, t_weight),
                  alive=t_alive & (level < settings.max_trace_level), reflection=jnp.asarray(False),
-                 level=t_level)
+                 level=t_level, media=media)
     return Child(ray=child, coef=jnp.where(tir, att_col, att_col * fil), power=None), tir
 
 
@@ -392,8 +493,32 @@ def _mirror(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers, tir) -> 
     expo = ctx.mats.finish["refl_exponent"][s.prim * ctx.mats.n_layers]  # top layer's
     child = Rays(origin=s.p_out, direction=lighting.reflect(ray.direction, s.n), weight=w,
                  alive=r_alive & (ray.level < settings.max_trace_level), reflection=jnp.asarray(True),
-                 level=ray.level + 1)
+                 level=ray.level + 1, media=ray.media)
     return Child(ray=child, coef=layers.reflec, power=1.0 / expo)
+
+
+def _relative_ior(ctx: TraceContext, ray: Rays, s: _Surface):
+    """``(η_rel, η for Fresnel)``, ``η_rel = n_t / n_i`` at the hit (semantics §2.7).
+
+    The medium on the near side of an entry, and on the far side of an exit, is the innermost
+    interior of the ray's list (air, ior 1, when the list is empty). At an exit from a ray inside
+    two or more interiors, POV-Ray's Fresnel amount and ``conserve_energy`` factor take the object
+    being left on both sides (η = 1: no reflection from that surface); the refraction does not.
+    """
+    ior = ctx.mats.ior
+    here = ior[s.prim]
+    if not ray.media.shape[-1]:
+        eta = jnp.where(s.entering, here, 1.0 / here)
+        return eta, eta
+
+    def ior_of(prim):
+        return jnp.where(prim >= 0, ior[jnp.maximum(prim, 0)], 1.0)
+
+    outside = ior_of(_media_last(ray.media))
+    beyond = ior_of(_media_last(_media_without(ray.media, jnp.asarray(ctx.medium)[s.prim])))
+    eta = jnp.where(s.entering, here / outside, beyond / here)
+    quirk = ~s.entering & (jnp.sum(ray.media >= 0) >= 2)
+    return eta, jnp.where(quirk, 1.0, eta)
 
 
 def shade(ctx: TraceContext, ray: Rays) -> Shading:
@@ -406,9 +531,8 @@ def shade(ctx: TraceContext, ray: Rays) -> Shading:
     eff = ctx.plan.effects
     s = _surface(ctx, ray)
     cos_i = -jnp.dot(ray.direction, s.n)
-    ior = ctx.mats.ior[s.prim]
-    eta_rel = jnp.where(s.entering, ior, 1.0 / ior)  # n_t / n_i
-    layers = _layers(ctx, ray, s, cos_i, eta_rel)
+    eta_rel, eta_fresnel = _relative_ior(ctx, ray, s)
+    layers = _layers(ctx, ray, s, cos_i, eta_fresnel)
     children = []
     transmitted, tir = None, jnp.asarray(False)
     if eff.transmission:

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 
 from ..kernels import safe_pow
-from ._model import Rays, Shading
+from ._model import Rays, Shading, dead_rays
 
 
 class Link(NamedTuple):
@@ -55,11 +55,17 @@ class LevelRecord(NamedTuple):
     links: tuple[Link, ...]
 
 
+MAX_FULL_WIDTH = 1 << 20  # slots per camera ray of the exact full-width tree
+
+
 def slots_per_ray(branch: int, depth: int, capacity: int | None = None) -> int:
     """Pool slots per camera ray: the widest level of a tree of ``depth`` levels where each ray has
     ``branch`` child slots, ``branch^(depth-1)``, or ``capacity`` when live rays are compacted
     (never more than the full width)."""
     full = branch ** (depth - 1) if branch > 1 else 1
+    if capacity is None and full > MAX_FULL_WIDTH:
+        raise ValueError(f"the exact full-width ray tree of this scene ({branch}^{depth - 1} slots per "
+                         "camera ray) cannot be held: render with a capacity (the default)")
     return full if capacity is None else min(full, capacity)
 
 
@@ -85,8 +91,10 @@ def _shade_pool(shade_one: Callable[[Rays], Shading], rays: Rays, chunk: int) ->
     like any branch), so the empty slots of the tree cost almost nothing."""
     shade_all = jax.vmap(shade_one)
     n = rays.origin.shape[0]
-    if chunk >= n:
-        return shade_all(rays)
+    if chunk >= n:  # one vmap over the pool, skipped when the pool is empty (deep levels)
+        shapes = jax.eval_shape(shade_all, rays)
+        return jax.lax.cond(jnp.any(rays.alive), shade_all,
+                            lambda r: jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes), rays)
     order, inverse = _partition(rays.alive)
     n_chunks = n // chunk
     # two levels of skipping: blocks of chunks, then chunks, so a sparse level costs
@@ -110,13 +118,8 @@ def _shade_pool(shade_one: Callable[[Rays], Shading], rays: Rays, chunk: int) ->
 
 
 def _pad(rays: Rays, size: int) -> Rays:
-    """``rays`` followed by dead slots up to ``size`` (a unit direction keeps their masked maths finite)."""
-    pad = size - rays.origin.shape[0]
-    dtype = rays.origin.dtype
-    dead = Rays(origin=jnp.zeros((pad, 3), dtype),
-                direction=jnp.broadcast_to(jnp.asarray([0.0, 0.0, 1.0], dtype), (pad, 3)),
-                weight=jnp.zeros(pad, dtype), alive=jnp.zeros(pad, bool), reflection=jnp.zeros(pad, bool),
-                level=jnp.ones(pad, jnp.int32))
+    """``rays`` followed by dead slots up to ``size``."""
+    dead = dead_rays(size - rays.origin.shape[0], rays.origin.dtype, rays.media.shape[-1])
     return jax.tree.map(lambda a, b: jnp.concatenate([a, b]), rays, dead)
 
 

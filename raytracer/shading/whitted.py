@@ -19,6 +19,7 @@ import jax
 from .._plan import Effects
 from ._model import TraceContext as TraceContext
 from ._model import camera_rays, child_slots, shade
+from ._model import initial_media as initial_media
 from ._model import make_context as make_context
 from ._scheduler import slots_per_ray, trace_tree
 
@@ -28,9 +29,11 @@ def slots_per_camera_ray(effects: Effects, capacity: int | None = None) -> int:
     return slots_per_ray(child_slots(effects), effects.depth, capacity)
 
 
-def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None) -> tuple[jax.Array, jax.Array]:
-    """Colours (N, 3) of N camera rays (origins and unit directions (N, 3)), and the number of child
-    rays dropped for lack of ``capacity`` (0 without one): see ``_scheduler.trace_tree``."""
+def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None,
+          media=None) -> tuple[jax.Array, jax.Array]:
+    """Colours (N, 3) of N camera rays (origins and unit directions (N, 3)) that start inside the
+    interiors ``media`` (``initial_media(ctx, eye)``; None: none), and the number of child rays
+    dropped for lack of ``capacity`` (0 without one): see ``_scheduler.trace_tree``."""
     eff = ctx.plan.effects
 
     # a function, not functools.partial(shade, ctx): JAX names traced functions after their source,
@@ -38,5 +41,5 @@ def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None) -> t
     def shade_one(ray):
         return shade(ctx, ray)
 
-    return trace_tree(shade_one, camera_rays(o, d), depth=eff.depth,
+    return trace_tree(shade_one, camera_rays(o, d, media), depth=eff.depth,
                       branch=child_slots(eff), chunk=chunk, capacity=capacity)

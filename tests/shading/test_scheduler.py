@@ -18,7 +18,8 @@ from raytracer.shading._scheduler import slots_per_ray, trace_tree
 def toy_shader(branch: int, depth: int, local: float, coef: float, power: float | None = None):
     def shade_one(ray: Rays) -> Shading:
         child = Rays(origin=ray.origin, direction=ray.direction, weight=ray.weight * coef,
-                     alive=ray.alive & (ray.level < depth), reflection=ray.reflection, level=ray.level + 1)
+                     alive=ray.alive & (ray.level < depth), reflection=ray.reflection, level=ray.level + 1,
+                     media=ray.media)
         p = None if power is None else jnp.asarray(power, ray.weight.dtype)
         children = tuple(Child(ray=child, coef=jnp.full(3, coef, ray.weight.dtype), power=p)
                          for _ in range(branch))
