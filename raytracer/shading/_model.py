@@ -176,20 +176,17 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
     trees = [(tree, 0) for tree in roots] + [(InPrim(q, ctx.plan.prims[q].inverse), 0)
                                                for ls in leaves for q in ls]
     inside = evaluate_inside(ctx.geo, build_inside_circuit(trees), jnp.asarray(eye)[None, :])
-    media, seen, k = [], [], len(roots)
-    for r, ls in enumerate(leaves):  # the media of the leaves inside, where their object is
-        for q in ls:
-            m = int(ctx.medium[q])
-            media.append(jnp.where(inside[r] & inside[k], m, -1))
-            seen.append(m)
-            k += 1
-    ids = jnp.stack(media)
-    # each medium once (its first occurrence inside), packed at the front, the first K kept
-    dup = jnp.asarray(np.array(seen)[:, None] == np.array(seen)[None, :]) & (ids[None, :] >= 0)
-    earlier = jnp.tril(dup, -1).any(axis=1)  # an earlier leaf inside has the same medium
-    keep = (ids >= 0) & ~earlier
-    pos = jnp.where(keep, jnp.cumsum(keep) - 1, slots)
-    return jnp.full(slots, -1, jnp.int32).at[pos].set(ids, mode="drop")
+    # leaf j of root r is in the list where both its object and the leaf itself contain the eye;
+    # a medium counts once, at the place of its first leaf in scene order
+    root_of = np.concatenate([np.full(len(ls), r, np.int32) for r, ls in enumerate(leaves)])
+    medium = ctx.medium[np.concatenate([np.asarray(ls, np.int32) for ls in leaves])]
+    place: dict[int, int] = {}  # medium → its place, by first occurrence
+    slot = np.array([place.setdefault(int(m), len(place)) for m in medium], np.int32)
+    order = np.array(list(place), np.int32)
+    leaf_in = inside[root_of] & inside[len(roots):]
+    present = jnp.zeros(order.shape[0], bool).at[slot].max(leaf_in)
+    pos = jnp.where(present, jnp.cumsum(present) - 1, slots)
+    return jnp.full(slots, -1, jnp.int32).at[pos].set(jnp.asarray(order), mode="drop")
 
 
 def _leaf_prims(tree) -> set[int]:
