@@ -484,7 +484,10 @@ def parse_global_settings(p, t) -> None:
             raise p.error(f"expected a global setting, found {k.describe()}", k.loc)
         kw = k.value
         if kw == "assumed_gamma":
+            loc = p.peek().loc
             p.assumed_gamma = float_(p)
+            if not p.assumed_gamma > 0:  # POV-Ray: "gamma value must be positive"
+                raise p.error(f"expected a positive assumed_gamma, found {p.assumed_gamma:g}", loc)
         elif kw == "max_trace_level":
             loc = p.peek().loc
             p.settings["max_trace_level"] = as_int(p, parse_expr(p), loc, "max_trace_level")

@@ -97,6 +97,7 @@ def _transform_ident(p, t) -> np.ndarray:
 # ---- colour maps -----------------------------------------------------------------------------
 def parse_color_map(p) -> list:
     """``color_map { [v color] … }`` (also the old ``[v1 v2 color c1 color c2]`` form) or Ident."""
+    start = p.peek().loc
     p.expect_op("{")
     entries = []
     if p.peek().kind == ID and not p.is_id("color") and not p.is_id("colour"):
@@ -116,6 +117,9 @@ def parse_color_map(p) -> list:
         else:
             entries.append((a, parse_color(p)))
         p.expect_op("]", "']' to close the colour map entry")
+    if not entries:  # POV-Ray: "Must have at least one color in color map"
+        raise p.error("expected at least one [value colour] entry in the colour map, found "
+                      f"{p.peek().describe()}", start)
     p.expect_op("}", "'}' to close the colour map")
     return entries
 

@@ -251,3 +251,15 @@ def test_a_file_name_too_long_for_the_system_is_a_located_error_of_bounded_lengt
         load_scene(main)
     assert e.value.location.line == 2 and "characters left out" in str(e.value)
     assert len(str(e.value)) < 1200
+
+
+@pytest.mark.parametrize("text, line, fragment", [
+    # found by benchmarks/fuzz.py; POV-Ray 3.7 refuses both: "Must have at least one color in color
+    # map" (we raised an IndexError while building), "gamma value must be positive" (we rendered
+    # infinities: img ** -2147483649)
+    ("sphere { 0, 1\n pigment { gradient y color_map { } } }", 2, "at least one [value colour] entry"),
+    ("global_settings {\n assumed_gamma -2147483649 }", 2, "expected a positive assumed_gamma"),
+])
+def test_scenes_povray_refuses_are_located_errors_not_internal_ones(text, line, fragment):
+    e = error_of(text)
+    assert fragment in str(e) and e.location.line == line
