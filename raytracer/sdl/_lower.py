@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import scene as S
 from .._build import build
+from ..errors import SceneError
 from ..scene._lights import light_fields
 from ..shapes import SDL_KEYWORDS
 from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
@@ -137,6 +138,10 @@ def lower_camera(cam: CameraRec | None, warn) -> S.Camera:
     v = cam.values
     kwargs = {k: v[k] for k in ("location", "direction", "up", "right", "sky", "look_at") if k in v}
     if "look_at" in kwargs:
+        eye = np.asarray(kwargs.get("location", (0, 0, 0)), np.float64)
+        if not np.any(np.asarray(kwargs["look_at"], np.float64) - eye):
+            # POV-Ray: "Camera location and look_at point must be different"
+            raise SceneError("expected a camera look_at point different from its location", cam.loc)
         _fix_degenerate_sky(kwargs, warn)
     return S.Camera(**kwargs, angle_degrees=v.get("angle"), transform=_transform(cam.transform),
                     projection=cam.projection, up_or_right_given="up" in v or "right" in v)
