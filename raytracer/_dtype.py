@@ -6,6 +6,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+class OutOfPrecision(ValueError):
+    """A finite parameter that the working precision cannot hold (it would become infinite)."""
+
 
 def default_float():
     """The float dtype parameters are created in (float64 when ``jax_enable_x64`` is on)."""
@@ -23,7 +29,15 @@ def as_float(x) -> jax.Array | np.ndarray:
     """
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
         return x
-    a = np.array(np.asarray(x, dtype=np.float64), dtype=default_float())
+    src = np.asarray(x, dtype=np.float64)
+    dtype = default_float()
+    if dtype == jnp.float32:
+        big = np.abs(src) > _FLOAT32_MAX
+        if big.any() and np.isfinite(src[big]).any():
+            v = src[big & np.isfinite(src)].flat[0]
+            raise OutOfPrecision(f"expected a value within float32's range (±3.4e38), found {v:g}: load "
+                                 "the scene in float64 (jax_enable_x64, --x64)")
+    a = np.array(src, dtype=dtype)
     a.flags.writeable = False
     return a
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import scene as S
 from .._build import build
+from .._dtype import OutOfPrecision
 from ..errors import SceneError
 from ..scene._lights import light_fields
 from ..shapes import SDL_KEYWORDS
@@ -76,7 +77,14 @@ class Lowerer:
         return S.Interior(**vals)
 
     def obj(self, rec, parent_world: np.ndarray | None, top_level: bool):
-        """One ObjRec → Object/CSG (None when nothing renderable is left); lights are collected."""
+        """One ObjRec → Object/CSG (None when nothing renderable is left); lights are collected.
+        A value the working precision cannot hold is an error at the object."""
+        try:
+            return self._obj(rec, parent_world, top_level)
+        except OutOfPrecision as e:
+            raise SceneError(str(e), rec.loc) from None
+
+    def _obj(self, rec, parent_world: np.ndarray | None, top_level: bool):
         if isinstance(rec, LightRec):
             self.lights.append(lower_light(rec, parent_world))
             return None
@@ -187,6 +195,9 @@ def lower_scene(p) -> S.Scene:
     if "max_trace_level" in st:
         st["max_trace_level"] = max(1, min(256, st["max_trace_level"]))
     settings = S.Settings(**st, output_transfer=transfer, assumed_gamma=gamma)
-    camera = lower_camera(p.camera, lambda f, m: p.warn(f, m, p.camera.loc))
+    try:
+        camera = lower_camera(p.camera, lambda f, m: p.warn(f, m, p.camera.loc))
+    except OutOfPrecision as e:
+        raise SceneError(str(e), p.camera.loc) from None
     return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
                  background=p.background, settings=settings, warnings=tuple(p.warnings))

@@ -265,3 +265,17 @@ def test_a_file_name_too_long_for_the_system_is_a_located_error_of_bounded_lengt
 def test_scenes_povray_refuses_are_located_errors_not_internal_ones(text, line, fragment):
     e = error_of(text)
     assert fragment in str(e) and e.location.line == line
+
+
+def test_a_value_beyond_float32_is_an_error_at_its_object_not_an_infinite_image():
+    # found by benchmarks/fuzz.py: finish { ambient 1e308 } became inf when cast to float32 and
+    # the image was infinite; POV-Ray computes in float64. In float32 it is refused where it is
+    # used, naming float64 as the way to load it
+    import jax
+
+    text = "camera { location <0, 1, -5> look_at 0 }\n\nsphere { 0, 1 finish { ambient 1e308 } }"
+    if not jax.config.jax_enable_x64:
+        e = error_of(text)
+        assert e.location.line == 3 and "float32's range" in str(e) and "--x64" in str(e)
+    with jax.enable_x64(True):
+        assert load_scene(text).objects[0].texture.layers[0].finish.ambient[0] == 1e308
