@@ -27,6 +27,7 @@ from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
 
 RAYS_PER_TILE = 1 << 18  # ray slots in the widest level of one tile's Whitted tree (memory bound)
+TREE_SLOTS_PER_TILE = 1 << 22  # ray slots over all levels of one tile's tree (deep straight-pass trees)
 MAX_TILE = 1 << 13  # camera rays per tile
 CHUNKS_PER_TILE = 4  # secondary rays are shaded in chunks of tile/4 rays; chunks with no live ray are skipped
 # a tile's pool of at most this many slots is shaded in one vmap, unchunked: skipping its empty
@@ -43,11 +44,13 @@ def plan(scene: Scene) -> Plan:
 
 
 def _tile_size(scene_plan: Plan, n_rays: int, samples: int, capacity: int | None = None) -> int:
-    """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE``, and
-    a tile holds whole pixels (a multiple of ``samples`` rays, so its samples average in the tile)."""
+    """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE`` and
+    the pools of all levels (kept for the combine) within ``TREE_SLOTS_PER_TILE``, and a tile holds
+    whole pixels (a multiple of ``samples`` rays, so its samples average in the tile)."""
     width = slots_per_camera_ray(scene_plan.effects, capacity)
     quantum = samples * CHUNKS_PER_TILE
-    size = max(quantum, max(64, min(MAX_TILE, RAYS_PER_TILE // width)) // quantum * quantum)
+    fits = min(MAX_TILE, RAYS_PER_TILE // width, TREE_SLOTS_PER_TILE // (width * scene_plan.effects.depth))
+    size = max(quantum, max(64, fits) // quantum * quantum)
     return min(size, -(-n_rays // quantum) * quantum)
 
 

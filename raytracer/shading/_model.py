@@ -382,6 +382,7 @@ class _Surface(NamedTuple):
     entering: jax.Array  # () bool: the geometric normal faces the ray (entering the object)
     p_out: jax.Array  # (3,) spawn point on the ray's side of the surface
     p_in: jax.Array  # (3,) spawn point beyond the surface
+    medium: jax.Array  # () int the medium of the primitive hit (``TraceContext.medium``)
 
 
 def _surface(ctx: TraceContext, ray: Rays) -> _Surface:
@@ -395,7 +396,8 @@ def _surface(ctx: TraceContext, ray: Rays) -> _Surface:
     n = jnp.where(entering, hit.normal, -hit.normal)  # faces the incoming ray
     offset = ctx.eps * (1.0 + jnp.max(jnp.abs(p)))
     return _Surface(found=hit.found & ray.alive, missed=ray.alive & ~hit.found, t=hit.t, prim=hit.prim,
-                    p=p, n=n, entering=entering, p_out=p + offset * n, p_in=p - offset * n)
+                    p=p, n=n, entering=entering, p_out=p + offset * n, p_in=p - offset * n,
+                    medium=jnp.asarray(ctx.medium)[hit.prim])
 
 
 class _Layers(NamedTuple):
@@ -472,8 +474,7 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
     t_level = jnp.where(straight & ~tir, level, level + 1)
     media = ray.media
     if media.shape[-1]:  # through the surface: into its interior, or out of it
-        here = jnp.asarray(ctx.medium)[s.prim]
-        crossed = jnp.where(s.entering, _media_with(media, here), _media_without(media, here))
+        crossed = jnp.where(s.entering, _media_with(media, s.medium), _media_without(media, s.medium))
         media = jnp.where(tir, media, crossed)
     child = Rays(origin=jnp.where(tir, s.p_out, s.p_in), direction=d_t,
                  weight=jnp.where(tir, weight, t_weight),
@@ -512,7 +513,7 @@ def _relative_ior(ctx: TraceContext, ray: Rays, s: _Surface):
         return jnp.where(prim >= 0, ior[jnp.maximum(prim, 0)], 1.0)
 
     outside = ior_of(_media_last(ray.media))
-    beyond = ior_of(_media_last(_media_without(ray.media, jnp.asarray(ctx.medium)[s.prim])))
+    beyond = ior_of(_media_last(_media_without(ray.media, s.medium)))
     eta = jnp.where(s.entering, here / outside, beyond / here)
     quirk = ~s.entering & (jnp.sum(ray.media >= 0) >= 2)
     return eta, jnp.where(quirk, 1.0, eta)

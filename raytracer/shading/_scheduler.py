@@ -93,8 +93,7 @@ def _shade_pool(shade_one: Callable[[Rays], Shading], rays: Rays, chunk: int) ->
     n = rays.origin.shape[0]
     if chunk >= n:  # one vmap over the pool, skipped when the pool is empty (deep levels)
         shapes = jax.eval_shape(shade_all, rays)
-        return jax.lax.cond(jnp.any(rays.alive), shade_all,
-                            lambda r: jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes), rays)
+        return jax.lax.cond(jnp.any(rays.alive), lambda: shade_all(rays), lambda: _zeros(shapes))
     order, inverse = _partition(rays.alive)
     n_chunks = n // chunk
     # two levels of skipping: blocks of chunks, then chunks, so a sparse level costs
@@ -104,17 +103,20 @@ def _shade_pool(shade_one: Callable[[Rays], Shading], rays: Rays, chunk: int) ->
                           rays)
     shapes = jax.eval_shape(shade_all, jax.tree.map(lambda a: a[0, 0], blocks))
 
-    def zeros(lead=()):
-        return jax.tree.map(lambda x: jnp.zeros(lead + x.shape, x.dtype), shapes)
-
     def one_chunk(r: Rays) -> Shading:
-        return jax.lax.cond(jnp.any(r.alive), lambda: shade_all(r), zeros)
+        return jax.lax.cond(jnp.any(r.alive), lambda: shade_all(r), lambda: _zeros(shapes))
 
     def one_block(r: Rays) -> Shading:
-        return jax.lax.cond(jnp.any(r.alive), lambda: jax.lax.map(one_chunk, r), lambda: zeros((per_block,)))
+        return jax.lax.cond(jnp.any(r.alive), lambda: jax.lax.map(one_chunk, r),
+                            lambda: _zeros(shapes, (per_block,)))
 
     out = jax.lax.map(one_block, blocks)
     return jax.tree.map(lambda x: x.reshape((n,) + x.shape[3:])[inverse], out)
+
+
+def _zeros(shapes, lead=()):
+    """Zeros shaped as ``shapes`` (a tree of ``ShapeDtypeStruct``), with ``lead`` axes in front."""
+    return jax.tree.map(lambda x: jnp.zeros(lead + x.shape, x.dtype), shapes)
 
 
 def _pad(rays: Rays, size: int) -> Rays:
