@@ -1,7 +1,7 @@
 // A bounding volume hierarchy over a scene's primitives, called from JAX through XLA's FFI.
 //
-// It only *chooses*: which item a ray hits first (closest hit) or whether anything blocks a shadow
-// segment (any hit). The distance and normal the renderer uses are then computed again by the chosen
+// It only *chooses*: which item a ray hits first (closest hit), whether anything blocks a shadow
+// segment (any hit), or which items a filtered shadow segment crosses (all hits, the nearest k). The distance and normal the renderer uses are then computed again by the chosen
 // primitive's JAX kernel, so gradients never pass through this file (a preliminary intersection
 // followed by a differentiable surface interaction, as in Mitsuba 3).
 //
@@ -423,6 +423,56 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
   return best;
 }
 
+// Every item with a crossing in (tmin, tmax) (a filtered shadow segment: each transparent item it
+// crosses filters it), keeping the k nearest by their first crossing in out[0..k) (ascending, -1
+// after the last); returns how many items were crossed, which may exceed k. No node is pruned by a
+// found hit: the whole segment is searched.
+template <typename T>
+int32_t traverse_all(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
+                     int32_t* out, double* out_t, int k) {
+  double inv[3];
+  for (int a = 0; a < 3; ++a) inv[a] = 1.0 / d[a];
+  int32_t found = 0;
+  int kept = 0;
+  int64_t stack[STACK];
+  int sp = 0;
+  stack[sp++] = 0;
+  double lo[3], hi[3];
+  while (sp > 0) {
+    const int64_t node = stack[--sp];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = static_cast<double>(s.node_box[6 * node + a]);
+      hi[a] = static_cast<double>(s.node_box[6 * node + 3 + a]);
+    }
+    if (!slab(lo, hi, o, inv, tmin, tmax)) continue;
+    const int32_t* info = s.node_info + 4 * node;
+    if (info[1] > 0) {
+      for (int32_t j = info[0]; j < info[0] + info[1]; ++j) {
+        const int32_t it = s.order[j];
+        if ((s.mask[it] & want) == 0) continue;
+        double t = item_hit(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), o, d, tmin, tmax);
+        if (!(t < tmax)) continue;
+        ++found;
+        if (kept == k && !(t < out_t[k - 1])) continue;
+        int pos = kept < k ? kept++ : k - 1;  // insertion into the sorted list (drops the farthest)
+        while (pos > 0 && out_t[pos - 1] > t) {
+          out[pos] = out[pos - 1];
+          out_t[pos] = out_t[pos - 1];
+          --pos;
+        }
+        out[pos] = it;
+        out_t[pos] = t;
+      }
+      continue;
+    }
+    if (sp + 2 > STACK) continue;
+    stack[sp++] = info[0];
+    stack[sp++] = info[2];
+  }
+  for (int j = kept; j < k; ++j) out[j] = -1;
+  return found;
+}
+
 template <ffi::DataType DT>
 ffi::Error build_impl(ffi::Buffer<DT> boxes, ffi::ResultBuffer<DT> node_box, ffi::ResultBuffer<ffi::S32> node_info,
                       ffi::ResultBuffer<ffi::S32> order) {
@@ -517,6 +567,50 @@ ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffe
   return ffi::Error::Success();
 }
 
+// node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item (rays, k), count
+template <ffi::DataType DT>
+ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
+                    ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
+                    ffi::Buffer<DT> params, ffi::Buffer<DT> origin, ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin,
+                    ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want, ffi::ResultBuffer<ffi::S32> item,
+                    ffi::ResultBuffer<ffi::S32> count) {
+  using T = ffi::NativeType<DT>;
+  Scene<T> s{node_box.typed_data(), node_info.typed_data(), order.typed_data(), kind.typed_data(),
+             mask.typed_data(), params.typed_data(), static_cast<int64_t>(kind.element_count())};
+  const int64_t rays = static_cast<int64_t>(tmin.element_count());
+  auto size = [](const auto& buffer) { return static_cast<int64_t>(buffer.element_count()); };
+  if (rays == 0) return ffi::Error::Success();
+  const int64_t k = size(*item) / rays;
+  if (k < 1 || k > 1024 || size(*item) != k * rays || size(*count) != rays || size(origin) != 3 * rays ||
+      size(direction) != 3 * rays || size(tmax) != rays || size(want) != rays ||
+      size(params) != ITEM_PARAMS * s.n_items || size(mask) != s.n_items || size(order) != s.n_items)
+    return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh all-crossings query: inconsistent operand sizes");
+  const T* o = origin.typed_data();
+  const T* d = direction.typed_data();
+  const T* t0 = tmin.typed_data();
+  const T* t1 = tmax.typed_data();
+  const int32_t* w = want.typed_data();
+  int32_t* out = item->typed_data();
+  int32_t* cnt = count->typed_data();
+  auto trace = [&](int64_t begin, int64_t end) {
+    std::vector<double> ts(k);
+    for (int64_t r = begin; r < end; ++r) {
+      double oo[3] = {double(o[3 * r]), double(o[3 * r + 1]), double(o[3 * r + 2])};
+      double dd[3] = {double(d[3 * r]), double(d[3 * r + 1]), double(d[3 * r + 2])};
+      const double lo = double(t0[r]), hi = double(t1[r]);
+      int32_t* row = out + k * r;
+      if (std::isfinite(oo[0] + oo[1] + oo[2] + dd[0] + dd[1] + dd[2]) && lo < hi) {
+        cnt[r] = traverse_all(s, oo, dd, lo, hi, w[r], row, ts.data(), static_cast<int>(k));
+      } else {
+        cnt[r] = 0;
+        std::fill(row, row + k, -1);
+      }
+    }
+  };
+  parallel_for(pool, rays, trace);
+  return ffi::Error::Success();
+}
+
 }  // namespace
 
 // node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item, t
@@ -553,3 +647,23 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF32, (query_impl<ffi::F32, false>), QUER
 XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF64, (query_impl<ffi::F64, false>), QUERY_BINDING(ffi::F64));
 XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF32, (query_impl<ffi::F32, true>), QUERY_BINDING(ffi::F32));
 XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF64, (query_impl<ffi::F64, true>), QUERY_BINDING(ffi::F64));
+
+#define ALL_BINDING(DT)                                                                                    \
+  ffi::Ffi::Bind()                                                                                       \
+      .Ctx<ffi::ThreadPool>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Ret<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Ret<ffi::Buffer<ffi::S32>>()
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF32, all_impl<ffi::F32>, ALL_BINDING(ffi::F32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF64, all_impl<ffi::F64>, ALL_BINDING(ffi::F64));

@@ -2,20 +2,26 @@
 
 A ray used to be tested against every primitive (``_geometry.all_crossings``). Primitives whose
 shape names a native kernel (spheres, boxes, triangles, meshes: ``AbstractShape.native_kernel``)
-and that need nothing but their own surface — no CSG or clipping condition, not transparent (so a
-shadow ray only asks whether they block) — are instead *items* of a hierarchy built and traversed
-by native code (``raytracer/_native/bvh.cc``) called through XLA's FFI:
+and that need nothing but their own surface — no CSG or clipping condition — are instead *items*
+of a hierarchy built and traversed by native code (``raytracer/_native/bvh.cc``) called through
+XLA's FFI:
 
 * ``closest``: the item a ray hits first, then its distance and normal computed again by the
   primitive's own JAX kernel (``sub_hits``): the choice is piecewise constant (made on
   ``stop_gradient`` values), the hit is differentiable exactly as before — Mitsuba's split of a
   preliminary intersection from a differentiable surface interaction;
-* ``blocked``: whether any item lies on a shadow segment (an any-hit query that stops at the first).
+* ``blocked``: whether any opaque item (``MASK_SHADOW``) lies on a shadow segment (an any-hit
+  query that stops at the first);
+* ``filtering``: the transparent shadow-casting items (``MASK_FILTER``) a shadow segment crosses,
+  the nearest ``FILTER_ITEMS`` of them, each with all its crossings computed again by its kernel
+  (the shading model multiplies their pigments' filter). Transparent items with an interior fade
+  stay candidates (the fade needs the ordered crossings of all fading objects), and so do all
+  transparent shadow casters with the pure-JAX twin, which has no such query.
 
 The hierarchy is rebuilt by every call of the compiled program from the scene's current values
 (binned SAH, native), so it is right under ``jit``, ``grad`` and ``vmap`` and for traced geometry.
-The other primitives (planes and other unbounded shapes, CSG members, transparent objects, shapes
-without a native kernel) keep the candidate path of ``_geometry``; a scene with fewer than
+The other primitives (planes and other unbounded shapes, CSG members, fading transparent objects,
+shapes without a native kernel) keep the candidate path of ``_geometry``; a scene with fewer than
 ``MIN_ITEMS`` items is not accelerated at all. ``RAYTRACER_ACCEL=none`` turns the native path off
 (``native`` requires it); without the compiled library the renderer falls back to the candidate
 path, and ``raytracer info`` says which one a render uses.
@@ -28,6 +34,7 @@ import dataclasses
 import functools
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -40,7 +47,10 @@ from ..kernels import safe_normalize
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
 MIN_ITEMS = 8  # fewer items: every primitive is a candidate (measured: no faster either way at 10)
 T_MAX = 1e7  # crossings beyond are ignored (the hierarchy's queries and ``_geometry.closest_hit``)
-MASK_CAMERA, MASK_REFLECT, MASK_SHADOW = 1, 2, 4  # item visibility bits (bvh.cc's ``want``)
+# item visibility bits (bvh.cc's ``want``): seen by camera rays, by reflected and transmitted rays;
+# blocks shadow rays (opaque), filters them (transparent: every crossing multiplies the light)
+MASK_CAMERA, MASK_REFLECT, MASK_SHADOW, MASK_FILTER = 1, 2, 4, 8
+FILTER_ITEMS = 16  # transparent items a filtered shadow segment keeps (the nearest; see ``filtering``)
 
 
 class AccelUnavailable(RuntimeError):
@@ -58,7 +68,7 @@ def _library() -> str | None:
         lib = ctypes.cdll.LoadLibrary(str(found[0]))
     except OSError as e:
         return f"the native BVH library does not load: {e}"
-    for name in ("BvhBuild", "BvhClosest", "BvhAny"):
+    for name in ("BvhBuild", "BvhClosest", "BvhAny", "BvhAll"):
         for suffix in ("F32", "F64"):
             capsule = jax.ffi.pycapsule(getattr(lib, name + suffix))
             jax.ffi.register_ffi_target(f"raytracer_{name}{suffix}", capsule, platform="cpu")
@@ -138,6 +148,28 @@ def _query_fn(any_hit: bool):
 
 _closest_query = _query_fn(any_hit=False)
 _any_query = _query_fn(any_hit=True)
+
+
+@custom_vmap
+def _all_query(tables, o, d, tmin, tmax, want):
+    """Rays of any leading shape ``S``: (the ``FILTER_ITEMS`` nearest items crossed, S + (k,) int32
+    ascending, -1 after the last; how many were crossed, S int32, may exceed k)."""
+    shape = tmin.shape
+    out = (jax.ShapeDtypeStruct((*shape, FILTER_ITEMS), jnp.int32), jax.ShapeDtypeStruct(shape, jnp.int32))
+    call = jax.ffi.ffi_call(f"raytracer_BvhAll{_suffix(o.dtype)}", out)
+    item, count = call(*tables, o.reshape(-1, 3), d.reshape(-1, 3), tmin.reshape(-1), tmax.reshape(-1),
+                       want.reshape(-1))
+    return item.reshape(*shape, FILTER_ITEMS), count.reshape(shape)
+
+
+@_all_query.def_vmap
+def _all_batched(axis_size, in_batched, tables, o, d, tmin, tmax, want):
+    if any(jax.tree_util.tree_leaves(in_batched[0])):
+        raise NotImplementedError("the native BVH does not batch over scenes: vmap over scenes with "
+                                  "RAYTRACER_ACCEL=none")
+    rays = [x if b else jnp.broadcast_to(x, (axis_size, *x.shape))
+            for x, b in zip((o, d, tmin, tmax, want), in_batched[1:], strict=True)]
+    return _all_query(tables, *rays), (True, True)
 
 
 # ---------------------------------------------------------------- the packed hierarchy
@@ -224,6 +256,51 @@ def blocked(accel: Accel, o, d, t_min, t_max):
     want = jnp.asarray(MASK_SHADOW, jnp.int32)
     item, _ = _hierarchy()[2](accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
     return item >= 0
+
+
+class Crossed(NamedTuple):
+    """The transparent items a shadow segment crosses, each with every crossing of its kernel."""
+
+    t: jax.Array  # (k, J) crossings of each kept item (+inf where none, or the slot is empty)
+    prim: jax.Array  # (k,) int32 primitive of each kept item (0 for empty slots)
+    normal: jax.Array  # (k, J, 3) unit world normals (``inverse`` not applied)
+    overflow: jax.Array  # () bool: more than k items were crossed (the farthest were dropped)
+
+
+def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Crossed:
+    """The nearest ``FILTER_ITEMS`` transparent shadow-casting items (``MASK_FILTER``) with a
+    crossing on the segment ``t_min < t < t_max``, and every crossing of each, computed again by its
+    primitive's kernel (a sphere filters twice if the segment crosses it twice; crossings outside the
+    segment are +inf)."""
+    sg = jax.lax.stop_gradient
+    want = jnp.asarray(MASK_FILTER, jnp.int32)
+    item, count = _all_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
+    chosen = jnp.maximum(item, 0)
+    ts, normals = [], []
+    for ag in accel.groups:
+        local = chosen - ag.first
+        mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)
+        local = jnp.where(mine, local, 0)
+        member, sub = local // ag.per_member, local % ag.per_member
+
+        def one(member, sub, mine, ag=ag):
+            shape = jax.tree_util.tree_map(lambda a: a[member], shapes[ag.group])
+            m = object_from_world[ag.group][member]
+            t, n = shape.sub_hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d, sub)
+            ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
+            return jnp.where(ok, t, jnp.inf), jax.vmap(lambda v: safe_normalize(v @ m[:3, :3]))(n)
+
+        ts.append(jax.vmap(one)(member, sub, mine))
+    width = max(t.shape[1] for t, _ in ts)
+
+    def widen(x, fill):
+        pad = [(0, 0)] * x.ndim
+        pad[1] = (0, width - x.shape[1])
+        return jnp.pad(x, pad, constant_values=fill)
+
+    t = functools.reduce(jnp.minimum, [widen(t, jnp.inf) for t, _ in ts])
+    n = sum(jnp.where(jnp.isfinite(widen(ti, jnp.inf))[..., None], widen(ni, 0.0), 0.0) for ti, ni in ts)
+    return Crossed(t, accel.item_prim[chosen], n, count > FILTER_ITEMS)
 
 
 # ---------------------------------------------------------------- RAYTRACER_ACCEL=jax

@@ -66,28 +66,47 @@ def _variant(shape: AbstractShape) -> tuple:
     return treedef, tuple(np.shape(x) for x in leaves)
 
 
-def _accelerable(prim) -> bool:
+def transparent(prim) -> bool:
+    """Every layer of the primitive's texture can let light through (filter or transmit): a shadow
+    ray is filtered at its crossings (``PackedMaterials.transparent``), not blocked."""
+    return all(layer.pigment.transparent for layer in prim.texture.layers)
+
+
+def _fades(prim) -> bool:
+    it = prim.interior
+    return it is not None and it.fade_distance is not None and it.fade_power is not None
+
+
+def _accelerable(prim, filter_query: bool) -> bool:
     """Whether the hierarchy may choose this primitive: a native kernel, bounded, rendered, no CSG
-    or clipping condition, and opaque (a shadow ray only asks whether it blocks)."""
+    or clipping condition. A transparent primitive that casts shadows also needs the hierarchy's
+    all-crossings query (``filter_query``: the native one) and no interior fade (whose attenuation
+    needs the ordered crossings of every fading object: those stay candidates)."""
     shape = prim.obj.shape
-    return (type(shape).native_kernel is not None and prim.rendered and not prim.conditions
-            and not all(layer.pigment.transparent for layer in prim.texture.layers))
+    if type(shape).native_kernel is None or not prim.rendered or prim.conditions:
+        return False
+    if transparent(prim) and "no_shadow" not in prim.flags:
+        return filter_query and not _fades(prim)
+    return True
 
 
 def visibility_bits(prim) -> int:
-    """The ``_accel.MASK_*`` bits of a primitive: seen by camera / reflected rays, casts shadows."""
+    """The ``_accel.MASK_*`` bits of a primitive: seen by camera / reflected rays, blocks (opaque)
+    or filters (transparent) shadow rays."""
     if not prim.rendered:
         return 0
+    shadow = _accel.MASK_FILTER if transparent(prim) else _accel.MASK_SHADOW
     return ((_accel.MASK_CAMERA if "no_image" not in prim.flags else 0)
             | (_accel.MASK_REFLECT if "no_reflection" not in prim.flags else 0)
-            | (_accel.MASK_SHADOW if "no_shadow" not in prim.flags else 0))
+            | (shadow if "no_shadow" not in prim.flags else 0))
 
 
 def accelerated_prims(plan: Plan, accelerate: bool | None = None) -> list[bool]:
     """Which primitives the native hierarchy chooses among (see ``pack_geometry``)."""
     if accelerate is None:
         accelerate = _accel.mode() != "none"  # native, or its JAX twin (RAYTRACER_ACCEL=jax)
-    held = [accelerate and _accelerable(p) for p in plan.prims]
+    filter_query = _accel.mode() != "jax"  # the pure-JAX twin has no all-crossings query
+    held = [accelerate and _accelerable(p, filter_query) for p in plan.prims]
     items = sum(p.obj.shape.n_native_items() for p, ok in zip(plan.prims, held, strict=True) if ok)
     return held if items >= _accel.MIN_ITEMS else [False] * len(plan.prims)
 

@@ -214,6 +214,7 @@ class TraceContext:
     inverse_sign: np.ndarray  # (C,) -1 where the prim is inverted
     fading_cands: np.ndarray  # candidate slots of transparent prims whose interior may fade
     medium: np.ndarray  # (P,) the medium of each prim: the first prim sharing its interior record
+    accel_filters: bool  # the hierarchy holds transparent shadow-casting items (``MASK_FILTER``)
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
@@ -226,7 +227,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         eps=2e-5 if dtype == jnp.float32 else 1e-9,
         vis_camera=(bits[geo.cand_prim] & _accel.MASK_CAMERA) != 0,
         vis_reflect=(bits[geo.cand_prim] & _accel.MASK_REFLECT) != 0,
-        casts_shadow=(bits[geo.cand_prim] & _accel.MASK_SHADOW) != 0,
+        casts_shadow=(bits[geo.cand_prim] & (_accel.MASK_SHADOW | _accel.MASK_FILTER)) != 0,
         transparent_cands=static_prim_mask(geo, lambda i: bool(mats.transparent[i])),
         inverse_sign=geo.prim_sign[geo.cand_prim],
         fading_cands=np.flatnonzero(static_prim_mask(
@@ -234,6 +235,8 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
             and prims[i].interior.fade_distance is not None
             and prims[i].interior.fade_power is not None)),
         medium=_medium_ids(prims),
+        accel_filters=geo.accel is not None and any(
+            bits[i] & _accel.MASK_FILTER for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
     )
 
 
@@ -256,6 +259,9 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     # opaque primitives the hierarchy holds: does any lie on the segment (an any-hit query)
     blocked = (jnp.zeros((), bool) if ctx.geo.accel is None
                else _accel.blocked(ctx.geo.accel, o, l, scale, dist - scale))
+    if ctx.geo.accel is not None and ctx.accel_filters:
+        # transparent items the hierarchy holds: each crossing filters by its layers' pigments
+        one = _accel_filter(ctx, o, l, scale, dist - scale)
     if not ctx.geo.n_candidates:
         return jnp.where(blocked, 0.0, 1.0) * one
     t, n = all_crossings(ctx.geo, o, l)
@@ -290,6 +296,31 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
                                      m.fade_color[prims], on=exiting[:, None])
         filt = filt * jnp.prod(att, axis=0)
     return jnp.where(jnp.any(opaque) | blocked, 0.0, 1.0) * filt
+
+
+def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
+    """RGB filter of the transparent shadow-casting items the hierarchy holds on the segment: the
+    product over their crossings of every present layer's ``f·P + t`` (as for candidates). More than
+    ``_accel.FILTER_ITEMS`` crossed items: the farthest are dropped and the segment counts as
+    blocked (a shadow through that many transparent surfaces is dark already; documented in
+    architecture.md)."""
+    crossed = _accel.filtering(ctx.geo.accel, ctx.geo.shapes, ctx.geo.object_from_world, o, l, t_min, t_max)
+    m = ctx.mats
+    present = jnp.asarray(m.layer_present)[crossed.prim]  # (k, n_layers)
+    ok = jnp.isfinite(crossed.t)  # (k, J)
+    points = o[None, None, :] + jnp.where(ok, crossed.t, 0.0)[..., None] * l[None, None, :]  # (k, J, 3)
+    filt = jnp.ones(3, ctx.dtype)
+    for layer in range(m.n_layers):
+        rows = crossed.prim * m.n_layers + layer
+
+        def at(row, p):
+            pig = pigment_at(m, row, p)
+            return pig[3] * pig[:3] + pig[4]
+
+        f = jax.vmap(lambda row, ps: jax.vmap(lambda p: at(row, p))(ps))(rows, points)  # (k, J, 3)
+        use = ok & present[:, layer][:, None]
+        filt = filt * jnp.prod(jnp.where(use[..., None], f, 1.0), axis=(0, 1))
+    return jnp.where(crossed.overflow, 0.0, filt)
 
 
 def _light_visibility(ctx: TraceContext, light: Light, types, p_spawn, l, shadow_len):

@@ -53,6 +53,8 @@ mesh2 { vertex_vectors { 4, <-1, 0, 0>, <1, 0, 0>, <0, 1.5, 0>, <0, 0.5, -1> }
         pigment { rgb <1, 0.6, 0.2> } translate <3, 0.2, -2> }
 sphere { <-2, 1, -3>, 0.8 pigment { rgb 0.9 } finish { reflection 0.7 } }
 sphere { <0, 1, -4>, 0.7 pigment { rgbf <1, 1, 1, 0.9> } interior { ior 1.3 } }
+mesh { triangle { <-3, 0.1, -2>, <3, 0.1, -2>, <0, 3, -1.5> } triangle { <-3, 0.1, -2.3>, <3, 0.1, -2.3>, <0, 2.5, -3> }
+       pigment { rgbf <1, 0.3, 0.2, 0.8> } }
 difference { box { -0.6, 0.6 } sphere { 0, 0.75 } pigment { rgb <0.3, 0.3, 1> } translate <2, 0.6, -5> }
 sphere { <-3.5, 0.5, -5>, 0.5 pigment { rgb 1 } no_shadow }
 sphere { <-2.9, 0.5, -5.5>, 0.4 pigment { rgb <1, 0, 0> } no_image }
@@ -80,11 +82,15 @@ def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
     held = {p for g in geo.groups if g.accelerated for p in g.prims}
     kinds = {plan.prims[i].kind for i in held}
     assert kinds == {"sphere", "box", "triangle", "smooth_triangle", "cylinder", "cone", "disc", "mesh"}
-    # the loop's 70, the mesh's 3 triangles, the mirror sphere and the three flagged spheres
-    assert geo.accel.n_items == 70 + 3 + 4
+    # the loop's 70, the mesh2's 3 triangles, the mirror sphere and the three flagged spheres; the
+    # transparent glass sphere and mesh filter shadows, which only the native hierarchy can ask
+    transparent = 1 + 2 if ACCEL == "native" else 0
+    assert geo.accel.n_items == 70 + 3 + 4 + transparent
     left = [plan.prims[i] for i in range(len(plan.prims)) if i not in held]
-    # the plane (unbounded), the glass sphere (transparent), the box and sphere of the difference
-    assert sorted(p.kind for p in left) == ["box", "plane", "sphere", "sphere"]
+    # the plane (unbounded), the box and sphere of the difference (and with the JAX twin the
+    # transparent sphere and mesh)
+    extra = [] if ACCEL == "native" else ["mesh", "sphere"]
+    assert sorted(p.kind for p in left) == sorted(["box", "plane", "sphere"] + extra)
     assert sum(bool(p.conditions) for p in left) == 2
 
 
@@ -160,3 +166,40 @@ def test_auto_mode_picks_the_native_hierarchy_on_a_cpu_and_the_jax_one_elsewhere
         _accel.mode()
     monkeypatch.setenv("RAYTRACER_ACCEL", "none")
     assert _accel.mode() == "none"
+
+
+@pytest.mark.skipif(ACCEL != "native", reason="the all-crossings query is the native hierarchy's")
+def test_all_crossings_query_keeps_the_nearest_items_in_order(x64):
+    """Filtered shadows ask for every item on a segment: the nearest ``FILTER_ITEMS`` by their first
+    crossing, ascending, and how many there were, against brute force (float64)."""
+    build, _, _ = _accel._hierarchy()
+    rng = np.random.default_rng(5)
+    n, rays = 1500, 300
+    centres = rng.uniform(-3, 3, (n, 3))
+    radii = rng.uniform(0.2, 0.9, n)
+    eye = np.broadcast_to(np.eye(4)[:3].reshape(12), (n, 12))
+    params = np.concatenate([eye, centres, radii[:, None], np.zeros((n, 8))], axis=1)
+    boxes = np.concatenate([centres - radii[:, None], centres + radii[:, None]], axis=1)
+    mask = np.where(rng.uniform(size=n) < 0.7, _accel.MASK_FILTER, _accel.MASK_SHADOW).astype(np.int32)
+    tables = (*build(jnp.asarray(boxes)), jnp.zeros(n, jnp.int32), jnp.asarray(mask), jnp.asarray(params))
+    o = rng.uniform(-3, 3, (rays, 3))
+    d = rng.normal(size=(rays, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    tmin, tmax = rng.uniform(0, 1, rays), rng.uniform(1, 14, rays)
+    item, count = _accel._all_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.asarray(tmin),
+                                    jnp.asarray(tmax), jnp.full(rays, _accel.MASK_FILTER, jnp.int32))
+    oc = o[:, None, :] - centres[None]
+    b = np.einsum("ri,rni->rn", d, oc)
+    c = np.sum(oc * oc, axis=2) - radii[None] ** 2
+    disc = b * b - c
+    sq = np.sqrt(np.where(disc >= 0, disc, 0))
+    lo, hi = tmin[:, None], tmax[:, None]
+    near, far = -b - sq, -b + sq
+    first = np.where((near > lo) & (near < hi), near, np.where((far > lo) & (far < hi), far, np.inf))
+    first = np.where((disc >= 0) & (mask == _accel.MASK_FILTER)[None], first, np.inf)
+    k = _accel.FILTER_ITEMS
+    np.testing.assert_array_equal(np.asarray(count), np.isfinite(first).sum(axis=1))
+    want = np.argsort(first, axis=1, kind="stable")[:, :k]
+    want = np.where(np.isfinite(np.take_along_axis(first, want, axis=1)), want, -1)
+    np.testing.assert_array_equal(np.asarray(item), want)
+    assert 0.2 < (np.asarray(count) > k).mean() < 0.8  # segments with fewer and more than k items
