@@ -276,7 +276,7 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     want = jnp.asarray(MASK_FILTER, jnp.int32)
     item, count = _all_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
     chosen = jnp.maximum(item, 0)
-    ts, normals = [], []
+    ts = []
     for ag in accel.groups:
         local = chosen - ag.first
         mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)

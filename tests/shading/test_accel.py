@@ -53,7 +53,8 @@ mesh2 { vertex_vectors { 4, <-1, 0, 0>, <1, 0, 0>, <0, 1.5, 0>, <0, 0.5, -1> }
         pigment { rgb <1, 0.6, 0.2> } translate <3, 0.2, -2> }
 sphere { <-2, 1, -3>, 0.8 pigment { rgb 0.9 } finish { reflection 0.7 } }
 sphere { <0, 1, -4>, 0.7 pigment { rgbf <1, 1, 1, 0.9> } interior { ior 1.3 } }
-mesh { triangle { <-3, 0.1, -2>, <3, 0.1, -2>, <0, 3, -1.5> } triangle { <-3, 0.1, -2.3>, <3, 0.1, -2.3>, <0, 2.5, -3> }
+mesh { triangle { <-3, 0.1, -2>, <3, 0.1, -2>, <0, 3, -1.5> }
+       triangle { <-3, 0.1, -2.3>, <3, 0.1, -2.3>, <0, 2.5, -3> }
        pigment { rgbf <1, 0.3, 0.2, 0.8> } }
 difference { box { -0.6, 0.6 } sphere { 0, 0.75 } pigment { rgb <0.3, 0.3, 1> } translate <2, 0.6, -5> }
 sphere { <-3.5, 0.5, -5>, 0.5 pigment { rgb 1 } no_shadow }
