@@ -76,6 +76,16 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--spp", type=_samples_per_pixel, default=1,
                    help="samples per pixel: 1 = pixel centres (as POV-Ray -A), k*k = a k×k grid (default 1)")
     r.add_argument("--png16", action="store_true", help="write a 16-bit PNG instead of 8-bit")
+    r.add_argument("--all-frames", action="store_true",
+                   help="render every frame of the --ini animation, to OUTPUT with the frame number "
+                        "before its suffix (out.png: out01.png, out02.png, … as POV-Ray names them)")
+    d = r.add_argument_group(
+        "several processes or machines (jax.distributed; start one command per process)",
+        "Every process renders part of each image's tiles and process 0 writes it; with "
+        "--all-frames each process renders whole frames instead (frame f on process f mod N).")
+    d.add_argument("--coordinator", metavar="HOST:PORT", help="address of process 0")
+    d.add_argument("--num-processes", type=_positive_int, metavar="N", help="how many processes take part")
+    d.add_argument("--process-id", type=int, metavar="I", help="this process's index, 0 … N-1")
     _common(r)
 
     i = sub.add_parser("info", help="load a scene and print its objects, lights, camera and render plan",
@@ -217,36 +227,108 @@ class _Progress:
         sys.stderr.flush()
 
 
+def _distributed(args) -> bool:
+    """Starts ``jax.distributed`` when the command line asks for several processes."""
+    given = [args.coordinator is not None, args.num_processes is not None, args.process_id is not None]
+    if not any(given):
+        return False
+    if not all(given):
+        raise _CommandLineError("--coordinator, --num-processes and --process-id go together")
+    if not 0 <= args.process_id < args.num_processes:
+        raise _CommandLineError(
+            f"--process-id must be in 0 … {args.num_processes - 1}, found {args.process_id}")
+    _configure_jax(args)
+    from .distributed import initialize
+
+    initialize(args.coordinator, args.num_processes, args.process_id)
+    return True
+
+
+class _CommandLineError(Exception):
+    pass
+
+
+def _frame_output(out: Path, frame: int, final: int) -> Path:
+    """POV-Ray's animation file names: the frame number, zero-padded to the final frame's digits,
+    before the suffix."""
+    return out.with_name(f"{out.stem}{frame:0{len(str(final))}d}{out.suffix}")
+
+
 def _render(args) -> int:
-    import jax
-
-    from .imageio import write_image
-    from .render import compile_render
-
     out = Path(args.output)
     problem = _output_problem(out)
     if problem is not None:
         print(f"raytracer: cannot write {str(out)!r}: {problem}", file=sys.stderr)
         return EXIT_SCENE_ERROR
+    try:
+        if args.all_frames and args.ini is None:
+            raise _CommandLineError("--all-frames needs the animation's --ini")
+        if args.all_frames and args.frame is not None:
+            raise _CommandLineError("--all-frames and --frame exclude each other")
+        distributed = _distributed(args)
+    except _CommandLineError as e:
+        print(f"raytracer render: {e} (see raytracer render --help)", file=sys.stderr)
+        return EXIT_SCENE_ERROR
+    if not args.all_frames:
+        return _render_frame(args, out, distributed)
+    import jax
+
+    from .sdl import Animation
+
+    _configure_jax(args)
+    anim = Animation.from_ini(args.ini)
+    frames = range(anim.initial_frame, anim.final_frame + 1)
+    if distributed:  # whole frames per process: no collective per frame
+        frames = frames[jax.process_index()::jax.process_count()]
+    for frame in frames:
+        args.frame = frame
+        status = _render_frame(args, _frame_output(out, frame, anim.final_frame), distributed=False)
+        if status:
+            return status
+    return 0
+
+
+def _render_frame(args, out: Path, distributed: bool) -> int:
+    """One image: compiled with a progress bar, or split across the processes of ``jax.distributed``
+    (process 0 writes it)."""
+    import jax
+
+    from .imageio import write_image
+    from .render import compile_render
+
     scene, t_parse = _load(args)
-    for line in _summary(scene):
-        print(line)
+    lead = not distributed or jax.process_index() == 0
+    if lead:
+        for line in _summary(scene):
+            print(line)
     t0 = time.perf_counter()
-    progress = _Progress()
-    run = compile_render(scene, width=args.width, height=args.height, spp=args.spp, progress=progress)
-    t_compile = time.perf_counter() - t0
-    progress.start = time.perf_counter()
-    t1 = time.perf_counter()
-    image = jax.block_until_ready(run(scene))
-    t_render = time.perf_counter() - t1
+    if distributed:
+        from . import distributed as dist
+
+        image = jax.block_until_ready(dist.render(scene, width=args.width, height=args.height, spp=args.spp))
+        t_compile, t_render = 0.0, time.perf_counter() - t0
+    else:
+        progress = _Progress()
+        run = compile_render(scene, width=args.width, height=args.height, spp=args.spp, progress=progress)
+        t_compile = time.perf_counter() - t0
+        progress.start = time.perf_counter()
+        t1 = time.perf_counter()
+        image = jax.block_until_ready(run(scene))
+        t_render = time.perf_counter() - t1
+    if not lead:
+        return 0
     try:
         write_image(out, image, bits=16 if args.png16 else 8)
     except OSError as e:  # the folder changed since the check, or the disk is full
         print(f"raytracer: cannot write {str(out)!r}: {e.strerror or e}", file=sys.stderr)
         return EXIT_SCENE_ERROR
+    where = (f"processes: {jax.process_count()}, devices: {jax.device_count()}" if distributed
+             else f"devices: {len(jax.devices())}")
     print(f"resolution: {args.width}x{args.height}, {args.spp} spp, "
-          f"{'float64' if jax.config.jax_enable_x64 else 'float32'}, devices: {len(jax.devices())}")
-    print(f"times: parse {t_parse:.2f} s, compile {t_compile:.2f} s, render {t_render:.2f} s")
+          f"{'float64' if jax.config.jax_enable_x64 else 'float32'}, {where}")
+    times = (f"parse {t_parse:.2f} s, compile and render {t_render:.2f} s" if distributed
+             else f"parse {t_parse:.2f} s, compile {t_compile:.2f} s, render {t_render:.2f} s")
+    print(f"times: {times}")
     print(f"wrote {out}")
     return 0
 

@@ -144,7 +144,8 @@ def _layout(scene_plan: Plan, n: int, samples: int, n_parts: int,
             capacity: int | None) -> tuple[int, int, int]:
     """``(tile, tiles per part, devices)`` for ``n`` camera rays split into ``n_parts`` parts."""
     tile = _tile_size(scene_plan, -(-n // n_parts), samples, capacity)  # a small image: small tiles
-    n_dev = len(jax.devices()) if math.ceil(n / tile) >= len(jax.devices()) * n_parts else 1
+    devices = len(jax.local_devices())  # a process's own (raytracer.distributed splits across processes)
+    n_dev = devices if math.ceil(n / tile) >= devices * n_parts else 1
     per_part = -(-math.ceil(n / tile) // (n_dev * n_parts)) * n_dev
     return tile, per_part, n_dev
 
@@ -171,7 +172,7 @@ def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: 
             return _trace_tiles(p, scene_plan, t, width, height, k, tile=tile, stride=stride,
                                 capacity=capacity)
 
-        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.devices(),
+        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.local_devices(),
                              axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
         colours, dropped = jax.shard_map(trace_shard, mesh=mesh, in_specs=(replicated, spec),

@@ -143,3 +143,35 @@ def test_written_images_follow_the_umask_not_0600(tmp_path, suffix):
         os.umask(old)
     assert (tmp_path / f"img{suffix}").stat().st_mode & 0o777 == 0o640
     assert [p.name for p in tmp_path.iterdir()] == [f"img{suffix}"]  # no temporary left behind
+
+
+def test_all_frames_renders_each_frame_of_the_ini_under_povray_names(tmp_path, capsys):
+    scene = tmp_path / "anim.pov"
+    # the sphere's brightness follows the clock: each frame is its own image
+    scene.write_text("#version 3.7; global_settings { assumed_gamma 1.0 }\n"
+                     "camera { location <0, 0, -4> look_at 0 }\n"
+                     "light_source { <0, 0, -10> rgb 1 }\n"
+                     "sphere { 0, 1 pigment { rgb clock } finish { ambient 0 diffuse 1 } }\n")
+    ini = tmp_path / "anim.ini"
+    ini.write_text("Initial_Frame=8\nFinal_Frame=10\nInitial_Clock=0\nFinal_Clock=1\n")
+    out = tmp_path / "frame.exr"
+    assert main(["render", str(scene), "-o", str(out), "-W", "8", "-H", "6", "--ini", str(ini),
+                 "--all-frames"]) == 0
+    written = sorted(p.name for p in tmp_path.glob("frame*.exr"))
+    assert written == ["frame08.exr", "frame09.exr", "frame10.exr"]  # padded to the last frame's digits
+    centre = [rt.read_image(tmp_path / name)[3, 4] for name in written]
+    # diffuse 1, no ambient: a pixel is the clock (0, 0.5, 1) times the same n·l in every frame
+    red = np.array([c[0] for c in centre])
+    assert red[2] > 0.5
+    np.testing.assert_allclose(red, [0.0, 0.5 * red[2], red[2]], rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("options, fragment", [
+    (["--all-frames"], "--all-frames needs the animation's --ini"),
+    (["--coordinator", "localhost:1234"], "go together"),
+    (["--coordinator", "localhost:1234", "--num-processes", "2", "--process-id", "2"], "must be in 0 … 1"),
+])
+def test_bad_animation_or_process_options_are_one_line_errors(options, fragment, tmp_path, capsys):
+    assert main(["render", str(SEED), "-o", str(tmp_path / "x.png"), *options]) == 2
+    err = capsys.readouterr().err
+    assert fragment in err and "Traceback" not in err and err.count("\n") == 1
