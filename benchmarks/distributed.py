@@ -1,13 +1,16 @@
 """Speed-up of one render split across processes (``raytracer.distributed``) on this machine.
 
     python -m benchmarks.distributed [--scene F] [--size 640x480] [--spp 1] [--processes 1,2]
-                                     [--repeats 3] [--grad] [--out DIR]
+                                     [--cpu-devices 1,2] [--repeats 3] [--grad] [--out DIR]
 
 For each process count P, P worker processes on localhost (``jax.distributed``, gloo collectives
 over TCP, one CPU device each) render the same scene together; each reports its compile (first
 call) and the median of ``--repeats`` warm calls, wall clock around the whole call (the gather of
 the parts included). ``--grad`` also times ``distributed.value_and_grad`` of the image's mean
 square. P = 1 is a single process without ``jax.distributed``: ``raytracer.render``'s path.
+``--cpu-devices`` also splits each process's CPU into that many JAX devices
+(``--xla_force_host_platform_device_count``), over which a process shards its tiles: every
+combination of the two lists is measured.
 Results: ``DIR/distributed.json`` and a Markdown table on stdout.
 """
 
@@ -68,20 +71,22 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _run(args, processes: int, out_dir: Path) -> list[dict]:
+def _run(args, processes: int, devices: int, out_dir: Path) -> list[dict]:
     address = f"127.0.0.1:{_free_port()}"
     procs, files = [], []
     for rank in range(processes):
-        result = out_dir / f"p{processes}_r{rank}.json"
+        result = out_dir / f"p{processes}_d{devices}_r{rank}.json"
         files.append(result)
         cmd = [sys.executable, "-m", "benchmarks.distributed", "--worker", "--address", address,
                "--rank", str(rank), "--processes", str(processes), "--result", str(result),
                "--scene", str(args.scene), "--size", args.size, "--spp", str(args.spp),
                "--repeats", str(args.repeats)] + (["--grad"] if args.grad else [])
-        procs.append(subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, "JAX_PLATFORMS": "cpu"}))
+        flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={devices}".strip()
+        env = {**os.environ, "JAX_PLATFORMS": "cpu", "XLA_FLAGS": flags}
+        procs.append(subprocess.Popen(cmd, cwd=ROOT, env=env))
     for p in procs:
         if p.wait() != 0:
-            raise SystemExit(f"a worker of the {processes}-process run failed")
+            raise SystemExit(f"a worker of the {processes}-process, {devices}-device run failed")
     return [json.loads(f.read_text()) for f in files]
 
 
@@ -91,6 +96,7 @@ def main(argv=None) -> None:
     ap.add_argument("--size", default="640x480")
     ap.add_argument("--spp", type=int, default=1)
     ap.add_argument("--processes", default="1,2")
+    ap.add_argument("--cpu-devices", default="1")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--grad", action="store_true")
     ap.add_argument("--out", default="out/distributed")
@@ -106,8 +112,10 @@ def main(argv=None) -> None:
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
-    for p in (int(v) for v in args.processes.split(",")):
-        results = _run(args, p, out_dir)
+    runs = [(p, d) for d in (int(v) for v in args.cpu_devices.split(","))
+            for p in (int(v) for v in args.processes.split(","))]
+    for p, d in runs:
+        results = _run(args, p, d, out_dir)
         row = {"processes": p, "devices": results[0]["devices"]}
         for key in results[0]:
             if key.endswith("_s"):

@@ -1,6 +1,7 @@
 """Two processes on localhost render one image and compute one gradient together
 (``raytracer.distributed`` over ``jax.distributed``): both must equal one process's ``render`` and
-``jax.grad``."""
+``jax.grad``. Each process has two CPU devices, over which it shards its tiles (``render``'s
+``shard_map`` path, which the CLI takes by default on a machine with several cores)."""
 
 import json
 import os
@@ -25,7 +26,8 @@ plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
 sphere { <-0.8, 0.7, 0>, 0.7 pigment { rgb <0.9, 0.4, 0.2> } finish { phong 0.5 } }
 sphere { <0.9, 0.5, -0.5>, 0.5 pigment { rgb <0.6, 0.9, 1> } }
 """  # no secondary rays: a small program (the gradient of one compiles in seconds)
-W, H = 20, 14
+W, H = 20, 14  # the gradient's image
+BIG = (208, 164)  # 34,112 rays: five tiles of 8,192, so each process shards its part over its two devices
 
 WORKER = """
 import json, sys
@@ -36,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from raytracer import distributed, load_scene
 scene = load_scene(sys.argv[3])
-image = distributed.render(scene, width={W}, height={H})
+image = distributed.render(scene, width={BIG[0]}, height={BIG[1]})
 value, grad = distributed.value_and_grad(lambda im: jnp.mean(im ** 2), scene, width={W}, height={H})
 leaves = [np.asarray(x).tolist() for x in jax.tree_util.tree_leaves(grad)
           if x.dtype != jax.dtypes.float0]
@@ -57,8 +59,8 @@ def test_two_processes_render_and_differentiate_like_one(tmp_path, x64):
     path = tmp_path / "scene.pov"
     path.write_text(SCENE)
     address = f"127.0.0.1:{_free_port()}"
-    env = {**os.environ, "XLA_FLAGS": "", "JAX_PLATFORMS": "cpu"}
-    script = textwrap.dedent(WORKER.format(W=W, H=H))
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
+    script = textwrap.dedent(WORKER.format(W=W, H=H, BIG=BIG))
     procs = [subprocess.Popen([sys.executable, "-c", script, address, str(i), str(path),
                                str(tmp_path / f"{i}.json")],
                               env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -67,11 +69,11 @@ def test_two_processes_render_and_differentiate_like_one(tmp_path, x64):
         out, _ = p.communicate(timeout=600)
         assert p.returncode == 0, out[-3000:]
     results = [json.loads((tmp_path / f"{i}.json").read_text()) for i in range(2)]
-    assert [r["devices"] for r in results] == [2, 2]  # one CPU each, two in the cluster
+    assert [r["devices"] for r in results] == [4, 4]  # two CPU devices each, four in the cluster
     assert results[0]["frames"] == [0, 2, 4] and results[1]["frames"] == [1, 3]
 
     scene = load_scene(path)
-    want_image = np.asarray(render(scene, width=W, height=H))
+    want_image = np.asarray(render(scene, width=BIG[0], height=BIG[1]))  # this process: one device
 
     def loss(s):
         return jnp.mean(render(s, width=W, height=H) ** 2)
