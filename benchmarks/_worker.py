@@ -37,6 +37,8 @@ Optional keys of the ``ours`` and ``povray`` jobs (``benchmarks/sample_renders.p
 * ``progress``: a file path; ours writes the phase it is in and what it has measured so far there
   (JSON), so a caller that kills the worker on a timeout knows where it was.
 * ``quiet``: silence the scene's warnings on stderr (ours; they are counted in the result anyway).
+* ``cpu_devices`` (ours): JAX devices to split the CPU into (default: one per core, as the
+  ``raytracer`` command; tiles are sharded over them). The result's ``devices`` says how many.
 
 Ours also reports ``warnings`` (how many the scene has), ``warning_features`` (their count per
 feature), ``warning_examples`` (the first message of each feature), ``warning_texts`` (the first
@@ -358,6 +360,12 @@ def main() -> int:
     job = json.loads(sys.stdin.read())
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     kind = job["kind"]
+    if kind in ("ours", "ours_grad"):
+        # one JAX device per core unless the job says otherwise, as the raytracer command does
+        # (POV-Ray renders with +WT2 on these 2-core machines)
+        from raytracer.cli import _split_cpu
+
+        _split_cpu(job.get("cpu_devices"))
     jobs = {"ours": run_ours, "ours_grad": run_ours_grad, "povray": run_povray, "mitsuba": run_mitsuba}
     if not job.get("catch"):
         result = jobs[kind](job)
@@ -369,6 +377,10 @@ def main() -> int:
             result = jobs[kind](job)
         except Exception as e:  # noqa: BLE001 - reported to the caller, who classifies it
             result = {**job.get("_partial", {}), "error": _error(e, job.get("_phase"))}
+    if kind in ("ours", "ours_grad"):
+        import jax
+
+        result["devices"] = jax.device_count()
     sys.stdout.write("\n" + json.dumps(result) + "\n")
     return 0
 
