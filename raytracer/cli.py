@@ -133,10 +133,9 @@ def _configure_jax(args) -> None:
     # few large calls we wait for anyway. Only takes effect before JAX's CPU client exists.
     jax.config.update("jax_cpu_enable_async_dispatch", False)
     # a second render of the same scene structure reuses the compiled program from disk
-    cache = os.environ.get("RAYTRACER_CACHE_DIR", str(Path.home() / ".cache" / "raytracer" / "xla"))
-    if cache and cache.lower() != "off":
-        jax.config.update("jax_compilation_cache_dir", cache)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    from .render import use_compilation_cache
+
+    use_compilation_cache()
 
 
 def _load(args):

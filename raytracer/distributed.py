@@ -87,6 +87,7 @@ def _whole(scene: Scene, parts, width: int, height: int, k: int):
 def render(scene: Scene, *, width: int, height: int, spp: int = 1, capacity: int | None | str = "auto"):
     """``raytracer.render`` with the tiles split across processes; every process gets the image."""
     k = _check(width, height, spp)
+    use_compilation_cache()
     if not any(prim.rendered for prim in make_plan(scene).prims):
         return _background_only(scene, width, height)
     capacity, grow = _capacity(capacity)
@@ -105,6 +106,7 @@ def value_and_grad(loss, scene: Scene, *, width: int, height: int, spp: int = 1,
     """``(loss(image), jax.grad of it with respect to scene)`` with the render split across
     processes: the same values on every process. ``loss`` maps the (H, W, 3) image to a scalar."""
     k = _check(width, height, spp)
+    use_compilation_cache()
     capacity, grow = _capacity(capacity)
     while True:
         colours, pullback, dropped = jax.vjp(

@@ -453,3 +453,20 @@ def test_camera_frame_follows_povs_look_at_rules():
     np.testing.assert_allclose(r, 1.5 * r_hat, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(u, np.cross(d_hat, r_hat), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(loc, [1, 2, -3])
+
+
+def test_the_api_turns_the_persistent_compilation_cache_on_unless_one_is_configured(tmp_path, monkeypatch):
+    from raytracer import render as render_module
+
+    before = jax.config.jax_compilation_cache_dir
+    monkeypatch.setattr(render_module, "_CACHE_CHECKED", [])
+    monkeypatch.setenv("RAYTRACER_CACHE_DIR", str(tmp_path / "xla"))
+    try:
+        render_module.use_compilation_cache()  # the test run configured its own: kept
+        assert jax.config.jax_compilation_cache_dir == before
+        jax.config.update("jax_compilation_cache_dir", None)
+        monkeypatch.setattr(render_module, "_CACHE_CHECKED", [])
+        render_module.use_compilation_cache()  # nothing configured: ours
+        assert jax.config.jax_compilation_cache_dir == str(tmp_path / "xla")
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
