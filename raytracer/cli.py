@@ -52,6 +52,16 @@ def _positive_int(text: str) -> int:
     return n
 
 
+def _threshold(text: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        x = float("nan")
+    if not (0 <= x < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a threshold ≥ 0, found {short_numbers(repr(text))}")
+    return x
+
+
 def _samples_per_pixel(text: str) -> int:
     n = _positive_int(text)
     if math.isqrt(n) ** 2 != n:
@@ -76,6 +86,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--spp", type=_samples_per_pixel, default=1,
                    help="samples per pixel: 1 = pixel centres (as POV-Ray -A), k*k = a k×k grid (default 1)")
     r.add_argument("--png16", action="store_true", help="write a 16-bit PNG instead of 8-bit")
+    r.add_argument("--aa", type=_threshold, default=None, metavar="THRESHOLD",
+                   help="adaptive anti-aliasing as POV-Ray's +A THRESHOLD +AM1 -J: pixels on either "
+                        "side of a colour difference of at least THRESHOLD get --aa-depth² more rays")
+    r.add_argument("--aa-depth", type=_positive_int, default=3, metavar="N",
+                   help="the grid of a refined pixel, N×N rays (POV-Ray's +R; default 3)")
     r.add_argument("--all-frames", action="store_true",
                    help="render every frame of the --ini animation, to OUTPUT with the frame number "
                         "before its suffix (out.png: out01.png, out02.png, … as POV-Ray names them)")
@@ -265,6 +280,11 @@ def _render(args) -> int:
             raise _CommandLineError("--all-frames needs the animation's --ini")
         if args.all_frames and args.frame is not None:
             raise _CommandLineError("--all-frames and --frame exclude each other")
+        if args.aa is not None and args.spp != 1:
+            raise _CommandLineError("--aa starts from one ray per pixel centre: leave --spp at 1")
+        if args.aa is not None and args.coordinator is not None and not args.all_frames:
+            raise _CommandLineError("--aa is not split across processes (use it with --all-frames, "
+                                    "or in one process)")
         distributed = _distributed(args)
     except _CommandLineError as e:
         print(f"raytracer render: {e} (see raytracer render --help)", file=sys.stderr)
@@ -303,9 +323,15 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
             print(line)
     t0 = time.perf_counter()
     if distributed:
-        from . import distributed as dist
+        from .distributed import render
 
-        image = jax.block_until_ready(dist.render(scene, width=args.width, height=args.height, spp=args.spp))
+        image = jax.block_until_ready(render(scene, width=args.width, height=args.height, spp=args.spp))
+        t_compile, t_render = 0.0, time.perf_counter() - t0
+    elif args.aa is not None:
+        from .render import render
+
+        image = jax.block_until_ready(render(scene, width=args.width, height=args.height,
+                                             adaptive=(args.aa, args.aa_depth)))
         t_compile, t_render = 0.0, time.perf_counter() - t0
     else:
         progress = _Progress()
@@ -326,7 +352,8 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
              else f"devices: {len(jax.devices())}")
     print(f"resolution: {args.width}x{args.height}, {args.spp} spp, "
           f"{'float64' if jax.config.jax_enable_x64 else 'float32'}, {where}")
-    times = (f"parse {t_parse:.2f} s, compile and render {t_render:.2f} s" if distributed
+    together = distributed or args.aa is not None
+    times = (f"parse {t_parse:.2f} s, compile and render {t_render:.2f} s" if together
              else f"parse {t_parse:.2f} s, compile {t_compile:.2f} s, render {t_render:.2f} s")
     print(f"times: {times}")
     print(f"wrote {out}")

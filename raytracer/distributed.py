@@ -41,6 +41,7 @@ from .render import (
     _warn_dropped,
     make_plan,
     pack,
+    use_compilation_cache,
 )
 from .scene import Scene
 

@@ -133,7 +133,8 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     """Pixel colours (T, tile/k², 3) of the tiles numbered ``tiles`` (T,) of ``stride`` tiles in
     all, one tile at a time, and the dropped-ray count. A tile's camera rays are made in the tile,
     so no image-sized array of rays exists; its k² samples per pixel are averaged in it, so
-    supersampling widens nothing.
+    supersampling widens nothing. ``tiles`` may instead be (T, tile/k²) pixel indices: each row is
+    a tile of those pixels (the refined pixels of adaptive anti-aliasing).
     ``scene_plan`` is ``make_plan(packed.scene)``."""
     scene = packed.rest
     dtype = scene.camera.location.dtype
@@ -149,7 +150,7 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
         # tile t holds pixels t, t + stride, t + 2·stride, …: spread over the whole image, so its
         # live secondary rays are the image's average (a compacted pool sized by that average
         # fits), not those of one glass-covered patch; a pixel's samples stay together
-        pixel = t + stride * jnp.arange(pixels)
+        pixel = t if t.ndim else t + stride * jnp.arange(pixels)
         ray = (pixel[:, None] * samples + jnp.arange(samples)[None, :]).reshape(tile)
         o, d = camera_rays(scene.camera, *sample_coords(ray, width, height, k, dtype))
         colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity, media=media)
@@ -220,10 +221,11 @@ def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: 
 
 
 @eqx.filter_jit
-def _assemble(settings, parts, width: int, height: int, k: int):
+def _assemble(settings, parts, width: int, height: int, k: int, linear: bool = False):
     # parts: (tiles, pixels per tile, 3); tile t holds pixels t, t + tiles, … (``_trace_tiles``)
     colours = jnp.swapaxes(jnp.concatenate(parts), 0, 1).reshape(-1, 3)[:width * height]
-    return _output_transfer(colours.reshape(height, width, 3), settings)
+    image = colours.reshape(height, width, 3)
+    return image if linear else _output_transfer(image, settings)
 
 
 def _background_only(scene: Scene, width: int, height: int):
@@ -233,10 +235,12 @@ def _background_only(scene: Scene, width: int, height: int):
 
 
 @eqx.filter_jit
-def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: int | None = None):
-    """The image and the number of rays dropped for lack of ``capacity`` (0 when None)."""
+def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: int | None = None,
+                   linear: bool = False):
+    """The image (``linear``: before the output transfer) and the number of rays dropped for lack of
+    ``capacity`` (0 when None)."""
     colours, dropped = _render_tiles(packed, make_plan(packed.scene), width, height, k, 1, 0, capacity)
-    return _assemble(packed.rest.settings, [colours], width, height, k), dropped
+    return _assemble(packed.rest.settings, [colours], width, height, k, linear), dropped
 
 
 def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None = None):
@@ -245,6 +249,39 @@ def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None 
     if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background
         return _background_only(scene, width, height), jnp.zeros((), jnp.int32)
     return _render_packed(pack(scene, scene_plan), width, height, k, capacity)
+
+
+@eqx.filter_jit
+def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None):
+    """Linear colours (M, 3) of the pixels ``pixels`` (M,) int, each the mean of its k×k grid, and
+    the rays dropped. M is a power of two of at least ``CHUNKS_PER_TILE`` (``_pixel_bucket``)."""
+    scene_plan = make_plan(packed.scene)
+    most = _tile_size(scene_plan, pixels.shape[0] * k * k, k * k, capacity) // (k * k)
+    per_tile = min(pixels.shape[0], 1 << (most.bit_length() - 1))  # powers of two: divides M
+    tile = per_tile * k * k
+    rows = pixels.reshape(-1, per_tile)
+    colours, dropped = _trace_tiles(packed, scene_plan, rows, width, height, k, tile=tile, stride=0,
+                                    capacity=capacity)
+    return colours.reshape(-1, 3), jnp.sum(dropped)
+
+
+@eqx.filter_jit
+def _edges(image, threshold):
+    """Pixels of the traced colours (before the output transfer) that differ from their left or
+    upper neighbour by at least ``threshold`` (the sum of the absolute differences of R, G and B),
+    and those neighbours: both sides of an edge.
+
+    POV-Ray's exact rule is not documented; against its ``+A0.3 +AM1 +R3 -J`` images at 160×120,
+    this rule gives 47.6 dB (seed scene) and 41.8 dB (Whitted scene). POV-Ray's centre samples
+    alone give 37.8 and 27.8 dB. The largest channel difference gives 59.1 and 36.6 dB, and flagging
+    only the pixel right of or below the difference 40.8 dB (seed): no simple rule tried matches
+    both scenes."""
+    image = jax.lax.stop_gradient(image)
+    left = jnp.sum(jnp.abs(image[:, 1:] - image[:, :-1]), axis=-1) >= threshold  # (H, W-1)
+    up = jnp.sum(jnp.abs(image[1:] - image[:-1]), axis=-1) >= threshold  # (H-1, W)
+    flag = jnp.zeros(image.shape[:2], bool)
+    flag = flag.at[:, 1:].max(left).at[:, :-1].max(left)
+    return flag.at[1:].max(up).at[:-1].max(up)
 
 
 def _check(width: int, height: int, spp: int) -> int:
@@ -266,7 +303,7 @@ def _warn_dropped(dropped, capacity: int) -> None:
 
 
 def render(scene: Scene, *, width: int, height: int, spp: int = 1,
-           capacity: int | None | str = "auto") -> jax.Array:
+           capacity: int | None | str = "auto", adaptive: tuple[float, int] | None = None) -> jax.Array:
     """Renders ``scene`` to a linear RGB image of shape (height, width, 3), row 0 at the top.
 
     One jit-compiled program (cached per scene structure, image size, spp and capacity);
@@ -289,29 +326,90 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
                 program runs: it keeps ``FORWARD_CAPACITY`` and warns (``RuntimeWarning``) if a
                 tree level was wider. ``int``: that room (warns likewise). ``None``: the exact
                 full-width tree (``branch^(depth-1)`` slots per camera ray: only for shallow trees).
+        adaptive: ``(threshold, depth)`` (``Adaptive``): POV-Ray's adaptive anti-aliasing, method 1
+                (``+A threshold +R depth -J``). A first pass traces pixel centres; the pixels on
+                either side of a colour difference of at least ``threshold`` get ``depth²`` more
+                rays on a grid. Deterministic; differentiable (which pixels are refined is chosen
+                from values, like a hit: piecewise constant). Under ``jit`` or ``vmap`` that choice
+                is known only at run time, so every pixel is refined and the flagged ones kept:
+                the same image, without the saving.
     """
     k = _check(width, height, spp)
     use_compilation_cache()
+    if capacity != "auto" and capacity is not None and (type(capacity) is not int or capacity < 1):
+        raise ValueError(f"capacity must be a positive int, None or 'auto', got {capacity!r}")
+    if adaptive is not None:
+        if spp != 1:
+            raise ValueError("adaptive anti-aliasing starts from one ray per pixel centre: leave spp at 1")
+        return _render_adaptive(scene, width, height, Adaptive(*adaptive), capacity)
+    return _with_room(lambda room: _render(scene, width, height, k, room), capacity)
+
+
+def _with_room(fn, capacity):
+    """``fn(room)`` → (value, dropped rays), with ``capacity`` handled as ``render`` says."""
     grow = capacity == "auto"
     if grow:
         capacity = FORWARD_CAPACITY
-    elif capacity is not None and (type(capacity) is not int or capacity < 1):
-        raise ValueError(f"capacity must be a positive int, None or 'auto', got {capacity!r}")
     while True:
-        image, dropped = _render(scene, width, height, k, capacity)
+        value, dropped = fn(capacity)
         if capacity is None:
-            return image
+            return value
         if isinstance(dropped, jax.core.Tracer):
             # under jit / vmap the count is known only when the program runs
             jax.debug.callback(_warn_dropped, dropped, capacity)
-            return image
+            return value
         # with values, and under eager jax.grad / jvp / vjp too (an integer output carries no
         # tangent: its value is known here), a tree level wider than the room renders again with
         # four times the room: the same image, exact
         if int(dropped) == 0 or not grow:
             _warn_dropped(dropped, capacity)
-            return image
+            return value
         capacity *= 4
+
+
+class Adaptive(NamedTuple):
+    """POV-Ray's adaptive anti-aliasing, method 1 (``+A threshold +R depth -J``): a pixel whose
+    colour differs from its left or upper neighbour's by at least ``threshold`` (the sum of the
+    absolute differences of R, G and B of the traced colours, before the output transfer), and that
+    neighbour, are replaced by
+    ``(centre + Σ depth×depth grid) / (depth² + 1)`` (semantics §3.3)."""
+
+    threshold: float = 0.3
+    depth: int = 3
+
+
+def _pixel_bucket(m: int, least: int) -> int:
+    """Refined pixels are traced in a padded batch: the next power of two (at least ``least``), so
+    a new count of refined pixels seldom compiles a new program."""
+    return max(least, 1 << max(m - 1, 0).bit_length())
+
+
+def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capacity):
+    if aa.depth < 1 or type(aa.depth) is not int:
+        raise ValueError(f"adaptive depth must be a positive int, got {aa.depth!r}")
+    scene_plan = make_plan(scene)
+    if not any(prim.rendered for prim in scene_plan.prims):
+        return _background_only(scene, width, height)
+    packed = pack(scene, scene_plan)
+    centre = _with_room(lambda room: _render_packed(packed, width, height, 1, room, True), capacity)
+    image = _output_transfer(centre, scene.settings)
+    flag = _edges(centre, aa.threshold)  # a boolean output: concrete under eager grad
+    n = aa.depth
+    if isinstance(flag, jax.core.Tracer):
+        # under jit / vmap which pixels differ is known only when the program runs: refine every
+        # pixel and keep the refined value where it is flagged (the same image, no time saved)
+        grid = _with_room(lambda room: _render_packed(packed, width, height, n, room, True), capacity)
+        refined = (centre + n * n * grid) / (n * n + 1)
+        return _output_transfer(jnp.where(flag[..., None], refined, centre), scene.settings)
+    index = np.flatnonzero(np.asarray(flag))
+    if index.size == 0:
+        return image
+    m = _pixel_bucket(index.size, CHUNKS_PER_TILE)
+    pixels = jnp.asarray(np.concatenate([index, np.full(m - index.size, index[0])]).astype(np.int32))
+    grid = _with_room(lambda room: _render_pixels(packed, width, height, n, pixels, room), capacity)
+    flat = centre.reshape(-1, 3)
+    refined = (flat[index] + n * n * grid[:index.size]) / (n * n + 1)
+    return _output_transfer(flat.at[index].set(refined).reshape(height, width, 3), scene.settings)
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,

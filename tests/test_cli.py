@@ -80,6 +80,7 @@ def test_info_takes_the_animation_frame_from_an_ini(tmp_path, capsys):
     (["--spp", "3"], "--spp: expected a perfect square (1, 4, 9, 16, …), found 3"),
     (["--parse-timeout", "0"], "--parse-timeout: expected a positive number of seconds, found '0'"),
     (["-H", "-" + "9" * 300], "-H/--height: expected a positive integer, found -9.999e+299"),
+    (["--aa", "-1"], "--aa: expected a threshold ≥ 0, found '-1'"),
 ])
 def test_bad_numbers_on_the_command_line_are_one_line_errors(options, fragment, tmp_path, capsys):
     code = _exit_code(["render", str(SEED), "-o", str(tmp_path / "x.png"), *options])
@@ -175,3 +176,12 @@ def test_bad_animation_or_process_options_are_one_line_errors(options, fragment,
     assert main(["render", str(SEED), "-o", str(tmp_path / "x.png"), *options]) == 2
     err = capsys.readouterr().err
     assert fragment in err and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_adaptive_antialiasing_from_the_command_line(tmp_path, capsys):
+    out = tmp_path / "seed.exr"
+    assert main(["render", str(SEED), "-o", str(out), "-W", "32", "-H", "24", "--aa", "0.3",
+                 "--aa-depth", "2"]) == 0
+    want = rt.render(rt.load_scene(SEED, width=32, height=24), width=32, height=24, adaptive=(0.3, 2))
+    np.testing.assert_allclose(rt.read_image(out), np.asarray(want), atol=1e-6)
+    assert "times: parse" in capsys.readouterr().out

@@ -1,0 +1,106 @@
+"""Adaptive anti-aliasing (``render(…, adaptive=(threshold, depth))``, POV-Ray's method 1): the
+pixels it refines, their values, its gradient, and POV-Ray's own adaptive image."""
+
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from raytracer import load_scene, render
+
+SEED = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "seed.pov"
+W, H = 40, 30
+
+SCENE = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 1.5, -5> look_at <0, 0.5, 0> right x*image_width/image_height angle 45 }
+light_source { <-4, 6, -5> rgb 1 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.2 } }
+sphere { <0, 0.8, 0>, 0.8 pigment { rgb <0.9, 0.3, 0.2> } finish { phong 0.6 } }
+"""
+
+
+@pytest.fixture
+def scene(tmp_path):
+    path = tmp_path / "aa.pov"
+    path.write_text(SCENE)
+    return load_scene(path)
+
+
+def _expected(scene, threshold, n):
+    """Independently: centre samples, the n×n grid of every pixel (two whole-image renders), the
+    flag rule in numpy, POV-Ray's (centre + Σ grid) / (n² + 1) where flagged."""
+    centre = np.asarray(render(scene, width=W, height=H), np.float64)
+    grid = np.asarray(render(scene, width=W, height=H, spp=n * n), np.float64)
+    left = np.abs(centre[:, 1:] - centre[:, :-1]).sum(-1) >= threshold
+    up = np.abs(centre[1:] - centre[:-1]).sum(-1) >= threshold
+    flag = np.zeros((H, W), bool)
+    flag[:, 1:] |= left
+    flag[:, :-1] |= left
+    flag[1:] |= up
+    flag[:-1] |= up
+    return np.where(flag[..., None], (centre + n * n * grid) / (n * n + 1), centre), flag
+
+
+def test_refines_both_sides_of_each_difference_with_povray_weights(scene):
+    want, flag = _expected(scene, 0.3, 3)
+    assert 0.02 < flag.mean() < 0.5  # edges of the sphere and the checker: some pixels, not all
+    got = np.asarray(render(scene, width=W, height=H, adaptive=(0.3, 3)))
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
+    # threshold 0 refines every pixel: the POV-Ray +A0.0 image
+    everything, flag0 = _expected(scene, 0.0, 2)
+    assert flag0.all()
+    np.testing.assert_allclose(np.asarray(render(scene, width=W, height=H, adaptive=(0.0, 2))), everything,
+                               rtol=1e-5, atol=1e-6)
+
+
+def test_under_jit_every_pixel_is_refined_and_the_flagged_ones_kept(scene):
+    eager = np.asarray(render(scene, width=W, height=H, adaptive=(0.3, 3)))
+    jitted = np.asarray(jax.jit(lambda s: render(s, width=W, height=H, adaptive=(0.3, 3)))(scene))
+    np.testing.assert_allclose(jitted, eager, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.slow
+def test_gradient_holds_the_choice_of_pixels_fixed(tmp_path, x64):
+    """d/dθ of the adaptive image's mean = that of the same pixel-wise combination of the two
+    renders with the refined pixels held fixed (the choice is piecewise constant, like a hit)."""
+    path = tmp_path / "aa.pov"
+    path.write_text(SCENE)
+    scene = load_scene(path)  # float64 under the x64 fixture
+    _, flag = _expected(scene, 0.3, 2)
+
+    def lit(c):
+        return eqx.tree_at(lambda s: s.lights[0].color, scene, c)
+
+    def adaptive(c):
+        return jnp.mean(render(lit(c), width=W, height=H, adaptive=(0.3, 2)))
+
+    def fixed(c):
+        centre, grid = render(lit(c), width=W, height=H), render(lit(c), width=W, height=H, spp=4)
+        return jnp.mean(jnp.where(flag[..., None], (centre + 4 * grid) / 5, centre))
+
+    c0 = jnp.asarray(scene.lights[0].color)
+    g = jax.grad(adaptive)(c0)
+    assert np.all(np.asarray(g) > 0)
+    np.testing.assert_allclose(np.asarray(g), np.asarray(jax.grad(fixed)(c0)), rtol=1e-10)
+    eps = 1e-6  # and central differences (no pixel changes its flag for this step)
+    fd = [(adaptive(c0.at[i].add(eps)) - adaptive(c0.at[i].add(-eps))) / (2 * eps) for i in range(3)]
+    np.testing.assert_allclose(np.asarray(g), np.asarray(fd), rtol=1e-6)
+
+
+@pytest.mark.povray
+def test_matches_povray_adaptive_image_of_the_seed_scene():
+    from validation.metrics import psnr
+    from validation.povray import run_povray
+
+    scene = load_scene(SEED, width=160, height=120)
+    pov = run_povray(SEED, 160, 120, antialias=(0.3, 3)).image
+    centres = run_povray(SEED, 160, 120).image
+    ours = np.asarray(render(scene, width=160, height=120, adaptive=(0.3, 3)))
+    # the remaining difference: POV-Ray's rule for which pixels it refines is not documented
+    # (render._edges); its centre samples alone are 37.8 dB from its adaptive image
+    assert psnr(ours, pov) > 46.0
+    assert psnr(ours, pov) > psnr(centres, pov) + 8.0
