@@ -10,7 +10,9 @@ Jobs (all take ``scene`` (a .pov path), ``width``, ``height``, ``repeats`` and o
 a ``.npy`` path to write the last image to):
 
 * ``{"kind": "ours", "spp": k², "x64": bool}``: parse, compile (``compile_render``), then ``repeats``
-  warm renders. ``x64`` turns ``jax_enable_x64`` on before anything is created.
+  warm renders. ``x64`` turns ``jax_enable_x64`` on before anything is created. With
+  ``"adaptive": [threshold, depth]``, ``render(…, adaptive=)`` instead (its first call, compile
+  and one render, is the compile time).
 * ``{"kind": "ours_grad", "spp": k², "x64": bool}``: parse, then compile and time (``repeats`` warm
   runs) ``jax.jit(jax.grad(loss))`` with ``loss = mean(render(scene))`` differentiated with respect to
   every inexact array leaf of the scene (``eqx.partition(scene, eqx.is_inexact_array)``, as
@@ -170,7 +172,19 @@ def run_ours(job: dict) -> dict:
     )
     base_mb = _rss_mb()
     c0, t0 = time.process_time(), time.perf_counter()
-    run = compile_render(scene, width=job["width"], height=job["height"], spp=job.get("spp", 1))
+    if job.get("adaptive"):
+        # two passes (centres, then the refined pixels): ``render`` compiles both on the first call,
+        # which "compile" then includes (one render of it too)
+        from raytracer.render import render
+
+        adaptive = tuple(job["adaptive"])
+
+        def run(s):
+            return render(s, width=job["width"], height=job["height"], adaptive=adaptive)
+
+        jax.block_until_ready(run(scene))
+    else:
+        run = compile_render(scene, width=job["width"], height=job["height"], spp=job.get("spp", 1))
     compile_s = time.perf_counter() - t0
     compile_cpu_s = time.process_time() - c0
     _stage(job, "render", compile_s=compile_s, compile_cpu_s=compile_cpu_s)

@@ -68,6 +68,9 @@ class SceneSweep:
     pov_area: list[int] = dataclasses.field(default_factory=list)  # POV's area sweep, if wider than ours
     deep_area: int | None = None
     pov_aa: list[int] = dataclasses.field(default_factory=lambda: [2, 3, 4, 8])  # +R<n>; -A always
+    # adaptive anti-aliasing (threshold, depth): ours (render(adaptive=)) and POV-Ray's +A +AM1 +R -J
+    adaptive: list[tuple[float, int]] = dataclasses.field(
+        default_factory=lambda: [(0.3, 2), (0.3, 3), (0.1, 3), (0.1, 4), (0.03, 4), (0.03, 6)])
     mitsuba_spp: list[int] = dataclasses.field(default_factory=list)
     mitsuba_ref_spp: int | None = None
     ref_spp: int = 256
@@ -333,8 +336,17 @@ def measure_scene(sw: SceneSweep, r: Runner) -> list[dict]:
         )
         add("ours-area", f"area {n}×{n}", {"spp": 1, "area": n}, res, img, reference="povray_centres")
 
+    for threshold, depth in sw.adaptive:
+        res, img = r.job({"kind": "ours", "scene": default_file, "width": w, "height": h,
+                          "adaptive": [threshold, depth]})
+        add("ours-adaptive", f"+A{threshold} +R{depth}", {"adaptive": [threshold, depth], **default},
+            res, img)
+
     print(f"accuracy: {sw.name}: POV-Ray", file=sys.stderr, flush=True)
     pov = {"kind": "povray", "width": w, "height": h, "threads": 2}
+    for threshold, depth in sw.adaptive:
+        res, img = r.job({**pov, "scene": default_file, "aa": [threshold, depth]})
+        add("povray-adaptive", f"+A{threshold} +R{depth}", {"aa": [threshold, depth], **default}, res, img)
     for aa in [None, *sw.pov_aa]:
         res, img = r.job({**pov, "scene": default_file, "aa": [0.0, aa] if aa else None})
         add(
@@ -399,7 +411,9 @@ LABELS = {
     "ours-f64": "ours float64",
     "ours-depth": "ours max_trace_level (spp 1)",
     "ours-area": "ours area n×n (spp 1)",
+    "ours-adaptive": "ours adaptive (+A threshold +R depth)",
     "povray": "POV-Ray AA",
+    "povray-adaptive": "POV-Ray adaptive (+A threshold +AM1 +R depth -J)",
     "povray-depth": "POV-Ray max_trace_level (-A)",
     "povray-area": "POV-Ray area n×n (-A)",
     "mitsuba": "Mitsuba llvm_ad_rgb (spp)",
@@ -409,7 +423,9 @@ STYLE = {
     "ours-f64": ("C0", "s--"),
     "ours-depth": ("C2", "^-"),
     "ours-area": ("C4", "v-"),
+    "ours-adaptive": ("C0", "*:"),
     "povray": ("C1", "o-"),
+    "povray-adaptive": ("C1", "*:"),
     "povray-depth": ("C3", "^--"),
     "povray-area": ("C5", "v--"),
     "mitsuba": ("C7", "D-"),
@@ -464,7 +480,7 @@ def plot(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-MAIN = ("ours", "ours-f64", "povray", "mitsuba")
+MAIN = ("ours", "ours-f64", "ours-adaptive", "povray", "povray-adaptive", "mitsuba")
 
 
 def main_table(rows: list[dict]) -> str:

@@ -327,6 +327,8 @@ def _pigment_map(p, kw, pig, loc):
         else:
             _skip_to(p, "]")
         p.expect_op("]")
+    if not entries:  # as POV-Ray: "Must have at least one entry in map"
+        raise p.error(f"expected at least one [value …] entry in {kw}, found '}}'", loc)
     p.expect_op("}")
     if kw == "pigment_map" and entries:
         return dataclasses.replace(pig, cmap=entries, cmap_given=True, ft=pig.ft or _map_ft(entries))
@@ -349,14 +351,29 @@ def _skip_to(p, op: str) -> None:
             depth -= 1
 
 
+MAP_KEYWORDS = frozenset({"pigment_map", "normal_map", "slope_map", "texture_map", "material_map",
+                          "color_map", "colour_map", "density_map"})
+
+
+def _refuse_empty_map(p, t) -> None:
+    """After a map keyword ``t`` whose ``{`` was just read: ``{ }`` is an error, as in POV-Ray."""
+    if p.is_op("}"):
+        raise p.error(f"expected at least one [value …] entry in {t.value}, found '}}'", t.loc)
+
+
 def skip_braces(p) -> None:
-    """Skips a balanced ``{ … }`` block (directives and macros inside still run)."""
+    """Skips a balanced ``{ … }`` block (directives and macros inside still run); an empty map
+    inside it is still an error, as in POV-Ray."""
     start = p.expect_op("{")
     depth = 1
     while depth:
         t = p.next()
         if t.kind == "eof":
             raise p.error("expected '}', found end of file", start.loc)
+        if t.kind == ID and t.value in MAP_KEYWORDS and p.accept_op("{"):
+            _refuse_empty_map(p, t)
+            depth += 1
+            continue
         if t.kind == OP:
             if t.value == "{":
                 depth += 1
@@ -569,6 +586,7 @@ def _patterned_texture(p, t, layers, default):
                 k.kind == OP and k.value == "{"):
             if k.kind == ID:
                 p.expect_op("{")
+                _refuse_empty_map(p, k)
             depth = 1
             while depth:
                 q = p.next()

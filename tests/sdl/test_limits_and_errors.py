@@ -259,6 +259,10 @@ def test_a_file_name_too_long_for_the_system_is_a_located_error_of_bounded_lengt
     # infinities: img ** -2147483649)
     ("sphere { 0, 1\n pigment { gradient y color_map { } } }", 2, "at least one [value colour] entry"),
     ("global_settings {\n assumed_gamma -2147483649 }", 2, "expected a positive assumed_gamma"),
+    # POV-Ray: "Must have at least one entry in map" (we accepted them with the "approximated" warning)
+    ("sphere { 0, 1\n pigment { gradient y pigment_map { } } }", 2, "one [value …] entry in pigment_map"),
+    ("sphere { 0, 1 normal {\n gradient y normal_map { } } }", 2, "one [value …] entry in normal_map"),
+    ("sphere { 0, 1 texture {\n gradient y texture_map { } } }", 2, "one [value …] entry in texture_map"),
     # POV-Ray: "Camera location and look_at point must be different" (we raised a ValueError)
     ("\ncamera { location <0, 1, 0> look_at <0, 1, 0> }", 2, "look_at point different from its location"),
 ])
