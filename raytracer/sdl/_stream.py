@@ -39,6 +39,11 @@ class Limits:
         max_parse_seconds:   wall-clock seconds of one parse (the slowest of POV-Ray's sample
                              scenes, ``tracevines.pov``, takes 24 s here; a scene of 10^5 objects 60 s);
                              checked every ``PARSE_CLOCK_TOKENS`` tokens read. CLI: ``--parse-timeout``.
+        max_parse_memory_mb: growth of the process's resident memory during one parse, checked
+                             with the clock (the limits above bound single values; this bounds
+                             their sum: a million arrays of a million elements, a recursion
+                             that keeps every level's strings). POV-Ray's sample scenes grow it
+                             by at most a few hundred MB.
     """
 
     max_loop_iterations: int = 1_000_000
@@ -49,9 +54,21 @@ class Limits:
     max_string_length: int = 16_777_216
     max_written_chars: int = 268_435_456
     max_parse_seconds: float = 600.0
+    max_parse_memory_mb: int = 8192
 
 
-PARSE_CLOCK_TOKENS = 1 << 14  # tokens read between two looks at the parse clock
+PARSE_CLOCK_TOKENS = 1 << 14  # tokens read between two looks at the parse clock (and memory)
+
+
+def resident_mb() -> float:
+    """This process's resident memory now (Linux ``/proc``; elsewhere its peak so far)."""
+    try:
+        with open("/proc/self/statm", "rb") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError, IndexError):
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 @dataclasses.dataclass
@@ -92,6 +109,7 @@ class Stream:
         self.macro_names: set[str] = set()
         self.tokens_read = 0
         self.deadline = time.monotonic() + self.limits.max_parse_seconds
+        self.memory_ceiling = resident_mb() + self.limits.max_parse_memory_mb
         self.directives = None  # set by the interpreter: name -> handler(hash_token)
         self.macro_call = None  # set by the interpreter: handler(ident token, MacroDef)
 
@@ -250,6 +268,11 @@ class Stream:
                         raise self.error(
                             f"the scene took more than {self.limits.max_parse_seconds:g} s to parse "
                             "(stopped here; the limit is Limits.max_parse_seconds, --parse-timeout)")
+                    if resident_mb() > self.memory_ceiling:
+                        raise self.error(
+                            f"the scene's parse grew memory by more than "
+                            f"{self.limits.max_parse_memory_mb} MB (stopped here; the limit is "
+                            "Limits.max_parse_memory_mb)")
                 return f.tokens[pos]
             if f.kind in ("main", "func"):
                 tok = f.tokens[f.stop] if f.stop < len(f.tokens) else f.tokens[-1]

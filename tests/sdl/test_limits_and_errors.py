@@ -242,6 +242,16 @@ def test_a_parse_past_its_time_limit_stops_with_a_located_error():
     assert e.location.line == 2
 
 
+def test_a_parse_that_accumulates_memory_stops_with_a_located_error():
+    # issue 13 item 10: every value within its own limit (strings of 131,072 characters), but 3,000
+    # of them kept in an array: the growth of resident memory is checked with the clock
+    text = ('#declare S = "ab"; #for (I, 1, 16) #declare S = concat(S, S); #end\n'
+            '#declare A = array[3000];\n#for (J, 0, 2999) #declare A[J] = concat(S, str(J, 0, 0)); #end')
+    e = error_of(text, limits=Limits(max_parse_memory_mb=64))
+    assert "grew memory by more than 64 MB" in str(e) and "Limits.max_parse_memory_mb" in str(e)
+    assert e.location.line == 3
+
+
 def test_a_file_name_too_long_for_the_system_is_a_located_error_of_bounded_length(tmp_path):
     # found by benchmarks/fuzz.py: Path.is_file raised OSError (ENAMETOOLONG) out of the include
     # search, an internal error; and the message echoed all 5,000 characters of the name
