@@ -254,10 +254,11 @@ def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None 
 @eqx.filter_jit
 def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None):
     """Linear colours (M, 3) of the pixels ``pixels`` (M,) int, each the mean of its k×k grid, and
-    the rays dropped. M is a power of two of at least ``CHUNKS_PER_TILE`` (``_pixel_bucket``)."""
+    the rays dropped. M is a multiple of ``CHUNKS_PER_TILE`` (``_pixel_bucket``)."""
     scene_plan = make_plan(packed.scene)
     most = _tile_size(scene_plan, pixels.shape[0] * k * k, k * k, capacity) // (k * k)
-    per_tile = min(pixels.shape[0], 1 << (most.bit_length() - 1))  # powers of two: divides M
+    m = pixels.shape[0]
+    per_tile = min(m & -m, 1 << (most.bit_length() - 1))  # powers of two: divides M
     tile = per_tile * k * k
     rows = pixels.reshape(-1, per_tile)
     colours, dropped = _trace_tiles(packed, scene_plan, rows, width, height, k, tile=tile, stride=0,
@@ -379,9 +380,12 @@ class Adaptive(NamedTuple):
 
 
 def _pixel_bucket(m: int, least: int) -> int:
-    """Refined pixels are traced in a padded batch: the next power of two (at least ``least``), so
-    a new count of refined pixels seldom compiles a new program."""
-    return max(least, 1 << max(m - 1, 0).bit_length())
+    """Refined pixels are traced in a padded batch: ``m`` rounded up to a multiple of an eighth of
+    the next power of two (at least ``least``, a power of two), so that a new count of refined
+    pixels seldom compiles a new program and at most 1/8 of the batch is padding (the next power
+    of two wasted up to half: 5,000 refined pixels traced 8,192)."""
+    step = max(least, (1 << max(m - 1, 0).bit_length()) // 8)
+    return -(-m // step) * step
 
 
 def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capacity):
