@@ -47,8 +47,9 @@ def use_compilation_cache() -> None:
     """Turns JAX's persistent compilation cache on, once per process, unless the user configured one:
     ``$RAYTRACER_CACHE_DIR`` (default ``~/.cache/raytracer/xla``; ``off`` leaves it off). A second
     process rendering a scene of the same structure, image size and spp then loads the compiled
-    program from disk instead of compiling it (the seed scene at 640×480: 1.6 s of compile become
-    ~0.2 s of loading). Programs that compile in under a second are not stored. JAX reads the
+    program from disk instead of compiling it (``whitted.pov`` at 1024×768: 6.0 s of tracing and
+    compiling became 2.0 s of tracing and loading). Programs that compile in under a second are not
+    stored. JAX reads the
     setting at its first compilation, so a process that compiled something before its first render
     keeps what it had."""
     if _CACHE_CHECKED:
