@@ -195,7 +195,10 @@ def trace_tree(shade_one: Callable[[Rays], Shading], rays: Rays, *, depth: int, 
     """
     n = rays.origin.shape[0]
     size = n * slots_per_ray(branch, depth, capacity)
-    compact = capacity is not None and size < n * slots_per_ray(branch, depth)
+    # the full width is only compared here, never allocated (a 111-level tree's is 2^110 slots:
+    # slots_per_ray without a capacity refuses it, which crashed advanced/pawns.pov at compile)
+    full = branch ** (depth - 1) if branch > 1 else 1
+    compact = capacity is not None and size < n * full
     pool = _pad(rays, size)
     if depth == 1:
         return _shade_pool(shade_one, pool, chunk).local[:n], jnp.zeros((), jnp.int32)

@@ -59,6 +59,21 @@ def test_children_beyond_the_capacity_are_dropped_and_counted():
     assert float(jnp.sum(colour[:, 0])) == pytest.approx(n * depth - n * 0.25, rel=1e-6)
 
 
+def test_a_tree_deeper_than_the_full_width_allows_is_compacted_not_refused():
+    # advanced/pawns.pov: 111 levels (straight passes), whose full width 2^110 slots_per_ray
+    # refuses without a capacity; with one the tree is compacted and only the room is asked for
+    depth, n = 111, 4
+    with pytest.raises(ValueError, match="cannot be held"):
+        slots_per_ray(2, depth)
+    # one child of weight ½ per ray, the other never alive: a chain of 111 levels in 2 slots per root
+    colour, dropped = trace_tree(toy_shader(1, depth, 1.0, 0.5), roots(n), depth=depth, branch=1,
+                                 chunk=n, capacity=2)
+    np.testing.assert_allclose(np.asarray(colour[:, 0]), 2.0 * (1 - 0.5 ** depth), rtol=1e-6)
+    colour, dropped = trace_tree(toy_shader(2, 24, 1.0, 0.5), roots(n), depth=24, branch=2,
+                                 chunk=n, capacity=2)  # 2^23 > MAX_FULL_WIDTH: compacted
+    assert int(dropped) > 0 and np.isfinite(np.asarray(colour)).all()
+
+
 def test_dead_roots_see_black_and_chunks_of_them_are_skipped():
     depth, n = 4, 16
     rays = roots(n)
