@@ -63,6 +63,7 @@ class Interpreter(Stream, Directives):
         self.assumed_gamma = None
         self.input_file_name = ""
         self.settings = {}
+        self.statement_locs = {}  # global_settings, background: where the last one was (for errors)
         self.background = (0.0, 0.0, 0.0)
         self.default_layer = LayerRec()
         self.camera = None

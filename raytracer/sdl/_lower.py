@@ -194,10 +194,16 @@ def lower_scene(p) -> S.Scene:
     st = dict(p.settings)
     if "max_trace_level" in st:
         st["max_trace_level"] = max(1, min(256, st["max_trace_level"]))
-    settings = S.Settings(**st, output_transfer=transfer, assumed_gamma=gamma)
+    try:
+        settings = S.Settings(**st, output_transfer=transfer, assumed_gamma=gamma)
+    except OutOfPrecision as e:  # found by benchmarks/fuzz.py: adc_bailout 1e308
+        raise SceneError(str(e), p.statement_locs.get("global_settings")) from None
     try:
         camera = lower_camera(p.camera, lambda f, m: p.warn(f, m, p.camera.loc))
     except OutOfPrecision as e:
         raise SceneError(str(e), p.camera.loc) from None
-    return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                 background=p.background, settings=settings, warnings=tuple(p.warnings))
+    try:
+        return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
+                     background=p.background, settings=settings, warnings=tuple(p.warnings))
+    except OutOfPrecision as e:  # the background is the only value not converted before
+        raise SceneError(str(e), p.statement_locs.get("background")) from None

@@ -477,6 +477,7 @@ def _camera_item(p, cam, k):
 
 # ---- scene-level statements ------------------------------------------------------------------
 def parse_global_settings(p, t) -> None:
+    p.statement_locs["global_settings"] = t.loc
     p.expect_op("{", "'{' after global_settings")
     while not p.accept_op("}"):
         k = p.next()
@@ -514,6 +515,7 @@ def parse_global_settings(p, t) -> None:
 
 
 def parse_background(p, t) -> None:
+    p.statement_locs["background"] = t.loc
     p.expect_op("{", "'{' after background")
     c = parse_color(p)
     p.expect_op("}", "'}' to close background")

@@ -252,6 +252,19 @@ def test_a_parse_that_accumulates_memory_stops_with_a_located_error():
     assert e.location.line == 3
 
 
+@pytest.mark.parametrize("text", ["global_settings {\n adc_bailout 1e308 }",
+                                  "camera { location -5*z look_at 0 }\nbackground { rgb 1e308 }"])
+def test_a_setting_beyond_float32_is_an_error_at_its_statement(text):
+    # found by benchmarks/fuzz.py (session 7): global_settings { adc_bailout 1e308 } was an internal
+    # error; session 6's fix located such values at objects and the camera only
+    import jax
+
+    if jax.config.jax_enable_x64:
+        pytest.skip("float64 holds the value")
+    e = error_of(text)
+    assert "float32's range" in str(e) and e.location is not None and e.location.line in (1, 2)
+
+
 def test_a_file_name_too_long_for_the_system_is_a_located_error_of_bounded_length(tmp_path):
     # found by benchmarks/fuzz.py: Path.is_file raised OSError (ENAMETOOLONG) out of the include
     # search, an internal error; and the message echoed all 5,000 characters of the name
