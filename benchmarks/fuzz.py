@@ -212,8 +212,15 @@ class OpenWatch:
 
 
 def _program_files() -> list[Path]:
-    """Where the loader's own code and data live (Python, the venv, this repository)."""
-    return [Path(p).resolve() for p in {sys.prefix, sys.base_prefix, sys.exec_prefix, str(ROOT)}]
+    """Where the loader's own code and data live (Python, the venv, this repository) and JAX's
+    persistent compilation cache (a parse-time ``trace()`` compiles a program, and JAX looks it up
+    there once ``render`` has turned the cache on: the renderer's data, not the scene's)."""
+    import jax
+
+    places = {sys.prefix, sys.base_prefix, sys.exec_prefix, str(ROOT)}
+    if jax.config.jax_compilation_cache_dir:
+        places.add(str(jax.config.jax_compilation_cache_dir))
+    return [Path(p).resolve() for p in places]
 
 
 def _inside(path: str, folders: list[Path]) -> bool:
