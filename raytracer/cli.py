@@ -97,7 +97,7 @@ def _parser() -> argparse.ArgumentParser:
     d = r.add_argument_group(
         "several processes or machines (jax.distributed; start one command per process)",
         "Every process renders part of each image's tiles and process 0 writes it; with "
-        "--all-frames each process renders whole frames instead (frame f on process f mod N).")
+        "--all-frames each process renders whole frames instead (the k-th frame on process k mod N).")
     d.add_argument("--coordinator", metavar="HOST:PORT", help="address of process 0")
     d.add_argument("--num-processes", type=_positive_int, metavar="N", help="how many processes take part")
     d.add_argument("--process-id", type=int, metavar="I", help="this process's index, 0 … N-1")
