@@ -456,7 +456,9 @@ def test_camera_frame_follows_povs_look_at_rules():
 
 
 def test_the_api_turns_the_persistent_compilation_cache_on_unless_one_is_configured(tmp_path, monkeypatch):
-    from raytracer import render as render_module
+    import importlib
+
+    render_module = importlib.import_module("raytracer.render")  # the module (rt.render is the function)
 
     before = jax.config.jax_compilation_cache_dir
     monkeypatch.setattr(render_module, "_CACHE_CHECKED", [])
