@@ -66,6 +66,7 @@ class Camera(eqx.Module):
         sky = np.asarray(self.sky, np.float64)
         if not np.any(view):
             raise ValueError("camera look_at equals its location: no viewing direction")
+        view = view / np.max(np.abs(view))  # a tiny view (1e-320) would underflow in the norms below
         if np.linalg.norm(np.cross(sky, view)) <= 1e-12 * np.linalg.norm(sky) * np.linalg.norm(view):
             raise ValueError("camera look_at direction is parallel to sky: the image's roll is undefined "
                              "(give a different sky vector)")

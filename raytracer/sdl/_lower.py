@@ -151,8 +151,16 @@ def lower_camera(cam: CameraRec | None, warn) -> S.Camera:
             # POV-Ray: "Camera location and look_at point must be different"
             raise SceneError("expected a camera look_at point different from its location", cam.loc)
         _fix_degenerate_sky(kwargs, warn)
-    return S.Camera(**kwargs, angle_degrees=v.get("angle"), transform=_transform(cam.transform),
-                    projection=cam.projection, up_or_right_given="up" in v or "right" in v)
+    try:
+        return S.Camera(**kwargs, angle_degrees=v.get("angle"), transform=_transform(cam.transform),
+                        projection=cam.projection, up_or_right_given="up" in v or "right" in v)
+    except ValueError as e:
+        # the model's checks see the values in the working precision: location <0, 0, -1e-320>
+        # and look_at 0 differ in float64 but not in float32 (found by benchmarks/fuzz.py)
+        import jax
+
+        hint = "" if jax.config.jax_enable_x64 else " (in float32; float64, --x64, may tell them apart)"
+        raise SceneError(f"{e}{hint}", cam.loc) from None
 
 
 def _fix_degenerate_sky(kw: dict, warn) -> None:
@@ -162,6 +170,7 @@ def _fix_degenerate_sky(kw: dict, warn) -> None:
     sky = np.asarray(kw.get("sky", (0, 1, 0)), np.float64)
     if not np.any(view):
         return  # the Camera reports this one
+    view = view / np.max(np.abs(view))  # a tiny view (1e-320) would underflow in the norms below
     if np.linalg.norm(np.cross(sky, view)) > 1e-12 * np.linalg.norm(sky) * np.linalg.norm(view):
         return
     right = np.asarray(kw.get("right", (1.33, 0, 0)), np.float64)

@@ -252,6 +252,18 @@ def test_a_parse_that_accumulates_memory_stops_with_a_located_error():
     assert e.location.line == 3
 
 
+def test_a_camera_whose_points_meet_only_in_float32_is_a_located_error():
+    # found by benchmarks/fuzz.py (session 7): location <0, 0, -1e-320> differs from look_at 0 in
+    # float64 (the parser's check passed) but is 0 in float32: the camera model's ValueError was an
+    # internal error
+    import jax
+
+    if jax.config.jax_enable_x64:
+        pytest.skip("float64 tells the points apart")
+    e = error_of("\ncamera { location <0, 0, -1e-320> look_at <0, 0, 0> }")
+    assert "look_at equals its location" in str(e) and "--x64" in str(e) and e.location.line == 2
+
+
 @pytest.mark.parametrize("text", ["global_settings {\n adc_bailout 1e308 }",
                                   "camera { location -5*z look_at 0 }\nbackground { rgb 1e308 }"])
 def test_a_setting_beyond_float32_is_an_error_at_its_statement(text):
