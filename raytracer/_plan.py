@@ -107,6 +107,18 @@ class Prim:
     def kind(self) -> str:
         return self.obj.shape.kind
 
+    @property
+    def transparent(self) -> bool:
+        """Every layer of its texture can let light through (filter or transmit): it transmits
+        rays, and a shadow ray is filtered at its crossings instead of blocked."""
+        return all(layer.pigment.transparent for layer in self.texture.layers)
+
+    @property
+    def fades(self) -> bool:
+        """Its interior attenuates light over distance (``fade_distance`` and ``fade_power``)."""
+        it = self.interior
+        return it is not None and it.fade_distance is not None and it.fade_power is not None
+
     def world_from_object(self) -> Transform | None:
         return compose(*self.transforms)
 
@@ -297,8 +309,7 @@ def make_plan(scene: Scene) -> Plan:
     # POV-Ray lets rays pass ior-1 surfaces without using a level: as many passes as the
     # straight-transmitting primitives can make along one line (levels with no live ray cost a
     # test, ``_scheduler._shade_pool``)
-    straight_prims = [p for p in rendered if transmission
-                      and all(layer.pigment.transparent for layer in p.texture.layers)
+    straight_prims = [p for p in rendered if transmission and p.transparent
                       and (p.interior is None or p.interior.ior is None)]
     straight_passes = sum(p.obj.shape.line_crossings for p in straight_prims)
     if straight_passes > STRAIGHT_PASSES:

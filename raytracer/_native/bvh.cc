@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <limits>
 #include <numeric>
+#include <string>
 #include <vector>
 
 #include "xla/ffi/api/ffi.h"
@@ -372,14 +373,14 @@ inline bool slab(const double* box_lo, const double* box_hi, const double* o, co
   return tmin <= tmax;
 }
 
-// Closest (any_hit = false) or first found (any_hit = true) item of one ray.
-template <typename T>
-int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
-                 bool any_hit, double* t_out) {
+// Visits, in near-to-far order of the hierarchy's nodes, every item of mask `want` that the segment
+// (tmin, limit) of one ray crosses: visit(item, t) with its first crossing t, returning true to
+// stop. `limit` may shrink as the walk goes (a closest-hit query narrows it to its best hit).
+template <typename T, typename Visit>
+void walk(const Scene<T>& s, const double* o, const double* d, double tmin, double& limit, int32_t want,
+          const Visit& visit) {
   double inv[3];
   for (int k = 0; k < 3; ++k) inv[k] = 1.0 / d[k];
-  int32_t best = -1;
-  double best_t = tmax;
   int64_t stack[STACK];
   int sp = 0;
   stack[sp++] = 0;
@@ -390,22 +391,14 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
       lo[k] = static_cast<double>(s.node_box[6 * node + k]);
       hi[k] = static_cast<double>(s.node_box[6 * node + 3 + k]);
     }
-    if (!slab(lo, hi, o, inv, tmin, best_t)) continue;
+    if (!slab(lo, hi, o, inv, tmin, limit)) continue;
     const int32_t* info = s.node_info + 4 * node;
     if (info[1] > 0) {
       for (int32_t j = info[0]; j < info[0] + info[1]; ++j) {
         const int32_t it = s.order[j];
         if ((s.mask[it] & want) == 0) continue;
-        double t = item_hit(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), o, d, tmin,
-                            best_t);
-        if (t < best_t) {
-          best_t = t;
-          best = it;
-          if (any_hit) {
-            *t_out = best_t;
-            return best;
-          }
-        }
+        double t = item_hit(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), o, d, tmin, limit);
+        if (t < limit && visit(it, t)) return;
       }
       continue;
     }
@@ -419,7 +412,20 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
       stack[sp++] = left;
     }
   }
-  *t_out = best_t;
+}
+
+// Closest (any_hit = false) or first found (any_hit = true) item of one ray; its distance in t_out
+// (tmax when none).
+template <typename T>
+int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
+                 bool any_hit, double* t_out) {
+  int32_t best = -1;
+  walk(s, o, d, tmin, tmax, want, [&](int32_t it, double t) {
+    tmax = t;  // narrows the walk's segment
+    best = it;
+    return any_hit;
+  });
+  *t_out = tmax;
   return best;
 }
 
@@ -430,45 +436,21 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
 template <typename T>
 int32_t traverse_all(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
                      int32_t* out, double* out_t, int k) {
-  double inv[3];
-  for (int a = 0; a < 3; ++a) inv[a] = 1.0 / d[a];
   int32_t found = 0;
   int kept = 0;
-  int64_t stack[STACK];
-  int sp = 0;
-  stack[sp++] = 0;
-  double lo[3], hi[3];
-  while (sp > 0) {
-    const int64_t node = stack[--sp];
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = static_cast<double>(s.node_box[6 * node + a]);
-      hi[a] = static_cast<double>(s.node_box[6 * node + 3 + a]);
+  walk(s, o, d, tmin, tmax, want, [&](int32_t it, double t) {
+    ++found;
+    if (kept == k && !(t < out_t[k - 1])) return false;
+    int pos = kept < k ? kept++ : k - 1;  // insertion into the sorted list (drops the farthest)
+    while (pos > 0 && out_t[pos - 1] > t) {
+      out[pos] = out[pos - 1];
+      out_t[pos] = out_t[pos - 1];
+      --pos;
     }
-    if (!slab(lo, hi, o, inv, tmin, tmax)) continue;
-    const int32_t* info = s.node_info + 4 * node;
-    if (info[1] > 0) {
-      for (int32_t j = info[0]; j < info[0] + info[1]; ++j) {
-        const int32_t it = s.order[j];
-        if ((s.mask[it] & want) == 0) continue;
-        double t = item_hit(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), o, d, tmin, tmax);
-        if (!(t < tmax)) continue;
-        ++found;
-        if (kept == k && !(t < out_t[k - 1])) continue;
-        int pos = kept < k ? kept++ : k - 1;  // insertion into the sorted list (drops the farthest)
-        while (pos > 0 && out_t[pos - 1] > t) {
-          out[pos] = out[pos - 1];
-          out_t[pos] = out_t[pos - 1];
-          --pos;
-        }
-        out[pos] = it;
-        out_t[pos] = t;
-      }
-      continue;
-    }
-    if (sp + 2 > STACK) continue;
-    stack[sp++] = info[0];
-    stack[sp++] = info[2];
-  }
+    out[pos] = it;
+    out_t[pos] = t;
+    return false;
+  });
   for (int j = kept; j < k; ++j) out[j] = -1;
   return found;
 }
@@ -529,6 +511,46 @@ void parallel_for(ffi::ThreadPool& pool, int64_t n, const Body& body) {
   state->cv.wait(lock, [&] { return state->done.load() == chunks; });
 }
 
+// The operands every query takes. rays_impl checks their sizes, then calls
+// body(scene, ray index, origin, direction, tmin, tmax, want, valid) for every ray on XLA's thread
+// pool, in double precision; `valid` is false for a non-finite ray or an empty segment.
+template <ffi::DataType DT>
+struct RayOperands {
+  ffi::Buffer<DT> node_box;
+  ffi::Buffer<ffi::S32> node_info, order, kind, mask;
+  ffi::Buffer<DT> params, origin, direction, tmin, tmax;
+  ffi::Buffer<ffi::S32> want;
+};
+
+template <ffi::DataType DT, typename Body>
+ffi::Error rays_impl(ffi::ThreadPool& pool, const RayOperands<DT>& a, const char* what, const Body& body) {
+  using T = ffi::NativeType<DT>;
+  Scene<T> s{a.node_box.typed_data(), a.node_info.typed_data(), a.order.typed_data(), a.kind.typed_data(),
+             a.mask.typed_data(), a.params.typed_data(), static_cast<int64_t>(a.kind.element_count())};
+  const int64_t rays = static_cast<int64_t>(a.tmin.element_count());
+  auto size = [](const auto& buffer) { return static_cast<int64_t>(buffer.element_count()); };
+  if (size(a.origin) != 3 * rays || size(a.direction) != 3 * rays || size(a.tmax) != rays ||
+      size(a.want) != rays || size(a.params) != ITEM_PARAMS * s.n_items || size(a.mask) != s.n_items ||
+      size(a.order) != s.n_items)
+    return ffi::Error(ffi::ErrorCode::kInvalidArgument, std::string(what) + ": inconsistent operand sizes");
+  const T* o = a.origin.typed_data();
+  const T* d = a.direction.typed_data();
+  const T* t0 = a.tmin.typed_data();
+  const T* t1 = a.tmax.typed_data();
+  const int32_t* w = a.want.typed_data();
+  parallel_for(pool, rays, [&](int64_t begin, int64_t end) {
+    for (int64_t r = begin; r < end; ++r) {
+      double oo[3] = {double(o[3 * r]), double(o[3 * r + 1]), double(o[3 * r + 2])};
+      double dd[3] = {double(d[3 * r]), double(d[3 * r + 1]), double(d[3 * r + 2])};
+      const double lo = double(t0[r]), hi = double(t1[r]);
+      const bool valid = std::isfinite(oo[0] + oo[1] + oo[2] + dd[0] + dd[1] + dd[2]) && lo < hi;
+      body(s, r, oo, dd, lo, hi, w[r], valid);
+    }
+  });
+  return ffi::Error::Success();
+}
+
+// operands -> item, t: the closest (any_hit = false) or a blocking (any_hit = true) item
 template <ffi::DataType DT, bool any_hit>
 ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
                       ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
@@ -536,38 +558,22 @@ ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffe
                       ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want,
                       ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t_out) {
   using T = ffi::NativeType<DT>;
-  Scene<T> s{node_box.typed_data(), node_info.typed_data(), order.typed_data(), kind.typed_data(),
-             mask.typed_data(), params.typed_data(), static_cast<int64_t>(kind.element_count())};
-  const int64_t rays = static_cast<int64_t>(tmin.element_count());
-  auto size = [](const auto& buffer) { return static_cast<int64_t>(buffer.element_count()); };
-  if (size(origin) != 3 * rays || size(direction) != 3 * rays || size(tmax) != rays || size(want) != rays ||
-      size(params) != ITEM_PARAMS * s.n_items || size(mask) != s.n_items || size(order) != s.n_items)
-    return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh query: inconsistent operand sizes");
-  const T* o = origin.typed_data();
-  const T* d = direction.typed_data();
-  const T* t0 = tmin.typed_data();
-  const T* t1 = tmax.typed_data();
-  const int32_t* w = want.typed_data();
+  if (item->element_count() != tmin.element_count() || t_out->element_count() != tmin.element_count())
+    return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh query: inconsistent result sizes");
   int32_t* out = item->typed_data();
   T* tout = t_out->typed_data();
-  auto trace = [&](int64_t begin, int64_t end) {
-    for (int64_t r = begin; r < end; ++r) {
-      double oo[3] = {double(o[3 * r]), double(o[3 * r + 1]), double(o[3 * r + 2])};
-      double dd[3] = {double(d[3 * r]), double(d[3 * r + 1]), double(d[3 * r + 2])};
-      double t = INFINITY;
-      int32_t hit = -1;
-      const double lo = double(t0[r]), hi = double(t1[r]);
-      if (std::isfinite(oo[0] + oo[1] + oo[2] + dd[0] + dd[1] + dd[2]) && lo < hi)
-        hit = traverse(s, oo, dd, lo, hi, w[r], any_hit, &t);
-      out[r] = hit;
-      tout[r] = static_cast<T>(hit >= 0 ? t : INFINITY);
-    }
-  };
-  parallel_for(pool, rays, trace);
-  return ffi::Error::Success();
+  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want};
+  return rays_impl(pool, a, "bvh query",
+                   [&](const Scene<T>& s, int64_t r, const double* o, const double* d, double lo, double hi,
+                       int32_t w, bool valid) {
+                     double t = INFINITY;
+                     const int32_t hit = valid ? traverse(s, o, d, lo, hi, w, any_hit, &t) : -1;
+                     out[r] = hit;
+                     tout[r] = static_cast<T>(hit >= 0 ? t : INFINITY);
+                   });
 }
 
-// node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item (rays, k), count
+// operands -> item (rays, k), count: the k nearest items a segment crosses, and how many it crosses
 template <ffi::DataType DT>
 ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
                     ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
@@ -575,46 +581,34 @@ ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<
                     ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want, ffi::ResultBuffer<ffi::S32> item,
                     ffi::ResultBuffer<ffi::S32> count) {
   using T = ffi::NativeType<DT>;
-  Scene<T> s{node_box.typed_data(), node_info.typed_data(), order.typed_data(), kind.typed_data(),
-             mask.typed_data(), params.typed_data(), static_cast<int64_t>(kind.element_count())};
   const int64_t rays = static_cast<int64_t>(tmin.element_count());
-  auto size = [](const auto& buffer) { return static_cast<int64_t>(buffer.element_count()); };
   if (rays == 0) return ffi::Error::Success();
-  const int64_t k = size(*item) / rays;
-  if (k < 1 || k > 1024 || size(*item) != k * rays || size(*count) != rays || size(origin) != 3 * rays ||
-      size(direction) != 3 * rays || size(tmax) != rays || size(want) != rays ||
-      size(params) != ITEM_PARAMS * s.n_items || size(mask) != s.n_items || size(order) != s.n_items)
-    return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh all-crossings query: inconsistent operand sizes");
-  const T* o = origin.typed_data();
-  const T* d = direction.typed_data();
-  const T* t0 = tmin.typed_data();
-  const T* t1 = tmax.typed_data();
-  const int32_t* w = want.typed_data();
+  const int64_t k = static_cast<int64_t>(item->element_count()) / rays;
+  if (k < 1 || k > 1024 || static_cast<int64_t>(item->element_count()) != k * rays ||
+      static_cast<int64_t>(count->element_count()) != rays)
+    return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh all-crossings query: inconsistent result sizes");
   int32_t* out = item->typed_data();
   int32_t* cnt = count->typed_data();
-  auto trace = [&](int64_t begin, int64_t end) {
-    std::vector<double> ts(k);
-    for (int64_t r = begin; r < end; ++r) {
-      double oo[3] = {double(o[3 * r]), double(o[3 * r + 1]), double(o[3 * r + 2])};
-      double dd[3] = {double(d[3 * r]), double(d[3 * r + 1]), double(d[3 * r + 2])};
-      const double lo = double(t0[r]), hi = double(t1[r]);
-      int32_t* row = out + k * r;
-      if (std::isfinite(oo[0] + oo[1] + oo[2] + dd[0] + dd[1] + dd[2]) && lo < hi) {
-        cnt[r] = traverse_all(s, oo, dd, lo, hi, w[r], row, ts.data(), static_cast<int>(k));
-      } else {
-        cnt[r] = 0;
-        std::fill(row, row + k, -1);
-      }
-    }
-  };
-  parallel_for(pool, rays, trace);
-  return ffi::Error::Success();
+  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want};
+  return rays_impl(pool, a, "bvh all-crossings query",
+                   [&](const Scene<T>& s, int64_t r, const double* o, const double* d, double lo, double hi,
+                       int32_t w, bool valid) {
+                     int32_t* row = out + k * r;
+                     if (!valid) {
+                       cnt[r] = 0;
+                       std::fill(row, row + k, -1);
+                       return;
+                     }
+                     thread_local std::vector<double> ts;
+                     ts.resize(k);
+                     cnt[r] = traverse_all(s, o, d, lo, hi, w, row, ts.data(), static_cast<int>(k));
+                   });
 }
 
 }  // namespace
 
-// node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item, t
-#define QUERY_BINDING(DT)                                                                                  \
+// node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item, SECOND
+#define QUERY_BINDING(DT, SECOND)                                                                          \
   ffi::Ffi::Bind()                                                                                       \
       .Ctx<ffi::ThreadPool>()                                                                            \
       .Arg<ffi::Buffer<DT>>()                                                                            \
@@ -629,7 +623,7 @@ ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<
       .Arg<ffi::Buffer<DT>>()                                                                            \
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
       .Ret<ffi::Buffer<ffi::S32>>()                                                                      \
-      .Ret<ffi::Buffer<DT>>()
+      .Ret<ffi::Buffer<SECOND>>()
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhBuildF32, build_impl<ffi::F32>,
                               ffi::Ffi::Bind()
@@ -643,27 +637,9 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhBuildF64, build_impl<ffi::F64>,
                                   .Ret<ffi::Buffer<ffi::F64>>()
                                   .Ret<ffi::Buffer<ffi::S32>>()
                                   .Ret<ffi::Buffer<ffi::S32>>());
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF32, (query_impl<ffi::F32, false>), QUERY_BINDING(ffi::F32));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF64, (query_impl<ffi::F64, false>), QUERY_BINDING(ffi::F64));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF32, (query_impl<ffi::F32, true>), QUERY_BINDING(ffi::F32));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF64, (query_impl<ffi::F64, true>), QUERY_BINDING(ffi::F64));
-
-#define ALL_BINDING(DT)                                                                                    \
-  ffi::Ffi::Bind()                                                                                       \
-      .Ctx<ffi::ThreadPool>()                                                                            \
-      .Arg<ffi::Buffer<DT>>()                                                                            \
-      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
-      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
-      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
-      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
-      .Arg<ffi::Buffer<DT>>()                                                                            \
-      .Arg<ffi::Buffer<DT>>()                                                                            \
-      .Arg<ffi::Buffer<DT>>()                                                                            \
-      .Arg<ffi::Buffer<DT>>()                                                                            \
-      .Arg<ffi::Buffer<DT>>()                                                                            \
-      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
-      .Ret<ffi::Buffer<ffi::S32>>()                                                                      \
-      .Ret<ffi::Buffer<ffi::S32>>()
-
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF32, all_impl<ffi::F32>, ALL_BINDING(ffi::F32));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF64, all_impl<ffi::F64>, ALL_BINDING(ffi::F64));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF32, (query_impl<ffi::F32, false>), QUERY_BINDING(ffi::F32, ffi::F32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF64, (query_impl<ffi::F64, false>), QUERY_BINDING(ffi::F64, ffi::F64));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF32, (query_impl<ffi::F32, true>), QUERY_BINDING(ffi::F32, ffi::F32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF64, (query_impl<ffi::F64, true>), QUERY_BINDING(ffi::F64, ffi::F64));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF32, all_impl<ffi::F32>, QUERY_BINDING(ffi::F32, ffi::S32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF64, all_impl<ffi::F64>, QUERY_BINDING(ffi::F64, ffi::S32));

@@ -119,23 +119,19 @@ def _build(boxes):
     return tuple(call(boxes))
 
 
-def _query_fn(any_hit: bool):
-    name = "BvhAny" if any_hit else "BvhClosest"
+def _native_query(name: str, outputs):
+    """A native query over rays of any leading shape ``S`` (``o``, ``d``: S + (3,)); ``outputs(S,
+    dtype)`` gives its results' shapes. Under ``vmap`` the rays of every batch (the ray pool,
+    area-light samples, …) become one call; the hierarchy is the scene's and is never batched."""
 
     @custom_vmap
     def query(tables, o, d, tmin, tmax, want):
-        """Rays of any leading shape ``S`` (``o``, ``d``: S + (3,)): (item S int32, -1 for none; t S)."""
-        shape = tmin.shape
-        out = (jax.ShapeDtypeStruct(shape, jnp.int32), jax.ShapeDtypeStruct(shape, o.dtype))
-        call = jax.ffi.ffi_call(f"raytracer_{name}{_suffix(o.dtype)}", out)
-        item, t = call(*tables, o.reshape(-1, 3), d.reshape(-1, 3), tmin.reshape(-1), tmax.reshape(-1),
-                       want.reshape(-1))
-        return item.reshape(shape), t.reshape(shape)
+        call = jax.ffi.ffi_call(f"raytracer_{name}{_suffix(o.dtype)}", outputs(tmin.shape, o.dtype))
+        return tuple(call(*tables, o.reshape(-1, 3), d.reshape(-1, 3), tmin.reshape(-1), tmax.reshape(-1),
+                          want.reshape(-1)))
 
     @query.def_vmap
     def _batched(axis_size, in_batched, tables, o, d, tmin, tmax, want):
-        # the rays of every vmap (the ray pool, area-light samples, ...) become one call; the
-        # hierarchy is the scene's and is never batched
         if any(jax.tree_util.tree_leaves(in_batched[0])):
             raise NotImplementedError("the native BVH does not batch over scenes: vmap over scenes with "
                                       "RAYTRACER_ACCEL=none")
@@ -146,30 +142,20 @@ def _query_fn(any_hit: bool):
     return query
 
 
-_closest_query = _query_fn(any_hit=False)
-_any_query = _query_fn(any_hit=True)
+def _hit(shape, dtype):
+    """(item S int32, -1 for none; t S)"""
+    return jax.ShapeDtypeStruct(shape, jnp.int32), jax.ShapeDtypeStruct(shape, dtype)
 
 
-@custom_vmap
-def _all_query(tables, o, d, tmin, tmax, want):
-    """Rays of any leading shape ``S``: (the ``FILTER_ITEMS`` nearest items crossed, S + (k,) int32
-    ascending, -1 after the last; how many were crossed, S int32, may exceed k)."""
-    shape = tmin.shape
-    out = (jax.ShapeDtypeStruct((*shape, FILTER_ITEMS), jnp.int32), jax.ShapeDtypeStruct(shape, jnp.int32))
-    call = jax.ffi.ffi_call(f"raytracer_BvhAll{_suffix(o.dtype)}", out)
-    item, count = call(*tables, o.reshape(-1, 3), d.reshape(-1, 3), tmin.reshape(-1), tmax.reshape(-1),
-                       want.reshape(-1))
-    return item.reshape(*shape, FILTER_ITEMS), count.reshape(shape)
+def _crossed(shape, dtype):
+    """(the ``FILTER_ITEMS`` nearest items crossed, S + (k,) int32 ascending, -1 after the last; how
+    many were crossed, S int32, may exceed k)"""
+    return jax.ShapeDtypeStruct((*shape, FILTER_ITEMS), jnp.int32), jax.ShapeDtypeStruct(shape, jnp.int32)
 
 
-@_all_query.def_vmap
-def _all_batched(axis_size, in_batched, tables, o, d, tmin, tmax, want):
-    if any(jax.tree_util.tree_leaves(in_batched[0])):
-        raise NotImplementedError("the native BVH does not batch over scenes: vmap over scenes with "
-                                  "RAYTRACER_ACCEL=none")
-    rays = [x if b else jnp.broadcast_to(x, (axis_size, *x.shape))
-            for x, b in zip((o, d, tmin, tmax, want), in_batched[1:], strict=True)]
-    return _all_query(tables, *rays), (True, True)
+_closest_query = _native_query("BvhClosest", _hit)
+_any_query = _native_query("BvhAny", _hit)
+_all_query = _native_query("BvhAll", _crossed)
 
 
 # ---------------------------------------------------------------- the packed hierarchy

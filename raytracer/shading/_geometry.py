@@ -66,17 +66,6 @@ def _variant(shape: AbstractShape) -> tuple:
     return treedef, tuple(np.shape(x) for x in leaves)
 
 
-def transparent(prim) -> bool:
-    """Every layer of the primitive's texture can let light through (filter or transmit): a shadow
-    ray is filtered at its crossings (``PackedMaterials.transparent``), not blocked."""
-    return all(layer.pigment.transparent for layer in prim.texture.layers)
-
-
-def _fades(prim) -> bool:
-    it = prim.interior
-    return it is not None and it.fade_distance is not None and it.fade_power is not None
-
-
 def _accelerable(prim, filter_query: bool) -> bool:
     """Whether the hierarchy may choose this primitive: a native kernel, bounded, rendered, no CSG
     or clipping condition. A transparent primitive that casts shadows also needs the hierarchy's
@@ -85,8 +74,8 @@ def _accelerable(prim, filter_query: bool) -> bool:
     shape = prim.obj.shape
     if type(shape).native_kernel is None or not prim.rendered or prim.conditions:
         return False
-    if transparent(prim) and "no_shadow" not in prim.flags:
-        return filter_query and not _fades(prim)
+    if prim.transparent and "no_shadow" not in prim.flags:
+        return filter_query and not prim.fades
     return True
 
 
@@ -95,7 +84,7 @@ def visibility_bits(prim) -> int:
     or filters (transparent) shadow rays."""
     if not prim.rendered:
         return 0
-    shadow = _accel.MASK_FILTER if transparent(prim) else _accel.MASK_SHADOW
+    shadow = _accel.MASK_FILTER if prim.transparent else _accel.MASK_SHADOW
     return ((_accel.MASK_CAMERA if "no_image" not in prim.flags else 0)
             | (_accel.MASK_REFLECT if "no_reflection" not in prim.flags else 0)
             | (shadow if "no_shadow" not in prim.flags else 0))

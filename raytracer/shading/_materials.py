@@ -120,8 +120,7 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
                              else it.fade_distance for it in interiors], dtype),
         fade_power=stack([0.0 if it.fade_power is None else it.fade_power for it in interiors], dtype),
         fade_color=stack([it.fade_color for it in interiors], dtype),
-        transparent=np.array([all(layer.pigment.transparent for layer in p.texture.layers)
-                              for p in plan.prims]),
+        transparent=np.array([p.transparent for p in plan.prims]),
     )
 
 

@@ -230,10 +230,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         casts_shadow=(bits[geo.cand_prim] & (_accel.MASK_SHADOW | _accel.MASK_FILTER)) != 0,
         transparent_cands=static_prim_mask(geo, lambda i: bool(mats.transparent[i])),
         inverse_sign=geo.prim_sign[geo.cand_prim],
-        fading_cands=np.flatnonzero(static_prim_mask(
-            geo, lambda i: bool(mats.transparent[i]) and prims[i].interior is not None
-            and prims[i].interior.fade_distance is not None
-            and prims[i].interior.fade_power is not None)),
+        fading_cands=np.flatnonzero(static_prim_mask(geo, lambda i: prims[i].transparent and prims[i].fades)),
         medium=_medium_ids(prims),
         accel_filters=geo.accel is not None and any(
             bits[i] & _accel.MASK_FILTER for ag in geo.accel.groups for i in geo.groups[ag.group].prims),

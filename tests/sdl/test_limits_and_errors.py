@@ -252,29 +252,22 @@ def test_a_parse_that_accumulates_memory_stops_with_a_located_error():
     assert e.location.line == 3
 
 
-def test_a_camera_whose_points_meet_only_in_float32_is_a_located_error():
-    # found by benchmarks/fuzz.py (session 7): location <0, 0, -1e-320> differs from look_at 0 in
-    # float64 (the parser's check passed) but is 0 in float32: the camera model's ValueError was an
-    # internal error
+@pytest.mark.parametrize("text, line, fragment", [
+    # found by benchmarks/fuzz.py (session 7). Session 6 located values beyond float32 at objects and
+    # the camera only: global_settings { adc_bailout 1e308 } was an internal error
+    ("global_settings {\n adc_bailout 1e308 }", 1, "float32's range"),  # at the statement
+    ("camera { location -5*z look_at 0 }\nbackground { rgb 1e308 }", 2, "float32's range"),
+    # location <0, 0, -1e-320> differs from look_at 0 in float64 (the parser's check passed) but is 0
+    # in float32: the camera model's ValueError was an internal error
+    ("\ncamera { location <0, 0, -1e-320> look_at <0, 0, 0> }", 2, "look_at equals its location"),
+])
+def test_a_value_float32_cannot_tell_apart_is_an_error_at_its_statement(text, line, fragment):
     import jax
 
     if jax.config.jax_enable_x64:
-        pytest.skip("float64 tells the points apart")
-    e = error_of("\ncamera { location <0, 0, -1e-320> look_at <0, 0, 0> }")
-    assert "look_at equals its location" in str(e) and "--x64" in str(e) and e.location.line == 2
-
-
-@pytest.mark.parametrize("text", ["global_settings {\n adc_bailout 1e308 }",
-                                  "camera { location -5*z look_at 0 }\nbackground { rgb 1e308 }"])
-def test_a_setting_beyond_float32_is_an_error_at_its_statement(text):
-    # found by benchmarks/fuzz.py (session 7): global_settings { adc_bailout 1e308 } was an internal
-    # error; session 6's fix located such values at objects and the camera only
-    import jax
-
-    if jax.config.jax_enable_x64:
-        pytest.skip("float64 holds the value")
+        pytest.skip("float64 holds these values")
     e = error_of(text)
-    assert "float32's range" in str(e) and e.location is not None and e.location.line in (1, 2)
+    assert fragment in str(e) and "--x64" in str(e) and e.location.line == line
 
 
 def test_a_file_name_too_long_for_the_system_is_a_located_error_of_bounded_length(tmp_path):
