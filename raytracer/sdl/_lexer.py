@@ -13,14 +13,6 @@ from ..errors import SceneError, SourceLoc
 
 NUM, STR, ID, OP, EOF = "num", "str", "id", "op", "eof"
 
-# two-character operators first
-_OPS2 = ("<=", ">=", "!=")
-_OPS1 = set("{}()[]<>,;=+-*/?:.!&|#^")
-_NUMBER = re.compile(r"([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
-_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-# ASCII only, as POV-Ray: str.isdigit/isalpha accept "٣" and "Ø", which the patterns do not match
-_DIGITS = frozenset("0123456789")
-_IDENT_START = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_")
 _ESCAPES = {"n": "\n", "t": "\t", "r": "\r", "\\": "\\", '"': '"', "'": "'", "a": "\a", "b": "\b",
             "f": "\f", "v": "\v"}
 
@@ -114,6 +106,20 @@ def _read_string(c: _Cursor) -> Token:
     return Token(STR, "".join(out), start)
 
 
+# one scan step: blanks and line comments, or the start of a token. Identifiers and numbers are ASCII,
+# as in POV-Ray (str.isdigit and str.isalpha would accept "٣" and "Ø").
+# Numbers come before operators (".5" is a number, "." alone an operator); "/*" and '"' are read by
+# hand (nesting, escapes).
+_STEP = re.compile(r"""
+    (?P<blank>(?:[ \t\r\n\f\v\ufeff\x1a]+|//[^\n]*)+)
+  | (?P<num>(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)
+  | (?P<id>[A-Za-z_][A-Za-z0-9_]*)
+  | (?P<comment>/\*)
+  | (?P<op><=|>=|!=|[{}()\[\]<>,;=+\-*/?:.!&|\#^])
+  | (?P<str>")
+""", re.VERBOSE)
+
+
 def tokenize(text: str, file: str = "<string>") -> list[Token]:
     """Splits SDL text into tokens, ending with one EOF token.
 
@@ -121,39 +127,34 @@ def tokenize(text: str, file: str = "<string>") -> list[Token]:
         SceneError: on an unterminated comment or string or a character that is not SDL.
     """
     c, toks, n = _Cursor(text, file), [], len(text)
-    while True:
-        # whitespace and comments
-        while c.i < n:
-            ch = text[c.i]
-            if ch in " \t\r\n\f\v\ufeff\x1a":
-                c.advance_to(c.i + 1)
-            elif text.startswith("//", c.i):
-                k = text.find("\n", c.i)
-                c.advance_to(n if k == -1 else k)
-            elif text.startswith("/*", c.i):
+    match, append, count, rfind = _STEP.match, toks.append, text.count, text.rfind
+    i, line, line_start = 0, 1, 0
+    while i < n:
+        m = match(text, i)
+        if m is None:
+            ch = text[i]
+            why = " (identifiers and numbers are ASCII: A-Z, a-z, 0-9, _)" if ch.isalnum() else ""
+            raise SceneError(f"expected a token, found character {ch!r}{why}", SourceLoc(file, line, i - line_start + 1))
+        kind, j = m.lastgroup, m.end()
+        if kind == "blank":
+            k = count("\n", i, j)
+            if k:
+                line += k
+                line_start = rfind("\n", i, j) + 1
+        elif kind == "id":
+            append(Token(ID, m.group(), SourceLoc(file, line, i - line_start + 1)))
+        elif kind == "op":
+            append(Token(OP, m.group(), SourceLoc(file, line, i - line_start + 1)))
+        elif kind == "num":
+            loc = SourceLoc(file, line, i - line_start + 1)
+            append(Token(NUM, _number(m.group(), loc), loc))
+        else:  # a block comment or a string: the cursor counts their lines
+            c.i, c.line, c.line_start = i, line, line_start
+            if kind == "comment":
                 _skip_block_comment(c)
             else:
-                break
-        if c.i >= n:
-            toks.append(Token(EOF, None, c.loc()))
-            return toks
-        ch = text[c.i]
-        if ch in _DIGITS or (ch == "." and c.i + 1 < n and text[c.i + 1] in _DIGITS):
-            m = _NUMBER.match(text, c.i)
-            toks.append(Token(NUM, _number(m.group(0), c.loc()), c.loc()))
-            c.advance_to(m.end())
-        elif ch in _IDENT_START:
-            m = _IDENT.match(text, c.i)
-            toks.append(Token(ID, m.group(0), c.loc()))
-            c.advance_to(m.end())
-        elif ch == '"':
-            toks.append(_read_string(c))
-        elif text[c.i:c.i + 2] in _OPS2:
-            toks.append(Token(OP, text[c.i:c.i + 2], c.loc()))
-            c.advance_to(c.i + 2)
-        elif ch in _OPS1:
-            toks.append(Token(OP, ch, c.loc()))
-            c.advance_to(c.i + 1)
-        else:
-            why = " (identifiers and numbers are ASCII: A-Z, a-z, 0-9, _)" if ch.isalnum() else ""
-            raise SceneError(f"expected a token, found character {ch!r}{why}", c.loc())
+                append(_read_string(c))
+            j, line, line_start = c.i, c.line, c.line_start
+        i = j
+    append(Token(EOF, None, SourceLoc(file, line, i - line_start + 1)))
+    return toks

@@ -236,3 +236,29 @@ def test_write_items_need_no_commas_and_ifdef_takes_array_elements(tmp_path, mon
                 '#include "g.inc"\n')
     assert p.lookup("One") == 1 and p.lookup("W") == 3
     assert p.lookup("Two") is None
+
+
+def test_included_files_are_lexed_once_per_text(tmp_path):
+    """Parses share the tokens of an unchanged include file; a file rewritten with text of the
+    same size within the file system's clock tick is lexed again (the key is its text)."""
+    from raytracer.sdl import _stream
+
+    inc, main = tmp_path / "a.inc", tmp_path / "main.pov"
+    inc.write_text("#declare A = 1;")
+    main.write_text('#include "a.inc"\n')
+
+    def load():
+        from raytracer.sdl._interpreter import Interpreter
+
+        p = Interpreter()
+        p.push_main(p.file_tokens(str(main)), str(main))
+        p.run()
+        return p.lookup("A"), p.file_tokens(str(inc))
+
+    a1, toks1 = load()
+    a2, toks2 = load()
+    assert (a1, a2) == (1.0, 1.0) and toks1 is toks2  # the same list: not lexed again
+    inc.write_text("#declare A = 2;")  # same size, same mtime tick most likely
+    a3, toks3 = load()
+    assert a3 == 2.0 and toks3 is not toks1
+    assert len(_stream._LEXED) >= 2
