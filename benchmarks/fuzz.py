@@ -304,6 +304,12 @@ def campaign(cases: int, seed: int, corpus: str, folder: Path, minutes: float | 
     from hypothesis import HealthCheck, Phase, given, settings
 
     logging.getLogger("raytracer").setLevel(logging.ERROR)  # the mutants' warnings are expected
+    import jax
+
+    # JAX finds its devices on first use (reading /sys/bus/pci/devices/*/vendor to look for
+    # accelerators): done here, before any case is watched, as a parse-time trace() would otherwise
+    # do it under the watch and count the renderer's own reads as the scene's
+    jax.devices()
     files = seed_files(corpus)
     streams = [tokens(f.read_text(encoding="utf-8", errors="replace")) for f in files]
     # the seeds' own include files: a mutant in its own folder still finds them

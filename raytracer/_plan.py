@@ -187,14 +187,18 @@ class Effects:
 
 @dataclasses.dataclass(frozen=True)
 class Plan:
-    """The flattened scene: primitives, lights, effects, warnings, and the inside tree of each
-    top-level object (``roots``, in ``scene.objects`` order; used by ``inside()`` queries)."""
+    """The flattened scene: primitives, lights, effects, warnings, the inside tree of each
+    top-level object (``roots``, in ``scene.objects`` order; used by ``inside()`` queries), and
+    the objects POV-Ray bounds separately (``units``, whose bounding boxes decide exact ties
+    between coincident surfaces; semantics §4.4)."""
 
     prims: tuple[Prim, ...]
     lights: tuple[Light, ...]
     effects: Effects
     warnings: tuple[SceneWarning, ...]
     roots: tuple[InsideTree, ...] = ()
+    units: tuple[InsideTree, ...] = ()  # bounding units (``bounding_units``), as inside trees
+    prim_unit: tuple[int, ...] = ()  # the unit of every primitive
 
 
 # ---------------------------------------------------------------- flattening
@@ -280,6 +284,39 @@ def _clipped(tree: InsideTree, clip_trees: tuple[InsideTree, ...]) -> InsideTree
     return InAll((tree, *clip_trees)) if clip_trees else tree
 
 
+def bounding_units(objects, roots, n_prims: int) -> tuple[tuple[InsideTree, ...], tuple[int, ...]]:
+    """The objects POV-Ray puts in its bounding hierarchy, each as its inside tree (from which
+    its box follows: ``shading._geometry.unit_boxes``), and the unit of every primitive.
+
+    A top-level object is one unit, except that a ``union`` without ``inverse`` or
+    ``clipped_by`` is split into its children, recursively (POV-Ray's ``split_union``, on by
+    default; measured with povray 3.7, semantics §4.4). ``merge``, ``intersection`` and
+    ``difference`` are never split. Clipping objects belong to the unit they clip."""
+    units: list[InsideTree] = []
+
+    def split(obj, tree):
+        if isinstance(obj, CSG) and obj.operation == "union" and not obj.inverse and not obj.clipped_by:
+            for child, term in zip(obj.children, tree.terms, strict=True):
+                split(child, term)
+        else:
+            units.append(tree)
+
+    for obj, tree in zip(objects, roots, strict=True):
+        split(obj, tree)
+    unit_of: dict[int, int] = {}
+
+    def mark(tree, u):
+        if isinstance(tree, InPrim):
+            unit_of.setdefault(tree.prim, u)
+        else:
+            for term in tree.terms:
+                mark(term, u)
+
+    for u, tree in enumerate(units):
+        mark(tree, u)
+    return tuple(units), tuple(unit_of[i] for i in range(n_prims))
+
+
 def make_plan(scene: Scene) -> Plan:
     """Flattens ``scene`` and derives its :class:`Effects` (structure only; safe under jit)."""
     fl = _Flattener()
@@ -339,5 +376,6 @@ def make_plan(scene: Scene) -> Plan:
         straight_passes=straight_passes,
         depth=depth,
     )
+    units, prim_unit = bounding_units(scene.objects, roots, len(prims))
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),
-                roots=roots)
+                roots=roots, units=units, prim_unit=prim_unit)

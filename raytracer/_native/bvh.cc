@@ -15,6 +15,12 @@
 // order[first : first + count]; an inner node is [left, 0, right, axis], `axis` its split axis (the
 // child on the ray's near side is visited first).
 //
+// Ties (semantics §4.4). Two coincident surfaces are hit at the same distance; POV-Ray shows the one
+// its own bounding hierarchy tests first: the object whose box the ray enters first, else the earlier
+// in the file. Every item names its bounding unit (unit, an index in file order), and unit_box (U, 6)
+// holds the units' boxes; the closest-hit query treats crossings within TIE_EPSILONS relative machine
+// epsilons of the nearest as tied and keeps the tied item whose unit wins that order.
+//
 // Build: binned surface-area heuristic over item centroids (16 bins on each axis), leaves of at most
 // 4 items unless splitting does not pay, a median split when every centroid falls in one bin.
 
@@ -359,7 +365,9 @@ struct Scene {
   const int32_t* kind;
   const int32_t* mask;
   const T* params;
-  int64_t n_items;
+  const int32_t* unit;  // (n_items,) the bounding unit of each item
+  const T* unit_box;    // (n_units, 6) lo xyz, hi xyz
+  int64_t n_items, n_units;
 };
 
 inline bool slab(const double* box_lo, const double* box_hi, const double* o, const double* inv, double tmin,
@@ -414,18 +422,75 @@ void walk(const Scene<T>& s, const double* o, const double* d, double tmin, doub
   }
 }
 
+// Where the line o + t d enters the box (lo, hi): -inf for an unbounded box or an origin inside a
+// slab the ray runs along, +inf when the line misses it.
+inline double box_entry(const double* lo, const double* hi, const double* o, const double* d) {
+  double t_near = -INFINITY, t_far = INFINITY;
+  for (int k = 0; k < 3; ++k) {
+    if (d[k] != 0.0) {
+      double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
+      t_near = std::fmax(t_near, std::fmin(a, b));
+      t_far = std::fmin(t_far, std::fmax(a, b));
+    } else if (o[k] < lo[k] || o[k] > hi[k]) {
+      return INFINITY;
+    }
+  }
+  return t_near <= t_far ? t_near : INFINITY;
+}
+
+template <typename T>
+double unit_entry(const Scene<T>& s, int32_t unit, const double* o, const double* d) {
+  if (unit < 0 || unit >= s.n_units) return INFINITY;  // (the tables are built with valid units)
+  double lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = static_cast<double>(s.unit_box[6 * unit + k]);
+    hi[k] = static_cast<double>(s.unit_box[6 * unit + 3 + k]);
+  }
+  return box_entry(lo, hi, o, d);
+}
+
 // Closest (any_hit = false) or first found (any_hit = true) item of one ray; its distance in t_out
-// (tmax when none).
+// (tmax when none). Closest: among items tied with the nearest (see Ties), the nearest item of the
+// unit whose box the ray enters first, else of the earlier unit.
 template <typename T>
 int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
                  bool any_hit, double* t_out) {
+  constexpr double TIE = 64.0 * std::numeric_limits<T>::epsilon();  // as _geometry.TIE_EPSILONS
   int32_t best = -1;
-  walk(s, o, d, tmin, tmax, want, [&](int32_t it, double t) {
-    tmax = t;  // narrows the walk's segment
-    best = it;
-    return any_hit;
+  double nearest = INFINITY, best_t = tmax, best_entry = NAN;
+  double limit = tmax;
+  walk(s, o, d, tmin, limit, want, [&](int32_t it, double t) {
+    if (any_hit) {
+      best = it;
+      best_t = t;
+      return true;
+    }
+    if (best < 0 || t < nearest - TIE * std::fabs(nearest)) {  // a new nearest: nothing ties with it yet
+      best = it;
+      best_t = nearest = t;
+      best_entry = NAN;
+    } else {  // tied with the nearest
+      nearest = std::fmin(nearest, t);
+      const int32_t u = s.unit[it], ub = s.unit[best];
+      if (u == ub) {  // the same object: its nearer crossing
+        if (t < best_t) {
+          best = it;
+          best_t = t;
+        }
+      } else {
+        if (std::isnan(best_entry)) best_entry = unit_entry(s, ub, o, d);
+        const double e = unit_entry(s, u, o, d);
+        if (e < best_entry || (e == best_entry && u < ub)) {
+          best = it;
+          best_t = t;
+          best_entry = e;
+        }
+      }
+    }
+    limit = std::fmin(tmax, nearest + TIE * std::fabs(nearest));  // narrows the walk's segment
+    return false;
   });
-  *t_out = tmax;
+  *t_out = best >= 0 ? best_t : tmax;
   return best;
 }
 
@@ -518,7 +583,9 @@ template <ffi::DataType DT>
 struct RayOperands {
   ffi::Buffer<DT> node_box;
   ffi::Buffer<ffi::S32> node_info, order, kind, mask;
-  ffi::Buffer<DT> params, origin, direction, tmin, tmax;
+  ffi::Buffer<DT> params;
+  ffi::Buffer<ffi::S32> unit;
+  ffi::Buffer<DT> unit_box, origin, direction, tmin, tmax;
   ffi::Buffer<ffi::S32> want;
 };
 
@@ -526,12 +593,13 @@ template <ffi::DataType DT, typename Body>
 ffi::Error rays_impl(ffi::ThreadPool& pool, const RayOperands<DT>& a, const char* what, const Body& body) {
   using T = ffi::NativeType<DT>;
   Scene<T> s{a.node_box.typed_data(), a.node_info.typed_data(), a.order.typed_data(), a.kind.typed_data(),
-             a.mask.typed_data(), a.params.typed_data(), static_cast<int64_t>(a.kind.element_count())};
+             a.mask.typed_data(), a.params.typed_data(), a.unit.typed_data(), a.unit_box.typed_data(),
+             static_cast<int64_t>(a.kind.element_count()), static_cast<int64_t>(a.unit_box.element_count()) / 6};
   const int64_t rays = static_cast<int64_t>(a.tmin.element_count());
   auto size = [](const auto& buffer) { return static_cast<int64_t>(buffer.element_count()); };
   if (size(a.origin) != 3 * rays || size(a.direction) != 3 * rays || size(a.tmax) != rays ||
       size(a.want) != rays || size(a.params) != ITEM_PARAMS * s.n_items || size(a.mask) != s.n_items ||
-      size(a.order) != s.n_items)
+      size(a.order) != s.n_items || size(a.unit) != s.n_items || size(a.unit_box) != 6 * s.n_units)
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, std::string(what) + ": inconsistent operand sizes");
   const T* o = a.origin.typed_data();
   const T* d = a.direction.typed_data();
@@ -554,15 +622,16 @@ ffi::Error rays_impl(ffi::ThreadPool& pool, const RayOperands<DT>& a, const char
 template <ffi::DataType DT, bool any_hit>
 ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
                       ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
-                      ffi::Buffer<DT> params, ffi::Buffer<DT> origin, ffi::Buffer<DT> direction,
-                      ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want,
+                      ffi::Buffer<DT> params, ffi::Buffer<ffi::S32> unit, ffi::Buffer<DT> unit_box,
+                      ffi::Buffer<DT> origin, ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin,
+                      ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want,
                       ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t_out) {
   using T = ffi::NativeType<DT>;
   if (item->element_count() != tmin.element_count() || t_out->element_count() != tmin.element_count())
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh query: inconsistent result sizes");
   int32_t* out = item->typed_data();
   T* tout = t_out->typed_data();
-  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want};
+  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want};
   return rays_impl(pool, a, "bvh query",
                    [&](const Scene<T>& s, int64_t r, const double* o, const double* d, double lo, double hi,
                        int32_t w, bool valid) {
@@ -577,7 +646,8 @@ ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffe
 template <ffi::DataType DT>
 ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
                     ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
-                    ffi::Buffer<DT> params, ffi::Buffer<DT> origin, ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin,
+                    ffi::Buffer<DT> params, ffi::Buffer<ffi::S32> unit, ffi::Buffer<DT> unit_box,
+                    ffi::Buffer<DT> origin, ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin,
                     ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want, ffi::ResultBuffer<ffi::S32> item,
                     ffi::ResultBuffer<ffi::S32> count) {
   using T = ffi::NativeType<DT>;
@@ -589,7 +659,7 @@ ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh all-crossings query: inconsistent result sizes");
   int32_t* out = item->typed_data();
   int32_t* cnt = count->typed_data();
-  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want};
+  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want};
   return rays_impl(pool, a, "bvh all-crossings query",
                    [&](const Scene<T>& s, int64_t r, const double* o, const double* d, double lo, double hi,
                        int32_t w, bool valid) {
@@ -607,7 +677,8 @@ ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<
 
 }  // namespace
 
-// node_box, node_info, order, kind, mask, params, origin, direction, tmin, tmax, want -> item, SECOND
+// node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want
+//   -> item, SECOND
 #define QUERY_BINDING(DT, SECOND)                                                                          \
   ffi::Ffi::Bind()                                                                                       \
       .Ctx<ffi::ThreadPool>()                                                                            \
@@ -615,6 +686,8 @@ ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
+      .Arg<ffi::Buffer<DT>>()                                                                            \
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
       .Arg<ffi::Buffer<DT>>()                                                                            \
       .Arg<ffi::Buffer<DT>>()                                                                            \

@@ -175,17 +175,25 @@ class Accel:
 
     groups: tuple[AccelGroup, ...]
     item_prim: jax.Array  # (n,) int32 primitive of each item
-    tables: tuple  # the query's scene operands: node_box, node_info, order, kind, mask, params
+    tables: tuple  # the query's scene operands: node_box, node_info, order, kind, mask, params, unit, unit_box
     n_items: int
 
 
 register_packed(Accel, ("item_prim", "tables"))
 
 
-def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, dtype) -> Accel:
+def one_unit(n: int, dtype):
+    """The unit tables of ``n`` items in one bounding unit (no tie between units to decide)."""
+    return np.zeros(n, np.int32), np.zeros((1, 6), dtype)
+
+
+def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, dtype, prim_unit=None,
+               unit_boxes=None) -> Accel:
     """Items and hierarchy of the accelerated groups. ``groups``: (group index, prim indices) pairs,
     ``shapes[g]`` / ``*_from_*[g]`` that group's stacked shapes and (n, 4, 4) maps; ``prim_mask`` (P,)
-    int: each primitive's visibility bits."""
+    int: each primitive's visibility bits; ``prim_unit`` (P,) and ``unit_boxes`` ((U, 3), (U, 3)):
+    each primitive's bounding unit and the units' world boxes, which decide ties between coincident
+    surfaces (``_geometry.unit_boxes``; None: one unit)."""
     sg = jax.lax.stop_gradient
     boxes, kinds, params, prims, accel_groups = [], [], [], [], []
     first = 0
@@ -205,8 +213,14 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     boxes = jnp.concatenate(boxes).astype(dtype)
     item_prim = np.concatenate(prims)
     node_box, node_info, order = _hierarchy()[0](boxes)
+    if unit_boxes is None:
+        item_unit, unit_box = one_unit(len(item_prim), dtype)
+    else:
+        item_unit = np.asarray(prim_unit, np.int32)[item_prim]
+        unit_box = jnp.concatenate([sg(unit_boxes[0]), sg(unit_boxes[1])], axis=-1).astype(dtype)
     tables = (node_box, node_info, order, jnp.asarray(np.concatenate(kinds)),
-              jnp.asarray(np.asarray(prim_mask, np.int32)[item_prim]), jnp.concatenate(params).astype(dtype))
+              jnp.asarray(np.asarray(prim_mask, np.int32)[item_prim]), jnp.concatenate(params).astype(dtype),
+              jnp.asarray(item_unit), jnp.asarray(unit_box))
     return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first)
 
 

@@ -390,7 +390,7 @@ def _slab(box, o, inv, tmin, tmax):
 def _prepare(tables):
     """The query's tables as columns (gathering one value of a column per ray is several times
     faster on the CPU than gathering rows), the items in leaf order (a leaf slot indexes them)."""
-    node_box, node_info, order, kind, mask, params = tables
+    node_box, node_info, order, kind, mask, params = tables[:6]  # (no tie rule: the unit tables)
     return dict(box=tuple(node_box[:, k] for k in range(6)), first=node_info[:, 0], count=node_info[:, 1],
                 right=node_info[:, 2], item=order, kind=kind[order], mask=mask[order], params=params[order],
                 present=tuple(jnp.any(kind == k) for k in _KERNELS) if PER_KIND else None)

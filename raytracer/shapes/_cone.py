@@ -25,6 +25,7 @@ from ._base import (
     apply_point,
     array_module,
     box_corners,
+    disc_bounds,
     frame,
     native_params,
     similarity_scale,
@@ -247,7 +248,11 @@ class Cone(AbstractShape):
 
 
 def _segment_bounds(base, cap, r0, r1):
-    """A box holding every disc of radius ≤ max(|r0|, |r1|) centred on the segment base–cap."""
+    """The exact box of the frustum: the box of its two end discs (radius ``r0`` about ``base``,
+    ``r1`` about ``cap``, both normal to the axis), as POV-Ray bounds cylinders and cones (the box
+    decides ties between coincident surfaces, semantics §4.4)."""
     xp = array_module(base, cap, r0, r1)
-    r = xp.maximum(xp.abs(r0), xp.abs(r1))
-    return xp.minimum(base, cap) - r, xp.maximum(base, cap) + r
+    axis = xp.asarray(cap) - xp.asarray(base)
+    lo0, hi0 = disc_bounds(base, axis, r0)
+    lo1, hi1 = disc_bounds(cap, axis, r1)
+    return xp.minimum(lo0, lo1), xp.maximum(hi0, hi1)

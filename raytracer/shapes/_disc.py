@@ -18,8 +18,8 @@ from ._base import (
     SdlArguments,
     affine,
     apply_point,
-    array_module,
     box_corners,
+    disc_bounds,
     frame,
     native_params,
     unit,
@@ -79,6 +79,7 @@ class Disc(AbstractShape):
     kind: ClassVar[str] = "disc"
     crossings: ClassVar[int] = DISC_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("disc",)
+    pov_bounds_margin: ClassVar[float] = 1e-3
     sdl_arguments: ClassVar[SdlArguments] = (("center", "vector"), ("normal", "vector"), ("radius", "float"))
     center: Float[Array, "3"] = eqx.field(converter=as_float)
     normal: Float[Array, "3"] = eqx.field(converter=as_float)
@@ -92,8 +93,7 @@ class Disc(AbstractShape):
         return disc_inside(self.center, self.normal, self.radius, self.hole_radius, p)
 
     def bounds(self):
-        r = array_module(self.radius).abs(self.radius)
-        return self.center - r, self.center + r
+        return disc_bounds(self.center, self.normal, self.radius)
 
     native_kernel: ClassVar[int] = NATIVE_DISC
 

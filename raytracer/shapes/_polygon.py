@@ -94,6 +94,7 @@ class Polygon(AbstractShape):
     crossings: ClassVar[int] = POLYGON_K
     solid: ClassVar[bool] = False
     sdl_keywords: ClassVar[tuple[str, ...]] = ("polygon",)
+    pov_bounds_margin: ClassVar[float] = 1e-3
     vertices: Float[Array, "V 3"] = eqx.field(converter=as_float)
     edges: tuple[tuple[int, int], ...] = eqx.field(static=True)
 

@@ -134,7 +134,7 @@ def test_closest_and_any_hit_queries_in_float64(x64, monkeypatch):
     boxes = np.concatenate([centres - radii[:, None], centres + radii[:, None]], axis=1)
     node_box, node_info, order = build(jnp.asarray(boxes))
     tables = (node_box, node_info, order, jnp.zeros(n, jnp.int32), jnp.full(n, 7, jnp.int32),
-              jnp.asarray(params))
+              jnp.asarray(params), *map(jnp.asarray, _accel.one_unit(n, params.dtype)))
     o = rng.uniform(-6, 6, (500, 3))
     d = rng.normal(size=(500, 3))
     item, t = closest_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(500),
@@ -182,7 +182,8 @@ def test_all_crossings_query_keeps_the_nearest_items_in_order(x64):
     params = np.concatenate([eye, centres, radii[:, None], np.zeros((n, 8))], axis=1)
     boxes = np.concatenate([centres - radii[:, None], centres + radii[:, None]], axis=1)
     mask = np.where(rng.uniform(size=n) < 0.7, _accel.MASK_FILTER, _accel.MASK_SHADOW).astype(np.int32)
-    tables = (*build(jnp.asarray(boxes)), jnp.zeros(n, jnp.int32), jnp.asarray(mask), jnp.asarray(params))
+    tables = (*build(jnp.asarray(boxes)), jnp.zeros(n, jnp.int32), jnp.asarray(mask), jnp.asarray(params),
+              *map(jnp.asarray, _accel.one_unit(n, params.dtype)))
     o = rng.uniform(-3, 3, (rays, 3))
     d = rng.normal(size=(rays, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -204,3 +205,44 @@ def test_all_crossings_query_keeps_the_nearest_items_in_order(x64):
     want = np.where(np.isfinite(np.take_along_axis(first, want, axis=1)), want, -1)
     np.testing.assert_array_equal(np.asarray(item), want)
     assert 0.2 < (np.asarray(count) > k).mean() < 0.8  # segments with fewer and more than k items
+
+
+@pytest.mark.skipif(ACCEL != "native", reason="the tie rule is the native hierarchy's")
+def test_closest_query_breaks_ties_as_povray_tests_objects(x64):
+    """Coincident faces (semantics §4.4): the item of the unit whose box the ray enters first wins,
+    else the item of the earlier unit, in whatever order the items were given; within one unit,
+    the nearer crossing."""
+    from raytracer.shapes._base import NATIVE_BOX, NATIVE_SPHERE
+
+    eye = np.eye(4)[:3].reshape(12)
+
+    def item(kind, q):
+        return np.concatenate([eye, q, np.zeros(12 - len(q))])
+
+    # items 0 and 1: boxes whose front faces coincide at z = -1; item 2: a sphere far to the side
+    params = np.stack([item(NATIVE_BOX, [-1, -1, -1, 1, 1, 1]), item(NATIVE_BOX, [-1, -1, -1, 1, 1, 3]),
+                       item(NATIVE_SPHERE, [9, 9, 9, 0.5])])
+    kind = np.array([NATIVE_BOX, NATIVE_BOX, NATIVE_SPHERE], np.int32)
+    boxes = np.array([[-1, -1, -1, 1, 1, 1], [-1, -1, -1, 1, 1, 3], [8.5, 8.5, 8.5, 9.5, 9.5, 9.5]], float)
+    o, d = jnp.asarray([[0.2, 0.1, -5.0]]), jnp.asarray([[0.0, 0.0, 1.0]])
+
+    def chosen(item_unit, unit_box, swap=False):
+        perm = np.array([1, 0, 2]) if swap else np.arange(3)
+        node_box, node_info, order = _accel._build(jnp.asarray(boxes[perm]))
+        tables = (node_box, node_info, order, jnp.asarray(kind[perm]), jnp.full(3, 7, jnp.int32),
+                  jnp.asarray(params[perm]), jnp.asarray(np.asarray(item_unit, np.int32)[perm]),
+                  jnp.asarray(np.asarray(unit_box, float)))
+        it, t = _accel._closest_query(tables, o, d, jnp.zeros(1), jnp.full(1, 1e7), jnp.ones(1, jnp.int32))
+        assert float(t[0]) == 4.0
+        return int(perm[int(it[0])])
+
+    far = [9, 9, 9, 9, 9, 9]
+    for swap in (False, True):
+        # equal entries (both boxes begin at z = -1 on this ray): the earlier unit
+        assert chosen([0, 1, 2], [[-1, -1, -1, 1, 1, 1], [-1, -1, -1, 1, 1, 3], far], swap) == 0
+        assert chosen([1, 0, 2], [[-1, -1, -1, 1, 1, 3], [-1, -1, -1, 1, 1, 1], far], swap) == 1
+        # the second unit's box begins at z = -3 (a unit holding more than this box): it is entered first
+        assert chosen([0, 1, 2], [[-1, -1, -1, 1, 1, 1], [-1, -1, -3, 1, 1, 3], far], swap) == 1
+        # an unbounded unit box is entered at -inf: it wins every tie
+        inf = np.inf
+        assert chosen([0, 1, 2], [[-1, -1, -1, 1, 1, 1], [-inf, -inf, -inf, inf, inf, inf], far], swap) == 1
