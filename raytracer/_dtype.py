@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -18,6 +20,22 @@ def default_float():
     return jnp.float64 if jax.config.jax_enable_x64 else jnp.float32
 
 
+_CONSTANTS: dict = {}  # read-only arrays of Python numbers and tuples of them, by value and sign
+_CONSTANTS_MAX = 4096
+_BIG_INT = 1 << 63  # larger Python ints take the plain path (and its errors)
+
+
+def _constant_key(x):
+    """A key for a Python number or a short tuple of them (None otherwise); it tells -0.0 from 0.0."""
+    tx = type(x)
+    if tx is float or (tx is int and -_BIG_INT < x < _BIG_INT):
+        return (x, math.copysign(1.0, x), jax.config.jax_enable_x64)
+    if tx is tuple and len(x) <= 5 and all(type(e) is float or (type(e) is int and -_BIG_INT < e < _BIG_INT)
+                                           for e in x):
+        return (x, tuple(math.copysign(1.0, e) for e in x), jax.config.jax_enable_x64)
+    return None
+
+
 def as_float(x) -> jax.Array | np.ndarray:
     """Converts numbers, lists or arrays to an array of the default float dtype.
 
@@ -25,8 +43,23 @@ def as_float(x) -> jax.Array | np.ndarray:
     values flowing through ``jax.grad`` or ``eqx.tree_at`` are never cast. Everything else becomes
     a read-only numpy array: a valid JAX leaf (``jit``/``grad`` take it like a JAX array) that
     costs ~1 µs to make, where a JAX array costs ~30-60 µs — the difference between 1 s and 20 s
-    for a scene of 10^5 primitives. Read-only keeps the scene model immutable, as JAX arrays are.
+    for a scene of 10^5 primitives. Read-only keeps the scene model immutable, as JAX arrays are,
+    so the arrays of Python numbers (defaults, repeated finish values) are made once and shared.
     """
+    key = _constant_key(x)
+    if key is not None:
+        a = _CONSTANTS.get(key)
+        if a is None:
+            a = _as_float(x)
+            if len(_CONSTANTS) >= _CONSTANTS_MAX:
+                _CONSTANTS.clear()
+            _CONSTANTS[key] = a
+        return a
+    return _as_float(x)
+
+
+def _as_float(x) -> jax.Array | np.ndarray:
+    """``as_float`` without the cache of constants."""
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
         return x
     src = np.asarray(x, dtype=np.float64)

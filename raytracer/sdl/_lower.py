@@ -25,25 +25,39 @@ def lower_pigment(pig: PigRec, world: np.ndarray | None) -> S.Pigment:
     values = np.array([v for v, _ in pig.cmap], dtype=np.float64)
     transparent = bool(pig.ft or np.any(colors[:, 3:] != 0))
     if pig.pattern == "solid":
-        return S.Pigment("solid", values=values[:1] * 0, colors=colors[:1], transparent=transparent)
+        return build(S.Pigment, pattern="solid", values=values[:1] * 0, colors=colors[:1],
+                     transparent=transparent)
     m = pig.transform
     if world is not None:
         m = world if m is None else world @ m
     wave = pig.wave or "ramp"
-    return S.Pigment(pig.pattern, values=values, colors=colors, transform=_transform(m),
-                     vector=np.asarray(pig.vector, dtype=np.float64), frequency=pig.frequency,
-                     phase=pig.phase, turbulence=pig.turbulence, omega=pig.omega,
-                     lambda_=pig.lambda_, octaves=pig.octaves, wave=wave, transparent=transparent)
+    return build(S.Pigment, pattern=pig.pattern, values=values, colors=colors, transform=_transform(m),
+                 vector=np.asarray(pig.vector, dtype=np.float64), frequency=pig.frequency,
+                 phase=pig.phase, turbulence=pig.turbulence, omega=pig.omega,
+                 lambda_=pig.lambda_, octaves=pig.octaves, wave=wave, transparent=transparent)
 
 
 def lower_finish(fin: dict) -> S.Finish:
     kwargs = {k: fin[k] for k in _FINISH_KEYS if k in fin}
     r = fin.get("reflection")
     if r is not None:
-        kwargs["reflection"] = S.Reflection(min=r["min"], max=r["max"], falloff=r["falloff"],
-                                            exponent=r["exponent"], metallic=r["metallic"],
-                                            fresnel=bool(r["fresnel"]))
-    return S.Finish(**kwargs)
+        kwargs["reflection"] = build(S.Reflection, min=r["min"], max=r["max"], falloff=r["falloff"],
+                                     exponent=r["exponent"], metallic=r["metallic"],
+                                     fresnel=bool(r["fresnel"]))
+    return build(S.Finish, **kwargs)
+
+
+def _exact_key(v):
+    """A hashable key equal for equal values, bit for bit (numpy's repr rounds)."""
+    if isinstance(v, dict):
+        return tuple(sorted((k, _exact_key(x)) for k, x in v.items()))
+    if isinstance(v, (list, tuple)):
+        return (type(v).__name__, *map(_exact_key, v))
+    if isinstance(v, np.ndarray):
+        return (v.dtype.str, v.shape, v.tobytes())
+    if isinstance(v, float):
+        return ("float", v.hex())
+    return (type(v).__name__, v if isinstance(v, (int, bool, str, type(None))) else repr(v))
 
 
 class Lowerer:
@@ -51,6 +65,7 @@ class Lowerer:
 
     def __init__(self):
         self._tex_cache = {}
+        self._finish_cache: dict[str, S.Finish] = {}
         self.lights: list[S.Light] = []
 
     def texture(self, layers: list[LayerRec], world) -> S.Texture:
@@ -58,12 +73,21 @@ class Lowerer:
         tex = self._tex_cache.get(key)
         if tex is None:
             # the renderer wants the top layer first; records keep them bottom first
-            tex = S.Texture(tuple(S.Layer(lower_pigment(layer.pigment, world),
-                                          lower_finish(layer.finish))
-                                  for layer in reversed(layers)))
+            tex = build(S.Texture, layers=tuple(
+                build(S.Layer, pigment=lower_pigment(layer.pigment, world), finish=self.finish(layer.finish))
+                for layer in reversed(layers)))
             self._tex_cache[key] = (tex, layers)  # keep layers alive so ids stay unique
             return tex
         return tex[0]
+
+    def finish(self, fin: dict) -> S.Finish:
+        """``lower_finish``, one module per distinct finish (a declared finish is shared by every
+        object that names it; the values are numbers, flags and colour tuples)."""
+        key = _exact_key(fin)
+        got = self._finish_cache.get(key)
+        if got is None:
+            got = self._finish_cache[key] = lower_finish(fin)
+        return got
 
     def interior(self, rec, layers) -> S.Interior | None:
         vals = dict(rec.values) if rec is not None else {}
