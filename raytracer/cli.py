@@ -192,7 +192,7 @@ def _summary(scene) -> list[str]:
 
 def _acceleration_text(p) -> str:
     from .shading import _accel
-    from .shading._geometry import accelerated_prims
+    from .shading._geometry import accelerated_prims, native_items
 
     if _accel.mode() == "none":
         why = _accel.unavailable_reason() or "RAYTRACER_ACCEL=none"
@@ -202,7 +202,7 @@ def _acceleration_text(p) -> str:
     if not n:
         return (f"acceleration: none (fewer than {_accel.MIN_ITEMS} primitives or triangles it can hold): "
                 "every ray tests every primitive")
-    items = sum(prim.obj.shape.n_native_items() for prim, ok in zip(p.prims, held, strict=True) if ok)
+    items = sum(native_items(prim.obj.shape) for prim, ok in zip(p.prims, held, strict=True) if ok)
     return (f"acceleration: {_accel.mode()} BVH over {n} of {len(p.prims)} primitives ({items} items); "
             f"every ray tests the other {len(p.prims) - n}")
 

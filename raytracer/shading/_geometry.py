@@ -94,13 +94,19 @@ def visibility_bits(prim) -> int:
             | (shadow if "no_shadow" not in prim.flags else 0))
 
 
+def native_items(shape: AbstractShape) -> int:
+    """``shape.n_native_items()`` through the class: a method looked up on an Equinox module
+    instance is wrapped in a new module each time (~0.2 ms), which a loop over 10^5 objects feels."""
+    return type(shape).n_native_items(shape)
+
+
 def accelerated_prims(plan: Plan, accelerate: bool | None = None) -> list[bool]:
     """Which primitives the native hierarchy chooses among (see ``pack_geometry``)."""
     if accelerate is None:
         accelerate = _accel.mode() != "none"  # native, or its JAX twin (RAYTRACER_ACCEL=jax)
     filter_query = _accel.mode() != "jax"  # the pure-JAX twin has no all-crossings query
     held = [accelerate and _accelerable(p, filter_query) for p in plan.prims]
-    items = sum(p.obj.shape.n_native_items() for p, ok in zip(plan.prims, held, strict=True) if ok)
+    items = sum(native_items(p.obj.shape) for p, ok in zip(plan.prims, held, strict=True) if ok)
     return held if items >= _accel.MIN_ITEMS else [False] * len(plan.prims)
 
 
@@ -141,6 +147,9 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
     return geo
 
 
+_world_bounds = jax.jit(jax.vmap(world_bounds))  # one program per group signature, not one per op
+
+
 def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
     """World boxes ``(lo, hi)`` (U, 3) of the plan's bounding units as POV-Ray bounds them
     (semantics §4.4): a primitive's box is its shape's ``bounds()`` carried to the world
@@ -157,7 +166,7 @@ def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
         if shape0.bounds() is None:
             lo, hi = jnp.full((n, 3), -np.inf), jnp.full((n, 3), np.inf)
         else:
-            lo, hi = jax.vmap(world_bounds)(jax.lax.stop_gradient(shapes), jax.lax.stop_gradient(mats))
+            lo, hi = _world_bounds(jax.lax.stop_gradient(shapes), jax.lax.stop_gradient(mats))
             margin = type(shape0).pov_bounds_margin
             lo, hi = jnp.asarray(lo) - margin, jnp.asarray(hi) + margin
         los.append(lo)
@@ -402,8 +411,7 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     """Closest crossing with ``t > t_min`` among candidates where ``visible`` (C,) holds and
     accelerated primitives with the visibility bit ``want`` (``_accel.MASK_*``, traced or not).
     Exact ties between coincident surfaces go as POV-Ray's (``_closest``)."""
-    ts, ns, prims = [jnp.full(1, jnp.inf, o.dtype)], [jnp.zeros((1, 3), o.dtype).at[0, 2].set(1.0)], \
-        [jnp.zeros(1, jnp.int32)]
+    ts, ns, prims = [], [], []
     if geo.n_candidates:
         t, n = all_crossings(geo, o, d)
         ok = visible & (t > t_min) & jnp.isfinite(t) & (t < _accel.T_MAX)
@@ -417,7 +425,10 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
         ts.append(jnp.where(found, t, jnp.inf)[None])
         ns.append(n[None])
         prims.append(jnp.asarray(prim, jnp.int32)[None])
-    tt, nn, pp = jnp.concatenate(ts), jnp.concatenate(ns), jnp.concatenate(prims)
+    if not ts:  # nothing to hit
+        ts, ns, prims = [jnp.full(1, jnp.inf, o.dtype)], [jnp.zeros((1, 3), o.dtype)], [jnp.zeros(1, jnp.int32)]
+    join = (lambda xs: xs[0]) if len(ts) == 1 else jnp.concatenate
+    tt, nn, pp = join(ts), join(ns), join(prims)
     c = _closest(geo, tt, pp, o, d)
     best_t, best_n, best_prim = tt[c], nn[c], pp[c]
     found = jnp.isfinite(best_t)
