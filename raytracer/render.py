@@ -83,7 +83,18 @@ def _output_transfer(img, settings):
     if settings.output_transfer == "linear":
         return img
     if settings.output_transfer == "gamma":
-        return jnp.where(img > 0, jnp.abs(img) ** settings.assumed_gamma, 0.0)
+        # value ** assumed_gamma, held at the dtype's largest finite value where it would overflow
+        # and 0 where it would underflow (assumed_gamma 1e308 made an infinite image, found by
+        # benchmarks/fuzz.py); those values and non-positive ones stay out of the power, so no
+        # gradient meets inf·0
+        g = settings.assumed_gamma
+        info = jnp.finfo(img.dtype)
+        positive = img > 0
+        exponent = jnp.log(jnp.where(positive, img, 1.0)) * g
+        over = positive & (exponent > math.log(float(info.max)))
+        under = positive & (exponent < math.log(float(info.tiny)))
+        safe = jnp.where(positive & ~over & ~under, img, 1.0)
+        return jnp.where(positive & ~over & ~under, safe ** g, jnp.where(over, float(info.max), 0.0))
     # pre-3.7 scenes: POV writes sRGB⁻¹(value) to EXR (semantics §3.1)
     x = jnp.clip(img, 0.0, None)
     return jnp.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)

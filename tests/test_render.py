@@ -285,6 +285,29 @@ def test_background_shows_where_nothing_is_hit():
     np.testing.assert_allclose(img, np.broadcast_to([0.1, 0.2, 0.3], (3, 4, 3)), rtol=1e-6)
 
 
+@pytest.mark.parametrize("gamma", [2.2, 1e308])
+def test_assumed_gamma_output_is_the_power_held_finite(gamma):
+    """value ** assumed_gamma (semantics §3.1); where that overflows (``assumed_gamma 1e308``, a fuzz
+    case that made an infinite image) the largest finite value, with a finite gradient."""
+    def image(bg):
+        scene = rt.Scene(background=bg, settings=rt.Settings(output_transfer="gamma", assumed_gamma=gamma))
+        return rt.render(scene, width=2, height=1)
+
+    bg = jnp.asarray([0.5, 1.5, 0.0])
+    img = np.asarray(image(bg))
+    top = np.finfo(np.float32).max
+    with np.errstate(over="ignore"):
+        power = np.power([0.5, 1.5, 0.0], gamma)  # float64: 1.5 ** 1e308 is inf
+    want = np.minimum(power, top)
+    np.testing.assert_allclose(img, np.broadcast_to(want, (1, 2, 3)), rtol=1e-5)
+    g = np.asarray(jax.grad(lambda b: image(b).sum())(bg))
+    assert np.isfinite(g).all()
+    with np.errstate(over="ignore", invalid="ignore"):
+        slope = 2 * gamma * np.power([0.5, 1.5, 0.0], gamma - 1)
+    want_g = np.where((power > 0) & (power < top), slope, 0.0)
+    np.testing.assert_allclose(g, want_g, rtol=1e-4)
+
+
 def test_supersampling_averages_a_regular_grid_of_subpixels():
     # a box edge through the pixel centre: half of any k×k grid (k even) sees the box
     scene = rt.Scene(
