@@ -87,8 +87,8 @@ def _output_transfer(img, settings):
         # and 0 where it would underflow (assumed_gamma 1e308 made an infinite image, found by
         # benchmarks/fuzz.py); those values and non-positive ones stay out of the power, so no
         # gradient meets inf·0
-        g = settings.assumed_gamma
         info = jnp.finfo(img.dtype)
+        g = min(settings.assumed_gamma, float(info.max))  # (1e308 in float32: the same image)
         positive = img > 0
         exponent = jnp.log(jnp.where(positive, img, 1.0)) * g
         over = positive & (exponent > math.log(float(info.max)))

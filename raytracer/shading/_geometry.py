@@ -148,6 +148,19 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
 
 
 _world_bounds = jax.jit(jax.vmap(world_bounds))  # one program per group signature, not one per op
+_NUMPY_BOUNDS_MAX = 256  # concrete groups up to this size: a numpy loop (no compile at all)
+
+
+def _group_bounds(shapes, mats):
+    """World boxes (lo, hi) (n, 3) of a stacked group (no gradient). A small group of concrete
+    values is a loop of numpy ``world_bounds`` (a compiled program would cost ~0.3 s of a cold
+    start); a large or traced one is one jitted vmap."""
+    leaves = jax.tree_util.tree_leaves((shapes, mats))
+    n = mats.shape[0]
+    if n <= _NUMPY_BOUNDS_MAX and all(isinstance(x, np.ndarray) for x in leaves):
+        boxes = [world_bounds(jax.tree_util.tree_map(lambda a, j=j: a[j], shapes), mats[j]) for j in range(n)]
+        return np.stack([b[0] for b in boxes]), np.stack([b[1] for b in boxes])
+    return _world_bounds(jax.lax.stop_gradient(shapes), jax.lax.stop_gradient(mats))
 
 
 def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
@@ -157,23 +170,24 @@ def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
     unbounded); a union or merge holds its parts' boxes, an intersection (and a clipped object)
     their overlap, a difference its first part's box; ``inverse`` changes nothing. Only a choice
     depends on them: no gradient flows. One vectorised step per group and per height of the CSG
-    units' inside circuit, not one per object (jnp throughout: under a jit trace even constant
-    shapes give traced boxes)."""
+    units' inside circuit, not one per object; numpy when every box is concrete (no JAX dispatch:
+    a cold start compiles nothing here), jnp otherwise."""
+    boxes = [None if plan.prims[g.prims[0]].obj.shape.bounds() is None else _group_bounds(shapes, mats)
+             for g, shapes, mats in zip(geo.groups, geo.shapes, world_from_object, strict=True)]
+    xp = np if all(b is None or isinstance(b[0], np.ndarray) for b in boxes) else jnp
     los, his = [], []
-    for group, shapes, mats in zip(geo.groups, geo.shapes, world_from_object, strict=True):
-        shape0 = plan.prims[group.prims[0]].obj.shape
+    for group, box in zip(geo.groups, boxes, strict=True):
         n = len(group.prims)
-        if shape0.bounds() is None:
-            lo, hi = jnp.full((n, 3), -np.inf), jnp.full((n, 3), np.inf)
+        if box is None:
+            lo, hi = xp.full((n, 3), -np.inf), xp.full((n, 3), np.inf)
         else:
-            lo, hi = _world_bounds(jax.lax.stop_gradient(shapes), jax.lax.stop_gradient(mats))
-            margin = type(shape0).pov_bounds_margin
-            lo, hi = jnp.asarray(lo) - margin, jnp.asarray(hi) + margin
+            margin = type(plan.prims[group.prims[0]].obj.shape).pov_bounds_margin
+            lo, hi = xp.asarray(box[0]) - margin, xp.asarray(box[1]) + margin
         los.append(lo)
         his.append(hi)
     flat = np.cumsum([0] + [len(g.prims) for g in geo.groups])
     row = np.array([flat[g] + j for g, j in (geo.where[i] for i in range(len(plan.prims)))])
-    prim_lo, prim_hi = jnp.concatenate(los)[row], jnp.concatenate(his)[row]
+    prim_lo, prim_hi = xp.concatenate(los)[row], xp.concatenate(his)[row]
     # a unit of one primitive is one row of a gather; CSG units go through their inside circuit,
     # with boxes for values: an "all" node is the overlap of its children, an "any" node their
     # hull, a negated child (the subtracted parts of a difference) the whole space
@@ -184,15 +198,19 @@ def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
     if csg.size:
         circuit = build_inside_circuit([(plan.units[u], 0) for u in csg])
         inf = np.full((1, 3), np.inf)
-        vlo = jnp.concatenate([inf, -inf, prim_lo[circuit.leaf_prim]])  # False: empty, True: all
-        vhi = jnp.concatenate([-inf, inf, prim_hi[circuit.leaf_prim]])
+        vlo = xp.concatenate([inf, -inf, prim_lo[circuit.leaf_prim]])  # False: empty, True: all
+        vhi = xp.concatenate([-inf, inf, prim_hi[circuit.leaf_prim]])
         for is_all, children, negate, _ in circuit.levels:
-            klo = jnp.where(negate[..., None], -np.inf, vlo[children])
-            khi = jnp.where(negate[..., None], np.inf, vhi[children])
+            klo = xp.where(negate[..., None], -np.inf, vlo[children])
+            khi = xp.where(negate[..., None], np.inf, vhi[children])
             a = is_all[:, None]
-            vlo = jnp.concatenate([vlo, jnp.where(a, klo.max(axis=1), klo.min(axis=1))])
-            vhi = jnp.concatenate([vhi, jnp.where(a, khi.min(axis=1), khi.max(axis=1))])
-        lo, hi = lo.at[csg].set(vlo[circuit.roots]), hi.at[csg].set(vhi[circuit.roots])
+            vlo = xp.concatenate([vlo, xp.where(a, klo.max(axis=1), klo.min(axis=1))])
+            vhi = xp.concatenate([vhi, xp.where(a, khi.min(axis=1), khi.max(axis=1))])
+        if xp is np:
+            lo, hi = lo.copy(), hi.copy()
+            lo[csg], hi[csg] = vlo[circuit.roots], vhi[circuit.roots]
+        else:
+            lo, hi = lo.at[csg].set(vlo[circuit.roots]), hi.at[csg].set(vhi[circuit.roots])
     dtype = geo.object_from_world[0].dtype
     return lo.astype(dtype), hi.astype(dtype)
 
