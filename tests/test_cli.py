@@ -1,5 +1,6 @@
 """The raytracer command: exit codes, messages with file:line:col, images written."""
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -185,3 +186,23 @@ def test_adaptive_antialiasing_from_the_command_line(tmp_path, capsys):
     want = rt.render(rt.load_scene(SEED, width=32, height=24), width=32, height=24, adaptive=(0.3, 2))
     np.testing.assert_allclose(rt.read_image(out), np.asarray(want), atol=1e-6)
     assert "times: parse" in capsys.readouterr().out
+
+
+def test_render_command_sets_one_device_per_core_and_the_fast_compile_flag(monkeypatch):
+    """Before JAX starts, ``raytracer render`` asks XLA for one CPU device per core and, for the
+    jaxlib it was measured with, no fusion emitters (shorter cold compiles); XLA_FLAGS that set
+    either win."""
+    from importlib.metadata import version
+
+    from raytracer import cli
+
+    monkeypatch.setenv("XLA_FLAGS", "")
+    cli._split_cpu(None)
+    flags = os.environ["XLA_FLAGS"].split()
+    assert f"--xla_force_host_platform_device_count={len(os.sched_getaffinity(0))}" in flags
+    known = tuple(int(x) for x in version("jaxlib").split(".")[:2]) in cli.FAST_COMPILE_JAXLIB
+    assert (cli.FAST_COMPILE_FLAG in flags) == known
+    mine = "--xla_force_host_platform_device_count=3 --xla_cpu_use_fusion_emitters=true"
+    monkeypatch.setenv("XLA_FLAGS", mine)
+    cli._split_cpu(None)
+    assert os.environ["XLA_FLAGS"] == mine

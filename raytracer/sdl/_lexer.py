@@ -134,7 +134,8 @@ def tokenize(text: str, file: str = "<string>") -> list[Token]:
         if m is None:
             ch = text[i]
             why = " (identifiers and numbers are ASCII: A-Z, a-z, 0-9, _)" if ch.isalnum() else ""
-            raise SceneError(f"expected a token, found character {ch!r}{why}", SourceLoc(file, line, i - line_start + 1))
+            raise SceneError(f"expected a token, found character {ch!r}{why}",
+                             SourceLoc(file, line, i - line_start + 1))
         kind, j = m.lastgroup, m.end()
         if kind == "blank":
             k = count("\n", i, j)

@@ -175,7 +175,8 @@ class Accel:
 
     groups: tuple[AccelGroup, ...]
     item_prim: jax.Array  # (n,) int32 primitive of each item
-    tables: tuple  # the query's scene operands: node_box, node_info, order, kind, mask, params, unit, unit_box
+    # the query's scene operands: node_box, node_info, order, kind, mask, params, unit, unit_box
+    tables: tuple
     n_items: int
 
 

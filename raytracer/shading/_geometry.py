@@ -444,7 +444,8 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
         ns.append(n[None])
         prims.append(jnp.asarray(prim, jnp.int32)[None])
     if not ts:  # nothing to hit
-        ts, ns, prims = [jnp.full(1, jnp.inf, o.dtype)], [jnp.zeros((1, 3), o.dtype)], [jnp.zeros(1, jnp.int32)]
+        ts, ns = [jnp.full(1, jnp.inf, o.dtype)], [jnp.zeros((1, 3), o.dtype)]
+        prims = [jnp.zeros(1, jnp.int32)]
     join = (lambda xs: xs[0]) if len(ts) == 1 else jnp.concatenate
     tt, nn, pp = join(ts), join(ns), join(prims)
     c = _closest(geo, tt, pp, o, d)

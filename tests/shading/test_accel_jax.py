@@ -326,8 +326,9 @@ def test_native_traversal_accepts_the_jax_tree_with_duplicates():
     eye = np.broadcast_to(np.eye(4)[:3].reshape(12), (n, 12))
     params = np.concatenate([eye, centres, radii[:, None], np.zeros((n, 8))], axis=1).astype(np.float32)
     boxes = np.concatenate([centres - radii[:, None], centres + radii[:, None]], axis=1).astype(np.float32)
+    units = tuple(map(jnp.asarray, _accel.one_unit(n, np.float32)))
     tables = tuple(jax.jit(J.build)(jnp.asarray(boxes))) + (jnp.zeros(n, jnp.int32), jnp.ones(n, jnp.int32),
-                                                 jnp.asarray(params), *map(jnp.asarray, _accel.one_unit(n, np.float32)))
+                                                 jnp.asarray(params), *units)
     o = jnp.asarray(rng.uniform(-6, 6, (1000, 3)), jnp.float32)
     d = jnp.asarray(rng.normal(size=(1000, 3)), jnp.float32)
     args = (o, d, jnp.zeros(1000), jnp.full(1000, 1e7), jnp.ones(1000, jnp.int32))
@@ -360,7 +361,7 @@ def test_query_under_vmap_and_jit(small_scene):
 def test_query_batched_over_scenes(small_scene):
     """Unlike the native query, a batch of scenes: each scene's own answer."""
     tables, rays, expected = small_scene
-    moved = tables[:5] + (tables[5].at[:, 3].add(100.0),) + tables[6:]  # every item shifted out of the rays' way
+    moved = tables[:5] + (tables[5].at[:, 3].add(100.0),) + tables[6:]  # every item out of the rays' way
     two = jax.tree_util.tree_map(lambda a, b: jnp.stack([a, b]), tables, moved)
     both = jax.jit(jax.vmap(J.closest_query, in_axes=(0, None, None, None, None, None)))(two, *rays)
     np.testing.assert_array_equal(np.asarray(both[0][0])[~expected[3]], expected[0][~expected[3]])
