@@ -7,7 +7,7 @@
 //
 // Items. An item is one primitive (a sphere, a box) or one triangle of a mesh. Each carries
 // ITEM_PARAMS numbers: its object_from_world affine map (3×4, row-major) and its shape in object
-// space (sphere: centre, radius; box: two corners; triangle: three vertices). The intersections
+// space (sphere: centre, radius; box: two corners; triangle: three vertices; torus: its radii). The intersections
 // below are computed in double precision whatever the input type.
 //
 // Layout of the hierarchy (written by bvh_build, M = 2n - 1 nodes at most, root 0): node_box (M, 6) =
@@ -48,6 +48,7 @@ constexpr int KIND_BOX = 1;
 constexpr int KIND_TRIANGLE = 2;
 constexpr int KIND_FRUSTUM = 3;  // cylinder and cone: base, base radius, cap, cap radius, open
 constexpr int KIND_DISC = 4;     // centre, normal, radius, hole radius
+constexpr int KIND_TORUS = 5;    // major and minor radius (the x-z plane, the y axis through the hole)
 constexpr int BINS = 16;
 constexpr int MAX_LEAF = 4;
 constexpr int STACK = 128;
@@ -280,6 +281,78 @@ inline double frustum_hit(const double* q, const RayD& r, double tmin, double tm
   return best < tmax ? best : INFINITY;
 }
 
+// The real roots of s³ + p s + q in ascending order (1 or 3 of them); returns how many.
+inline int cubic_roots(double p, double q, double* out) {
+  if (p == 0.0 && q == 0.0) {
+    out[0] = 0.0;
+    return 1;
+  }
+  const double h = 0.25 * q * q + p * p * p / 27.0;
+  if (h > 0.0) {  // one real root (Cardano)
+    const double sq = std::sqrt(h);
+    out[0] = std::cbrt(-0.5 * q + sq) + std::cbrt(-0.5 * q - sq);
+    return 1;
+  }
+  // three real roots (p < 0): trigonometric form
+  const double m = 2.0 * std::sqrt(-p / 3.0);
+  const double c = std::fmax(-1.0, std::fmin(1.0, 3.0 * q / (p * m)));
+  const double phi = std::acos(c) / 3.0;
+  for (int k = 0; k < 3; ++k) out[k] = m * std::cos(phi - 2.0 * M_PI * k / 3.0);
+  std::sort(out, out + 3);
+  return 3;
+}
+
+// The first crossing of a torus (major radius R, minor r, about the y axis) with t in (tmin, tmax).
+// Along the unit direction from the point of the line nearest the centre, the quartic in s is
+// s⁴ + a2 s² + a1 s + a0 (no cubic term) and every root has |s| ≤ R + r; its derivative's roots
+// split [-(R + r), R + r] into monotonic pieces, and a sign change in a piece is a root, found by
+// bisection. It only chooses: the torus's JAX kernel computes the hit again.
+inline double torus_hit(const double* q, const RayD& r, double tmin, double tmax) {
+  const double R = std::fabs(q[0]), rr = std::fabs(q[1]);
+  const double len = std::sqrt(dot3(r.d, r.d));
+  if (!(len > 0.0) || !(R > 0.0) || !(rr > 0.0)) return INFINITY;
+  const double u[3] = {r.d[0] / len, r.d[1] / len, r.d[2] / len};
+  const double s0 = -dot3(r.o, u);
+  const double c[3] = {r.o[0] + s0 * u[0], r.o[1] + s0 * u[1], r.o[2] + s0 * u[2]};
+  const double bound = R + rr;
+  if (dot3(c, c) > bound * bound) return INFINITY;  // the line misses the bounding sphere
+  const double K = dot3(c, c) + R * R - rr * rr, R4 = 4.0 * R * R;
+  const double a2 = 2.0 * K - R4 * (u[0] * u[0] + u[2] * u[2]);
+  const double a1 = -2.0 * R4 * (c[0] * u[0] + c[2] * u[2]);
+  const double a0 = K * K - R4 * (c[0] * c[0] + c[2] * c[2]);
+  auto f = [&](double s) { return ((s * s + a2) * s + a1) * s + a0; };
+  double cuts[5];
+  int n = 0;
+  cuts[n++] = -bound * (1.0 + 1e-9);
+  double crit[3];
+  const int m = cubic_roots(0.5 * a2, 0.25 * a1, crit);  // f' / 4 = s³ + (a2 / 2) s + a1 / 4
+  for (int k = 0; k < m; ++k)
+    if (crit[k] > cuts[0] && crit[k] < bound * (1.0 + 1e-9)) cuts[n++] = crit[k];
+  cuts[n++] = bound * (1.0 + 1e-9);
+  for (int k = 0; k + 1 < n; ++k) {
+    double a = cuts[k], b = cuts[k + 1];
+    double fa = f(a), fb = f(b);
+    if (fa == 0.0) {
+      b = a;
+    } else if (fa * fb > 0.0) {
+      continue;
+    } else {
+      for (int it = 0; it < 100 && b - a > 1e-15 * bound; ++it) {
+        const double mid = 0.5 * (a + b), fm = f(mid);
+        if ((fm < 0.0) == (fa < 0.0)) {
+          a = mid;
+          fa = fm;
+        } else {
+          b = mid;
+        }
+      }
+    }
+    const double t = (s0 + 0.5 * (a + b)) / len;
+    if (t > tmin && t < tmax) return t;
+  }
+  return INFINITY;
+}
+
 // The first crossing of the item with t in (tmin, tmax), or INFINITY.
 template <typename T>
 inline double item_hit(int32_t kind, const T* params, const double* o, const double* d, double tmin,
@@ -337,6 +410,8 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     t0 = dot3(e2, qv) * inv;
   } else if (kind == KIND_FRUSTUM) {
     return frustum_hit(q, r, tmin, tmax);
+  } else if (kind == KIND_TORUS) {
+    return torus_hit(q, r, tmin, tmax);
   } else if (kind == KIND_DISC) {
     double n[3] = {q[3], q[4], q[5]};
     double nn = std::sqrt(dot3(n, n));

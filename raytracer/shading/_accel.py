@@ -50,6 +50,7 @@ T_MAX = 1e7  # crossings beyond are ignored (the hierarchy's queries and ``_geom
 # item visibility bits (bvh.cc's ``want``): seen by camera rays, by reflected and transmitted rays;
 # blocks shadow rays (opaque), filters them (transparent: every crossing multiplies the light)
 MASK_CAMERA, MASK_REFLECT, MASK_SHADOW, MASK_FILTER = 1, 2, 4, 8
+JAX_TWIN_KERNELS = frozenset(range(5))  # the kernels ``_accel_jax`` has (sphere … disc: no torus)
 FILTER_ITEMS = 16  # transparent items a filtered shadow segment keeps (the nearest; see ``filtering``)
 
 

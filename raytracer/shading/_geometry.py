@@ -70,13 +70,16 @@ def _variant(shape: AbstractShape) -> tuple:
     return treedef, tuple(np.shape(x) for x in leaves)
 
 
-def _accelerable(prim, filter_query: bool) -> bool:
-    """Whether the hierarchy may choose this primitive: a native kernel, bounded, rendered, no CSG
-    or clipping condition. A transparent primitive that casts shadows also needs the hierarchy's
-    all-crossings query (``filter_query``: the native one) and no interior fade (whose attenuation
-    needs the ordered crossings of every fading object: those stay candidates)."""
-    shape = prim.obj.shape
-    if type(shape).native_kernel is None or not prim.rendered or prim.conditions:
+def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
+    """Whether the hierarchy may choose this primitive: a native kernel (one of ``kernels`` when
+    given: the pure-JAX twin has fewer), bounded, rendered, no CSG or clipping condition. A
+    transparent primitive that casts shadows also needs the hierarchy's all-crossings query
+    (``filter_query``: the native one) and no interior fade (whose attenuation needs the ordered
+    crossings of every fading object: those stay candidates)."""
+    kernel = type(prim.obj.shape).native_kernel
+    if kernel is None or (kernels is not None and kernel not in kernels):
+        return False
+    if not prim.rendered or prim.conditions:
         return False
     if prim.transparent and "no_shadow" not in prim.flags:
         return filter_query and not prim.fades
@@ -104,8 +107,9 @@ def accelerated_prims(plan: Plan, accelerate: bool | None = None) -> list[bool]:
     """Which primitives the native hierarchy chooses among (see ``pack_geometry``)."""
     if accelerate is None:
         accelerate = _accel.mode() != "none"  # native, or its JAX twin (RAYTRACER_ACCEL=jax)
-    filter_query = _accel.mode() != "jax"  # the pure-JAX twin has no all-crossings query
-    held = [accelerate and _accelerable(p, filter_query) for p in plan.prims]
+    twin = _accel.mode() == "jax"  # the pure-JAX twin: no all-crossings query, no torus kernel
+    kernels = _accel.JAX_TWIN_KERNELS if twin else None
+    held = [accelerate and _accelerable(p, not twin, kernels) for p in plan.prims]
     items = sum(native_items(p.obj.shape) for p, ok in zip(plan.prims, held, strict=True) if ok)
     return held if items >= _accel.MIN_ITEMS else [False] * len(plan.prims)
 

@@ -226,7 +226,7 @@ def read_arguments(cls: type[AbstractShape], args: ShapeArgs) -> dict:
 
 
 # the kernels of raytracer/_native/bvh.cc
-NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC = 0, 1, 2, 3, 4
+NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC, NATIVE_TORUS = 0, 1, 2, 3, 4, 5
 
 
 def box_corners(lo, hi):

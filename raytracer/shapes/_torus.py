@@ -19,9 +19,12 @@ from .._dtype import as_float
 from ..kernels._common import masked_hits
 from ..kernels._numerics import as_float_arrays, differentiable_root, safe_mask, safe_normalize, solve_quartic
 from ._base import (
+    NATIVE_TORUS,
     AbstractShape,
     SdlArguments,
     array_module,
+    box_corners,
+    native_params,
 )
 
 TORUS_K = 4
@@ -155,4 +158,9 @@ class Torus(AbstractShape):
         big = xp.abs(self.major) + r
         hi = xp.stack([big, r, big])
         return -hi, hi
+
+    native_kernel: ClassVar[int] = NATIVE_TORUS
+
+    def native_items(self):
+        return native_params(self.major, self.minor), box_corners(*self.bounds())[None]
 

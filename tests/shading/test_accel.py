@@ -60,6 +60,8 @@ difference { box { -0.6, 0.6 } sphere { 0, 0.75 } pigment { rgb <0.3, 0.3, 1> } 
 sphere { <-3.5, 0.5, -5>, 0.5 pigment { rgb 1 } no_shadow }
 sphere { <-2.9, 0.5, -5.5>, 0.4 pigment { rgb <1, 0, 0> } no_image }
 sphere { <-1.9, 2.5, -3.4>, 0.3 pigment { rgb <0, 1, 0> } no_reflection }
+torus { 0.6, 0.15 rotate <70, 20, 0> translate <1.2, 0.8, -3.5> pigment { rgb <0.9, 0.8, 0.1> } }
+torus { 0.4, 0.2 scale <1, 2, 1> translate <-1, 0.4, -1.5> pigment { rgb <0.1, 0.7, 0.7> } }
 """
 
 
@@ -82,15 +84,17 @@ def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
     geo = pack_geometry(plan, jnp.float32)
     held = {p for g in geo.groups if g.accelerated for p in g.prims}
     kinds = {plan.prims[i].kind for i in held}
-    assert kinds == {"sphere", "box", "triangle", "smooth_triangle", "cylinder", "cone", "disc", "mesh"}
-    # the loop's 70, the mesh2's 3 triangles, the mirror sphere and the three flagged spheres; the
-    # transparent glass sphere and mesh filter shadows, which only the native hierarchy can ask
-    transparent = 1 + 2 if ACCEL == "native" else 0
-    assert geo.accel.n_items == 70 + 3 + 4 + transparent
+    kinds_twin = {"sphere", "box", "triangle", "smooth_triangle", "cylinder", "cone", "disc", "mesh"}
+    assert kinds == (kinds_twin | {"torus"} if ACCEL == "native" else kinds_twin)
+    # the loop's 70, the mesh2's 3 triangles, the mirror sphere and the three flagged spheres, the
+    # tori (native only); the transparent glass sphere and mesh filter shadows, which only the
+    # native hierarchy can ask
+    native = 1 + 2 + 2 if ACCEL == "native" else 0
+    assert geo.accel.n_items == 70 + 3 + 4 + native
     left = [plan.prims[i] for i in range(len(plan.prims)) if i not in held]
     # the plane (unbounded), the box and sphere of the difference (and with the JAX twin the
-    # transparent sphere and mesh)
-    extra = [] if ACCEL == "native" else ["mesh", "sphere"]
+    # transparent sphere and mesh, and the tori)
+    extra = [] if ACCEL == "native" else ["mesh", "sphere", "torus", "torus"]
     assert sorted(p.kind for p in left) == sorted(["box", "plane", "sphere"] + extra)
     assert sum(bool(p.conditions) for p in left) == 2
 
@@ -246,3 +250,49 @@ def test_closest_query_breaks_ties_as_povray_tests_objects(x64):
         # an unbounded unit box is entered at -inf: it wins every tie
         inf = np.inf
         assert chosen([0, 1, 2], [[-1, -1, -1, 1, 1, 1], [-inf, -inf, -inf, inf, inf, inf], far], swap) == 1
+
+
+@pytest.mark.skipif(ACCEL != "native", reason="the torus kernel is the native hierarchy's")
+def test_closest_query_finds_the_first_torus_crossing(x64):
+    """The native torus kernel (a monotonic split of its quartic, bisection) against the torus's
+    own JAX kernel in float64: the same first item and distance for rays aimed at randomly placed,
+    turned and scaled tori (some start inside a tube)."""
+    from raytracer.shapes import Torus
+    from raytracer.shapes._base import NATIVE_TORUS
+
+    rng = np.random.default_rng(11)
+    n, rays = 40, 600
+    major = rng.uniform(0.3, 1.0, n)
+    minor = rng.uniform(0.05, 0.4, n) * major
+    maps, boxes = [], []
+    for i in range(n):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        m = np.eye(4)
+        m[:3, :3], m[:3, 3] = q * rng.uniform(0.5, 1.5), rng.uniform(-3, 3, 3)
+        half = np.array([major[i] + minor[i], minor[i], major[i] + minor[i]])
+        corners = np.array([[(-half, half)[(k >> a) & 1][a] for a in range(3)] for k in range(8)])
+        world = corners @ m[:3, :3].T + m[:3, 3]
+        boxes.append(np.concatenate([world.min(0), world.max(0)]))
+        maps.append(np.linalg.inv(m))
+    maps = np.array(maps)
+    params = np.concatenate([maps[:, :3].reshape(n, 12), major[:, None], minor[:, None], np.zeros((n, 10))], 1)
+    tables = (*_accel._build(jnp.asarray(np.array(boxes))), jnp.full(n, NATIVE_TORUS, jnp.int32),
+              jnp.full(n, 7, jnp.int32), jnp.asarray(params), *map(jnp.asarray, _accel.one_unit(n, np.float64)))
+    o = rng.uniform(-4, 4, (rays, 3))
+    aim = np.linalg.inv(maps)[rng.integers(0, n, rays), :3, 3] + rng.normal(scale=0.3, size=(rays, 3))
+    d = aim - o
+    item, t = _accel._closest_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(rays),
+                                    jnp.full(rays, 1e7), jnp.ones(rays, jnp.int32))
+
+    def crossings(big, small, m, o, d):
+        return Torus(major=big, minor=small).hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d)[0]
+
+    every = jax.vmap(jax.vmap(crossings, in_axes=(0, 0, 0, None, None)), in_axes=(None, None, None, 0, 0))
+    tt = np.asarray(jax.jit(every)(jnp.asarray(major), jnp.asarray(minor), jnp.asarray(maps),
+                                   jnp.asarray(o), jnp.asarray(d)))
+    first = np.where(tt > 0, tt, np.inf).min(axis=2)
+    want = np.where(np.isfinite(first.min(axis=1)), first.argmin(axis=1), -1)
+    assert (want >= 0).sum() > rays // 3  # the rays do hit tori
+    np.testing.assert_array_equal(np.asarray(item), want)
+    hit = want >= 0
+    np.testing.assert_allclose(np.asarray(t)[hit], first.min(axis=1)[hit], rtol=1e-9)
