@@ -275,9 +275,11 @@ def test_closest_query_finds_the_first_torus_crossing(x64):
         boxes.append(np.concatenate([world.min(0), world.max(0)]))
         maps.append(np.linalg.inv(m))
     maps = np.array(maps)
-    params = np.concatenate([maps[:, :3].reshape(n, 12), major[:, None], minor[:, None], np.zeros((n, 10))], 1)
+    params = np.concatenate([maps[:, :3].reshape(n, 12), major[:, None], minor[:, None],
+                             np.zeros((n, 10))], axis=1)
+    units = tuple(map(jnp.asarray, _accel.one_unit(n, np.float64)))
     tables = (*_accel._build(jnp.asarray(np.array(boxes))), jnp.full(n, NATIVE_TORUS, jnp.int32),
-              jnp.full(n, 7, jnp.int32), jnp.asarray(params), *map(jnp.asarray, _accel.one_unit(n, np.float64)))
+              jnp.full(n, 7, jnp.int32), jnp.asarray(params), *units)
     o = rng.uniform(-4, 4, (rays, 3))
     aim = np.linalg.inv(maps)[rng.integers(0, n, rays), :3, 3] + rng.normal(scale=0.3, size=(rays, 3))
     d = aim - o
