@@ -3,8 +3,8 @@
 A ray used to be tested against every primitive (``_geometry.all_crossings``). Primitives whose
 shape names a native kernel (spheres, boxes, triangles, cylinders, cones, discs, tori, meshes:
 ``AbstractShape.native_kernel``) and that need nothing but their own surface — no CSG or clipping
-condition — are instead *items* of a hierarchy built and traversed by native code (``raytracer/_native/bvh.cc``) called through
-XLA's FFI:
+condition — are instead *items* of a hierarchy built and traversed by native code
+(``raytracer/_native/bvh.cc``) called through XLA's FFI:
 
 * ``closest``: the item a ray hits first, then its distance and normal computed again by the
   primitive's own JAX kernel (``sub_hits``): the choice is piecewise constant (made on
