@@ -422,7 +422,7 @@ def _closest(geo: PackedGeometry, tt, prim, o, d):
     u2 = jnp.where(tied & (unit != u1), unit, last).min()
     c1 = jnp.argmin(jnp.where(unit == u1, tt, jnp.inf))
     c2 = jnp.argmin(jnp.where(unit == u2, tt, jnp.inf))
-    lo, hi = geo.unit_boxes
+    lo, hi = (jnp.asarray(b) for b in geo.unit_boxes)  # (numpy when a query closes over them)
     o, d = jax.lax.stop_gradient(o), jax.lax.stop_gradient(d)
     k1, k2 = jnp.minimum(u1, lo.shape[0] - 1), jnp.minimum(u2, lo.shape[0] - 1)
     e1, e2 = box_entry(lo[k1], hi[k1], o, d), box_entry(lo[k2], hi[k2], o, d)

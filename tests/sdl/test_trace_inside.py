@@ -46,6 +46,18 @@ def test_trace_sees_csg_and_the_cavity_of_a_difference_faces_inwards():
     np.testing.assert_allclose(vec(p, "C"), [0, 0.9, -1], atol=1e-5)
 
 
+def test_trace_through_a_union_of_several_bounding_units():
+    # a union is split into its members for POV-Ray's tie rule (semantics §4.4); trace() must see
+    # every member (a fuzz case crashed here: the units' boxes were indexed by a traced value)
+    p = run_sdl("""#declare U = union { sphere { 0, 1 } sphere { <0, 0, -3>, 0.5 } box { -1, <1, 1, 3> } }
+        #declare N = 0;
+        #declare A = trace(U, <0, 0, -10>, z, N);
+        #declare B = trace(U, <0, 0.9, -10>, z);""")
+    np.testing.assert_allclose(vec(p, "A"), [0, 0, -3.5], atol=1e-5)
+    np.testing.assert_allclose(vec(p, "N"), [0, 0, -1], atol=1e-5)
+    np.testing.assert_allclose(vec(p, "B"), [0, 0.9, -1], atol=1e-5)  # the box's face
+
+
 @pytest.mark.parametrize("obj, point, expected", [
     ("difference { box { -1, 1 } sphere { 0, 0.5 } }", "<0.8, 0, 0>", 1.0),
     ("difference { box { -1, 1 } sphere { 0, 0.5 } }", "<0.1, 0, 0>", 0.0),
