@@ -29,14 +29,21 @@ import numpy as np
 
 class Frozen:
     """A static value compared and hashed by content: its pickled bytes (numpy arrays included), or
-    ``key`` when given. The hash is computed once, so a jit cache lookup does not walk the value."""
+    ``key`` when given. The hash is computed once, so a jit cache lookup does not walk the value.
+    With ``make`` (and ``key``), the value is made on first use: a jit cache hit never needs it."""
 
-    __slots__ = ("value", "_key", "_hash")
+    __slots__ = ("_value", "_make", "_key", "_hash")
 
-    def __init__(self, value, key=None):
-        self.value = value
+    def __init__(self, value=None, key=None, make=None):
+        self._value, self._make = value, make
         self._key = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL) if key is None else key
         self._hash = hash(self._key)
+
+    @property
+    def value(self):
+        if self._make is not None:
+            self._value, self._make = self._make(), None
+        return self._value
 
     def __hash__(self):
         return self._hash
@@ -120,10 +127,12 @@ class Placeholder:
     dtype: str
 
 
-def skeleton(tree) -> Frozen:
+def skeleton(tree, flat=None) -> Frozen:
     """``tree`` with every array leaf (numpy, JAX, tracer) replaced by its :class:`Placeholder`, as
-    one :class:`Frozen` value keyed by its structure and placeholders (one walk of the tree)."""
-    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    one :class:`Frozen` value keyed by its structure and placeholders (one walk of the tree, or
+    none when ``flat`` gives its ``(leaves, treedef)``); the tree of placeholders is built on first
+    use (tracing), not for a render that finds its program compiled."""
+    leaves, treedef = jax.tree_util.tree_flatten(tree) if flat is None else flat
     made: dict = {}
 
     def leaf(x):
@@ -135,4 +144,5 @@ def skeleton(tree) -> Frozen:
         return x
 
     placeholders = [leaf(x) for x in leaves]
-    return Frozen(treedef.unflatten(placeholders), (treedef, tuple(placeholders)))
+    placeholders = tuple(placeholders)
+    return Frozen(key=(treedef, placeholders), make=lambda: treedef.unflatten(placeholders))

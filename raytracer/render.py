@@ -130,10 +130,11 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
         return cached[1]
     scene_plan = make_plan(scene) if scene_plan is None else scene_plan
     dtype = scene.camera.location.dtype
-    packed = Packed(with_field(scene, "objects", ()), skeleton(scene.objects),
+    leaves, treedef = jax.tree_util.tree_flatten(scene.objects)  # one walk of the objects
+    rest = with_field(scene, "objects", ())
+    packed = Packed(rest, skeleton(scene.objects, (leaves, treedef)),
                     pack_geometry(scene_plan, dtype), pack_materials(scene_plan, dtype))
-    if not is_traced(scene) and all(isinstance(x, np.ndarray) and not x.flags.writeable
-                                    for x in jax.tree_util.tree_leaves(scene.objects)):
+    if not is_traced(rest) and all(isinstance(x, np.ndarray) and not x.flags.writeable for x in leaves):
         while len(_PACKED) >= 4:
             _PACKED.pop(next(iter(_PACKED)))
         _PACKED[key] = (scene, packed)

@@ -184,6 +184,19 @@ class Accel:
 register_packed(Accel, ("item_prim", "tables"))
 
 
+@jax.jit
+def _group_items(shape, ofw, wfo):
+    """World boxes (n·k, 6) and parameters (n·k, ITEM_PARAMS) of the items of one stacked group: one
+    compiled program per group signature (op by op, a cold start compiled every operation)."""
+    p, hull = jax.vmap(lambda s: type(s).native_items(s))(shape)  # (n, k, 12), (n, k, V, 3)
+    n, k = p.shape[:2]
+    world = jnp.einsum("nij,nkvj->nkvi", wfo[:, :3, :3], hull) + wfo[:, None, None, :3, 3]
+    boxes = jnp.concatenate([world.min(axis=2), world.max(axis=2)], axis=-1).reshape(n * k, 6)
+    m = jnp.broadcast_to(ofw[:, None, :3, :].reshape(n, 1, 12), (n, k, 12))
+    params = jnp.concatenate([m, p.astype(ofw.dtype)], axis=-1).reshape(n * k, ITEM_PARAMS)
+    return boxes, params
+
+
 def one_unit(n: int, dtype):
     """The unit tables of ``n`` items in one bounding unit (no tie between units to decide)."""
     return np.zeros(n, np.int32), np.zeros((1, 6), dtype)
@@ -200,14 +213,12 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     boxes, kinds, params, prims, accel_groups = [], [], [], [], []
     first = 0
     for g, prim_ids in groups:
-        shape = jax.tree_util.tree_map(sg, shapes[g])
-        ofw, wfo = sg(object_from_world[g]), sg(world_from_object[g])
-        p, hull = jax.vmap(lambda s: s.native_items())(shape)  # (n, k, 12), (n, k, V, 3)
-        n, k = p.shape[:2]
-        world = jnp.einsum("nij,nkvj->nkvi", wfo[:, :3, :3], hull) + wfo[:, None, None, :3, 3]
-        boxes.append(jnp.concatenate([world.min(axis=2), world.max(axis=2)], axis=-1).reshape(n * k, 6))
-        m = jnp.broadcast_to(ofw[:, None, :3, :].reshape(n, 1, 12), (n, k, 12))
-        params.append(jnp.concatenate([m, p.astype(dtype)], axis=-1).reshape(n * k, ITEM_PARAMS))
+        b, p = _group_items(jax.tree_util.tree_map(sg, shapes[g]), sg(object_from_world[g]),
+                            sg(world_from_object[g]))
+        n = len(prim_ids)
+        k = p.shape[0] // n
+        boxes.append(b)
+        params.append(p)
         kinds.append(np.full(n * k, type(shapes[g]).native_kernel, np.int32))
         prims.append(np.repeat(np.asarray(prim_ids, np.int32), k))
         accel_groups.append(AccelGroup(g, first, n, k))
