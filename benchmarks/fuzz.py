@@ -357,7 +357,7 @@ def campaign(cases: int, seed: int, corpus: str, folder: Path, minutes: float | 
                 with open(defect_log, "a", encoding="utf-8") as f:
                     f.write(json.dumps(record) + "\n")
         if on_case is not None:
-            on_case(sum(counts.values()), counts)
+            on_case(sum(counts.values()) - counts["rendered"], counts)
 
     # Hypothesis draws from its own seed: fixed here, so a campaign repeats exactly
     from hypothesis import seed as hseed
@@ -366,7 +366,7 @@ def campaign(cases: int, seed: int, corpus: str, folder: Path, minutes: float | 
         hseed(seed)(one)()
     except _OutOfTime:
         pass
-    total = sum(counts.values())
+    total = sum(counts.values()) - counts["rendered"]  # a rendered case also counts as a scene
     return {
         "cases": total,
         "seed": seed,
