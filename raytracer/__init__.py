@@ -6,6 +6,10 @@ registered shape is in ``raytracer.shapes``, the classic ones also here),
 differentiable), ``plan`` (what the compiled program simulates), and image I/O.
 """
 
+from ._xla import tune_xla_flags as _tune_xla_flags
+
+_tune_xla_flags()  # before anything starts a JAX backend (raytracer/_xla.py)
+
 from . import params as params
 from . import shapes as shapes
 from .errors import InternalError as InternalError

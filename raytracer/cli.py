@@ -16,6 +16,7 @@ import traceback
 from collections import Counter
 from pathlib import Path
 
+from ._xla import tune_xla_flags
 from .errors import InternalError, SceneError, short_numbers
 
 EXIT_SCENE_ERROR = 2  # also a bad command line, as argparse
@@ -390,37 +391,14 @@ def _split_cpu(devices: int | None) -> None:
     """One JAX device per core by default: tiles are sharded over the devices, and a 640×480 render
     of the Whitted benchmark scene took 1.22 s on 2 devices against 1.9 s on one (2 cores;
     ``benchmarks/distributed.py``). XLA_FLAGS naming a device count wins over the default. Also
-    turns XLA's CPU fusion emitters off (``_compile_flags``)."""
-    _compile_flags()
+    adds the XLA flags the renderer was measured with (``raytracer/_xla.py``)."""
+    tune_xla_flags()
     flags = os.environ.get("XLA_FLAGS", "")
     if devices is None:
         if "xla_force_host_platform_device_count" in flags:
             return
         devices = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={devices}".strip()
-
-
-# XLA's CPU fusion emitters off: cold compiles 25-40 % shorter at the same warm render time
-# (session 8, 2 cores, medians of 3 per run: seed.pov 640x480 compile 3.1-4.0 -> 2.4-2.6 s, warm
-# 0.33-0.48 -> 0.30-0.33 s; whitted.pov 7.5-9.2 -> 5.5 s, warm 1.9-2.9 -> 2.3-2.4 s). XLA aborts on
-# a flag it does not know, so only for the jaxlib it was measured with (the tests use it too).
-FAST_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
-FAST_COMPILE_JAXLIB = ((0, 10),)
-
-
-def _compile_flags() -> None:
-    """Adds ``FAST_COMPILE_FLAG`` to XLA_FLAGS for a verified jaxlib, unless XLA_FLAGS sets it."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_cpu_use_fusion_emitters" in flags:
-        return
-    try:
-        major, minor = (int(x) for x in version("jaxlib").split(".")[:2])
-    except (PackageNotFoundError, ValueError):
-        return
-    if (major, minor) in FAST_COMPILE_JAXLIB:
-        os.environ["XLA_FLAGS"] = f"{flags} {FAST_COMPILE_FLAG}".strip()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,7 +7,8 @@ float64 fixture, and the ``povray`` marker's skip.
 * XLA compiles for compile time, not run time (``FAST_COMPILE_XLA_FLAGS``): the suite's images are
   tiny and its programs many, so LLVM's optimisations and the fusion emitters cost far more than
   they save (a glass scene's reverse-mode program: 30 s of compile without, 9.5 s with). The
-  arithmetic is IEEE either way; ``make validate`` and the benchmarks use XLA's defaults.
+  arithmetic is IEEE either way; ``make validate`` and the benchmarks use XLA's defaults. The
+  flags every user of ``import raytracer`` gets (``raytracer/_xla.py``) are added too.
 * Reference images (POV-Ray, Mitsuba) of the validation suite are kept for the run in a folder of
   its own (``$RAYTRACER_REFERENCE_CACHE``), so a reference two tests need is rendered once.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
@@ -28,6 +29,8 @@ if FAST_COMPILE_XLA_FLAGS not in os.environ.get("XLA_FLAGS", ""):
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
+
+import raytracer  # noqa: E402, F401  (adds raytracer/_xla.py's flags, as for users, before a backend starts)
 
 jax.config.update("jax_numpy_rank_promotion", "raise")
 

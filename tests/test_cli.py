@@ -188,21 +188,30 @@ def test_adaptive_antialiasing_from_the_command_line(tmp_path, capsys):
     assert "times: parse" in capsys.readouterr().out
 
 
-def test_render_command_sets_one_device_per_core_and_the_fast_compile_flag(monkeypatch):
+def test_render_command_sets_one_device_per_core_and_the_tuned_xla_flags(monkeypatch):
     """Before JAX starts, ``raytracer render`` asks XLA for one CPU device per core and, for the
-    jaxlib it was measured with, no fusion emitters (shorter cold compiles); XLA_FLAGS that set
-    either win."""
-    from importlib.metadata import version
+    jaxlib they were measured with, the flags of ``raytracer/_xla.py``; XLA_FLAGS that name a flag
+    win, and ``RAYTRACER_TUNE_XLA=0`` adds none."""
+    from raytracer import _xla, cli
 
-    from raytracer import cli
-
+    monkeypatch.setattr(_xla, "_backends_started", lambda: False)  # this process's backend is running
     monkeypatch.setenv("XLA_FLAGS", "")
     cli._split_cpu(None)
     flags = os.environ["XLA_FLAGS"].split()
     assert f"--xla_force_host_platform_device_count={len(os.sched_getaffinity(0))}" in flags
-    known = tuple(int(x) for x in version("jaxlib").split(".")[:2]) in cli.FAST_COMPILE_JAXLIB
-    assert (cli.FAST_COMPILE_FLAG in flags) == known
+    known = _xla._jaxlib_version() in _xla.TUNED_JAXLIB
+    for name, value in _xla.TUNED_FLAGS.items():
+        assert (f"--{name}={value}" in flags) == known
     mine = "--xla_force_host_platform_device_count=3 --xla_cpu_use_fusion_emitters=true"
     monkeypatch.setenv("XLA_FLAGS", mine)
     cli._split_cpu(None)
-    assert os.environ["XLA_FLAGS"] == mine
+    assert os.environ["XLA_FLAGS"].startswith(mine)
+    assert "--xla_cpu_use_fusion_emitters=false" not in os.environ["XLA_FLAGS"]
+    monkeypatch.setenv("XLA_FLAGS", "")
+    monkeypatch.setenv("RAYTRACER_TUNE_XLA", "0")
+    _xla.tune_xla_flags()
+    assert os.environ["XLA_FLAGS"] == ""
+    monkeypatch.setenv("RAYTRACER_TUNE_XLA", "1")
+    monkeypatch.setattr(_xla, "_backends_started", lambda: True)  # too late: XLA read its flags
+    _xla.tune_xla_flags()
+    assert os.environ["XLA_FLAGS"] == ""

@@ -1,0 +1,74 @@
+"""XLA's CPU flags that this renderer's programs were measured with, set before the CPU backend starts.
+
+XLA reads ``XLA_FLAGS`` once, when JAX creates its first backend (the first computation, not the
+import of ``jax``), and aborts on a flag it does not know. So ``tune_xla_flags`` adds its flags
+only for a jaxlib they were verified with, only while no backend exists, and never a flag that
+``XLA_FLAGS`` already names (the user's setting wins). ``import raytracer`` calls it;
+``RAYTRACER_TUNE_XLA=0`` leaves ``XLA_FLAGS`` alone.
+
+Measured on the 2-core machine (jaxlib 0.10.2, 640×480, two devices, medians of 7 warm renders in
+one run each; ``docs/performance.md``, "XLA's CPU flags"):
+
+* ``--xla_cpu_experimental_ynn_fusion_type=`` (no YNNPACK library fusions). XLA 0.10 hands small
+  reductions and elementwise chains to YNNPACK, whose per-call cost dominates on a tile's arrays of
+  a few thousand rays: the checker pattern's three-term floor sum took 0.3 ms per 2,022 rays. Off:
+  the seed scene 0.16 → 0.05 s, 1,000 spheres 0.19 → 0.145 s, ``whitted.pov`` 1.56 → 1.24 s,
+  ``glass.pov`` 3.3 → 2.6–3.0 s; compile within noise. Other JAX projects turn these fusions off for
+  wrong results on CPU too.
+* ``--xla_cpu_use_fusion_emitters=false``: cold compiles 25–40 % shorter at the same warm time
+  (session 8: seed.pov 3.1–4.0 → 2.4–2.6 s, whitted.pov 7.5–9.2 → 5.5 s).
+"""
+
+from __future__ import annotations
+
+import os
+
+# flag name → value, for the jaxlib (major, minor) versions in TUNED_JAXLIB
+TUNED_FLAGS = {
+    "xla_cpu_experimental_ynn_fusion_type": "",
+    "xla_cpu_use_fusion_emitters": "false",
+}
+TUNED_JAXLIB = ((0, 10),)
+OPT_OUT_ENV = "RAYTRACER_TUNE_XLA"
+
+
+def _jaxlib_version() -> tuple[int, int] | None:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        major, minor = (int(x) for x in version("jaxlib").split(".")[:2])
+    except (PackageNotFoundError, ValueError):
+        return None
+    return major, minor
+
+
+def _backends_started() -> bool:
+    import sys
+
+    bridge = sys.modules.get("jax._src.xla_bridge")
+    if bridge is None:
+        return False
+    started = getattr(bridge, "backends_are_initialized", None)
+    return bool(started()) if started is not None else True  # unknown JAX: assume too late
+
+
+def tuned_flags(flags: str) -> str:
+    """``flags`` with every flag of ``TUNED_FLAGS`` it does not name appended (for a verified
+    jaxlib; otherwise ``flags`` unchanged)."""
+    if _jaxlib_version() not in TUNED_JAXLIB:
+        return flags
+    extra = [f"--{name}={value}" for name, value in TUNED_FLAGS.items() if name not in flags]
+    return " ".join([flags.strip(), *extra]).strip()
+
+
+def tune_xla_flags() -> None:
+    """Adds the tuned flags to ``$XLA_FLAGS`` if JAX has no backend yet and the user did not opt
+    out (``RAYTRACER_TUNE_XLA=0``); once a backend exists, setting them would change nothing."""
+    if os.environ.get(OPT_OUT_ENV, "1").strip().lower() in ("0", "false", "no", "off"):
+        return
+    if _backends_started():
+        return
+    flags = os.environ.get("XLA_FLAGS", "")
+    tuned = tuned_flags(flags)
+    if tuned != flags:
+        os.environ["XLA_FLAGS"] = tuned
