@@ -79,7 +79,7 @@ def is_traced(*xs) -> bool:
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
 
 
-def _any_traced(xs) -> bool:
+def any_traced(xs) -> bool:
     """``is_traced`` for a flat list of arrays and numbers (no tree walk)."""
     return any(isinstance(x, jax.core.Tracer) for x in xs)
 
@@ -87,7 +87,7 @@ def _any_traced(xs) -> bool:
 def stack(xs, dtype=None):
     """``jnp.stack(xs)`` (cast to ``dtype``); numpy's when every entry is a concrete value, so
     packing a large scene is not one JAX dispatch per object."""
-    if not _any_traced(xs):
+    if not any_traced(xs):
         out = np.stack([np.asarray(x) for x in xs])
         return out if dtype is None else out.astype(dtype)
     out = jnp.stack([jnp.asarray(x) for x in xs])

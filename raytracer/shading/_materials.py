@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import patterns
-from .._packing import _any_traced, inverse_affines, register_packed, stack
+from .._packing import any_traced, inverse_affines, register_packed, stack
 from .._plan import Plan
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
 
@@ -71,7 +71,7 @@ def _finish_arrays(f: Finish, no_reflection: Reflection) -> dict:
 def _padded(xs, m: int, dtype):
     """(n, m, …): each array of ``xs`` (its own length along axis 0) padded to ``m`` entries by
     repeating its last entry (a colour-map lookup is unchanged by it)."""
-    if not _any_traced(xs):
+    if not any_traced(xs):
         return np.stack([np.concatenate([np.asarray(x), np.repeat(np.asarray(x)[-1:], m - x.shape[0], 0)])
                          for x in xs]).astype(dtype)
     return jnp.stack([jnp.concatenate([x, jnp.repeat(x[-1:], m - x.shape[0], 0)]) if x.shape[0] < m
