@@ -664,6 +664,15 @@ struct RayOperands {
   ffi::Buffer<ffi::S32> want;
 };
 
+// The handlers' parameters for RayOperands' fields, in the bindings' order, and their names.
+#define RAY_OPERAND_PARAMS(DT)                                                                             \
+  ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info, ffi::Buffer<ffi::S32> order,                \
+      ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask, ffi::Buffer<DT> params,                    \
+      ffi::Buffer<ffi::S32> unit, ffi::Buffer<DT> unit_box, ffi::Buffer<DT> origin,                      \
+      ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want
+#define RAY_OPERAND_NAMES \
+  node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want
+
 template <ffi::DataType DT, typename Body>
 ffi::Error rays_impl(ffi::ThreadPool& pool, const RayOperands<DT>& a, const char* what, const Body& body) {
   using T = ffi::NativeType<DT>;
@@ -695,18 +704,14 @@ ffi::Error rays_impl(ffi::ThreadPool& pool, const RayOperands<DT>& a, const char
 
 // operands -> item, t: the closest (any_hit = false) or a blocking (any_hit = true) item
 template <ffi::DataType DT, bool any_hit>
-ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
-                      ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
-                      ffi::Buffer<DT> params, ffi::Buffer<ffi::S32> unit, ffi::Buffer<DT> unit_box,
-                      ffi::Buffer<DT> origin, ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin,
-                      ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want,
+ffi::Error query_impl(ffi::ThreadPool pool, RAY_OPERAND_PARAMS(DT),
                       ffi::ResultBuffer<ffi::S32> item, ffi::ResultBuffer<DT> t_out) {
   using T = ffi::NativeType<DT>;
   if (item->element_count() != tmin.element_count() || t_out->element_count() != tmin.element_count())
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh query: inconsistent result sizes");
   int32_t* out = item->typed_data();
   T* tout = t_out->typed_data();
-  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want};
+  RayOperands<DT> a{RAY_OPERAND_NAMES};
   return rays_impl(pool, a, "bvh query",
                    [&](const Scene<T>& s, int64_t r, const double* o, const double* d, double lo, double hi,
                        int32_t w, bool valid) {
@@ -719,11 +724,8 @@ ffi::Error query_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffe
 
 // operands -> item (rays, k), count: the k nearest items a segment crosses, and how many it crosses
 template <ffi::DataType DT>
-ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info,
-                    ffi::Buffer<ffi::S32> order, ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask,
-                    ffi::Buffer<DT> params, ffi::Buffer<ffi::S32> unit, ffi::Buffer<DT> unit_box,
-                    ffi::Buffer<DT> origin, ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin,
-                    ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want, ffi::ResultBuffer<ffi::S32> item,
+ffi::Error all_impl(ffi::ThreadPool pool, RAY_OPERAND_PARAMS(DT),
+                    ffi::ResultBuffer<ffi::S32> item,
                     ffi::ResultBuffer<ffi::S32> count) {
   using T = ffi::NativeType<DT>;
   const int64_t rays = static_cast<int64_t>(tmin.element_count());
@@ -734,7 +736,7 @@ ffi::Error all_impl(ffi::ThreadPool pool, ffi::Buffer<DT> node_box, ffi::Buffer<
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh all-crossings query: inconsistent result sizes");
   int32_t* out = item->typed_data();
   int32_t* cnt = count->typed_data();
-  RayOperands<DT> a{node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want};
+  RayOperands<DT> a{RAY_OPERAND_NAMES};
   return rays_impl(pool, a, "bvh all-crossings query",
                    [&](const Scene<T>& s, int64_t r, const double* o, const double* d, double lo, double hi,
                        int32_t w, bool valid) {
