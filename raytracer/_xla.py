@@ -22,6 +22,7 @@ one run each; ``docs/performance.md``, "XLA's CPU flags"):
 from __future__ import annotations
 
 import os
+import warnings
 
 # flag name → value, for the jaxlib (major, minor) versions in TUNED_JAXLIB
 TUNED_FLAGS = {
@@ -72,3 +73,24 @@ def tune_xla_flags() -> None:
     tuned = tuned_flags(flags)
     if tuned != flags:
         os.environ["XLA_FLAGS"] = tuned
+
+
+_WARNED: list[bool] = []
+
+
+def warn_if_untuned() -> None:
+    """Warns once per process when a verified jaxlib runs without the tuned flags: JAX's backend
+    started before ``import raytracer`` (renders are then up to 3× slower), unless the user opted
+    out or set the flags' values themselves."""
+    if _WARNED or os.environ.get(OPT_OUT_ENV, "1").strip().lower() in ("0", "false", "no", "off"):
+        return
+    if _jaxlib_version() not in TUNED_JAXLIB:
+        return
+    flags = os.environ.get("XLA_FLAGS", "")
+    missing = [f"--{name}={value}" for name, value in TUNED_FLAGS.items() if name not in flags]
+    if missing:
+        _WARNED.append(True)
+        warnings.warn(
+            "JAX started before `import raytracer`, without the XLA flags this renderer is tuned for "
+            f"(renders up to 3x slower): import raytracer first, or set XLA_FLAGS=\"{' '.join(missing)}\" "
+            f"before JAX starts ({OPT_OUT_ENV}=0 silences this)", RuntimeWarning, stacklevel=3)

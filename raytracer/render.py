@@ -21,6 +21,7 @@ import numpy as np
 
 from ._packing import Frozen, is_traced, skeleton, with_field
 from ._plan import Plan, make_plan
+from ._xla import warn_if_untuned
 from .scene import Scene
 from .shading import _accel
 from .shading._geometry import PackedGeometry, pack_geometry
@@ -51,10 +52,11 @@ def use_compilation_cache() -> None:
     compiling became 2.0 s of tracing and loading). Programs that compile in under a second are not
     stored. JAX reads the
     setting at its first compilation, so a process that compiled something before its first render
-    keeps what it had."""
+    keeps what it had. Also warns, once, if JAX started without ``raytracer/_xla.py``'s flags."""
     if _CACHE_CHECKED:
         return
     _CACHE_CHECKED.append(True)
+    warn_if_untuned()
     if jax.config.jax_compilation_cache_dir is not None:
         return  # the user's (or the test suite's) choice
     cache = os.environ.get("RAYTRACER_CACHE_DIR", str(Path.home() / ".cache" / "raytracer" / "xla"))

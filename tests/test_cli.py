@@ -215,3 +215,24 @@ def test_render_command_sets_one_device_per_core_and_the_tuned_xla_flags(monkeyp
     monkeypatch.setattr(_xla, "_backends_started", lambda: True)  # too late: XLA read its flags
     _xla.tune_xla_flags()
     assert os.environ["XLA_FLAGS"] == ""
+
+
+def test_a_backend_started_without_the_tuned_flags_is_warned_once(monkeypatch):
+    """JAX started before ``import raytracer`` (so XLA read no tuned flag): one warning that says
+    what to set, for the jaxlib the flags were measured with; none after ``RAYTRACER_TUNE_XLA=0``."""
+    import warnings
+
+    from raytracer import _xla
+
+    monkeypatch.setattr(_xla, "_jaxlib_version", lambda: _xla.TUNED_JAXLIB[0])
+    monkeypatch.setattr(_xla, "_WARNED", [])
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
+    with pytest.warns(RuntimeWarning, match="xla_cpu_experimental_ynn_fusion_type=") as caught:
+        _xla.warn_if_untuned()
+        _xla.warn_if_untuned()
+    assert len(caught) == 1 and "fusion_emitters" not in str(caught[0].message)
+    monkeypatch.setattr(_xla, "_WARNED", [])
+    monkeypatch.setenv("RAYTRACER_TUNE_XLA", "0")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _xla.warn_if_untuned()
