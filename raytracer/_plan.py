@@ -32,6 +32,7 @@ from .scene._transform import compose
 # straight (ior 1) surfaces a ray path may cross beyond max_trace_level: as many as the scene's
 # straight-transmitting primitives can put on one line, up to this bound (the plan warns beyond it)
 STRAIGHT_PASSES = 256
+MEDIA_SLOTS = 16  # at most this many interiors in a ray's list (POV-Ray's list has no bound)
 
 SUPPORTED_PATTERNS = patterns.RENDERED  # registered patterns the renderer evaluates
 
@@ -149,6 +150,8 @@ class Effects:
                         count against ``max_trace_level``.
         depth:          levels the tracer unrolls: 1 without secondary rays, else
                         ``max_trace_level + straight_passes``.
+        media_slots:    the length of a ray's interior list: 0 without refraction, else as many
+                        entries as the scene can put in it at once, at most ``MEDIA_SLOTS``.
     """
 
     kinds: tuple[str, ...]
@@ -170,6 +173,7 @@ class Effects:
     interior_fade: bool
     straight_passes: int
     depth: int
+    media_slots: int = 0
 
     @property
     def secondary_rays(self) -> bool:
@@ -183,6 +187,15 @@ class Effects:
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
                 f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}"
                 + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
+
+
+def _media_slots(prims, rendered) -> int:
+    """How many interiors a ray's list can hold at once: those around the camera (at most one per
+    primitive) and one per entry into a transparent primitive not yet left (a transmitted ray only
+    enters a transparent surface; it cannot enter one twice without leaving it). Whitted-style
+    scenes need a few slots instead of ``MEDIA_SLOTS``: each slot is carried, gathered and
+    compacted with every ray of the tree."""
+    return min(MEDIA_SLOTS, len(prims) + sum(1 for p in rendered if p.transparent))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -375,6 +388,7 @@ def make_plan(scene: Scene) -> Plan:
                                            and p.interior.fade_power is not None for p in rendered),
         straight_passes=straight_passes,
         depth=depth,
+        media_slots=_media_slots(prims, rendered) if refraction else 0,
     )
     units, prim_unit = bounding_units(scene.objects, roots, len(prims))
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),

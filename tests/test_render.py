@@ -264,6 +264,17 @@ def test_the_ray_keeps_the_list_of_interiors_it_is_inside_as_povray_does(text, p
     assert psnr(ours, render_povray(text, 80, 60)) >= 40.0
 
 
+@pytest.mark.parametrize("text, slots", [
+    (GLASS_BOX_45, 3 + 1),  # around the camera: at most one per primitive; then one per transparent one
+    (_shells(10, ior=True), 16),  # 10 + 10, held to MEDIA_SLOTS
+    (_shells(3, ior=False), 0),  # no refraction: no list
+])
+def test_the_interior_list_is_as_long_as_the_scene_can_fill(text, slots):
+    """Each slot of the list is carried through every level of the ray tree: a scene gets as many
+    as it can fill (the test above checks GLASS_BOX_45's image against POV-Ray with its 4)."""
+    assert rt.plan(rt.load_scene(text)).effects.media_slots == slots
+
+
 @pytest.mark.parametrize("depth, expected", [(2, 0.04), (3, 0.04 + 0.96 * 0.96)])
 def test_glass_slab_at_normal_incidence_follows_fresnel_and_the_trace_level(depth, expected):
     # F = ((n-1)/(n+1))² = 0.04 at both faces for n = 1.5; conserve_energy leaves 0.96 transmitted.

@@ -29,7 +29,8 @@ Modelling shortcuts (stated, not hidden):
     ``exponent`` (the plan warns when more than one layer of a texture reflects);
   * entering/leaving an object is decided from the geometric normal; the media on either side come
     from the ray's list of the interiors it is inside (POV-Ray's per-ray interior list, at most
-    ``MEDIA_SLOTS`` deep), with POV-Ray's quirk at exits from two or more (semantics §2.7);
+    ``Effects.media_slots`` ≤ ``_plan.MEDIA_SLOTS`` deep), with POV-Ray's quirk at exits from two
+    or more (semantics §2.7);
   * shadow rays go straight through transparent objects (no refraction, no caustics), as POV's;
   * straight transmission (ior 1) does not use up a trace level (as in POV-Ray), but a ray path may
     pass at most ``Effects.straight_passes`` straight surfaces beyond ``max_trace_level`` levels.
@@ -86,12 +87,10 @@ class Rays(NamedTuple):
     media: jax.Array
 
 
-MEDIA_SLOTS = 16  # interiors a ray can be inside at once (POV-Ray's list has no bound)
-
-
 def media_slots(effects: Effects) -> int:
-    """The length of a ray's interior list: only refraction needs to know the medium a ray is in."""
-    return MEDIA_SLOTS if effects.refraction else 0
+    """The length of a ray's interior list (``Effects.media_slots``): only refraction needs to
+    know the medium a ray is in."""
+    return effects.media_slots
 
 
 def dead_rays(n: int, dtype, slots: int) -> Rays:
