@@ -72,10 +72,11 @@ def slots_per_ray(branch: int, depth: int, capacity: int | None = None) -> int:
 def _partition(alive):
     """A permutation putting live rays first (stable), and its inverse, in O(n) (no sort)."""
     n = alive.shape[0]
-    live = alive.astype(jnp.int32)
-    n_live = jnp.sum(live)
-    pos = jnp.where(alive, jnp.cumsum(live) - 1, n_live + jnp.cumsum(1 - live) - 1)
-    order = jnp.zeros(n, jnp.int32).at[pos].set(jnp.arange(n, dtype=jnp.int32))
+    before = jnp.cumsum(alive.astype(jnp.int32))  # live rays up to and including each
+    index = jnp.arange(n, dtype=jnp.int32)
+    # a dead ray's place: after every live ray, then the dead ones before it (index + 1 - before)
+    pos = jnp.where(alive, before - 1, before[-1] + index - before)
+    order = jnp.zeros(n, jnp.int32).at[pos].set(index)
     return order, pos
 
 

@@ -87,3 +87,16 @@ def test_child_colour_is_raised_to_its_power():
     # root: 0.5 + 1 · child^2 with child = 0.5 (a leaf) → 0.75
     colour, _ = trace_tree(toy_shader(1, 2, 0.5, 1.0, power=2.0), roots(4), depth=2, branch=1, chunk=4)
     np.testing.assert_allclose(np.asarray(colour), np.full((4, 3), 0.75), rtol=1e-6)
+
+
+def test_partition_puts_live_rays_first_in_order_and_returns_the_inverse():
+    """``_partition`` (which the chunked shading relies on) against numpy's stable partition."""
+    from raytracer.shading._scheduler import _partition
+
+    rng = np.random.default_rng(3)
+    for n, p in [(1, 0.5), (7, 0.0), (7, 1.0), (1000, 0.3)]:
+        alive = rng.random(n) < p
+        order, pos = (np.asarray(x) for x in _partition(jnp.asarray(alive)))
+        expected = np.concatenate([np.flatnonzero(alive), np.flatnonzero(~alive)])
+        np.testing.assert_array_equal(order, expected)
+        np.testing.assert_array_equal(pos[order], np.arange(n))
