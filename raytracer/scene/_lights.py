@@ -8,6 +8,7 @@ Colours are used as irradiance directly: no 1/π and no inverse-square falloff (
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
@@ -40,8 +41,10 @@ class AreaLight(eqx.Module):
     """A rectangular grid of ``size1 × size2`` shadow samples spanning ``axis1`` and ``axis2``.
 
     Only the shadow is area-sampled (diffuse and highlights use the centre), with POV-Ray's
-    recursive corner-averaging weights (semantics §2.5). ``jitter`` is not simulated (deterministic
-    grid), and ``adaptive`` is treated as full subdivision.
+    recursive corner-averaging (semantics §2.5): fully subdivided without ``adaptive``; with
+    ``adaptive`` N, split N times, then only where a block's corner samples differ
+    (:func:`area_blocks`). ``circular`` pulls the grid onto a disc; ``orient`` is parsed and not
+    simulated, nor is ``jitter`` (deterministic grid).
     """
 
     axis1: Float[Array, "3"] = eqx.field(converter=as_float)
@@ -50,6 +53,7 @@ class AreaLight(eqx.Module):
     size2: int = eqx.field(static=True)
     circular: bool = eqx.field(static=True, default=False)
     orient: bool = eqx.field(static=True, default=False)
+    adaptive: int | None = eqx.field(static=True, default=None)
 
 
 class Light(eqx.Module):
@@ -116,7 +120,14 @@ def _lower_area(values, linear):
     a1, a2 = np.asarray(a1, np.float64), np.asarray(a2, np.float64)
     if linear is not None:
         a1, a2 = linear @ a1, linear @ a2
-    return {"area": AreaLight(a1, a2, n1, n2, circular=values["circular"], orient=values["orient"])}
+    adaptive = values["adaptive"]
+    if adaptive is not None:  # an int, at least 0 (POV-Ray's manual); past the grid's depth: full
+        adaptive = int(min(max(adaptive, 0.0), MAX_ADAPTIVE))
+    return {"area": AreaLight(a1, a2, n1, n2, circular=values["circular"], orient=values["orient"],
+                              adaptive=adaptive)}
+
+
+MAX_ADAPTIVE = 64  # deeper than any grid's recursion (sizes are at most 4096)
 
 
 def area_weights(n: int) -> np.ndarray:
@@ -140,14 +151,56 @@ def area_weights(n: int) -> np.ndarray:
     return w
 
 
+@dataclasses.dataclass(frozen=True)
+class AreaBlock:
+    """A block of an area light's grid in POV-Ray's recursion (semantics §2.5): its value is the
+    mean of its four corner samples, or, once split, the mean of its children's values.
+
+    corners:  the grid indices ``u·size2 + v`` of its corners (repeated on an axis of width 0).
+    children: the blocks it splits into (each axis wider than 1 is split at the floor and ceil of
+              its midpoint), or () for a leaf.
+    depth:    splits from the whole grid (0).
+    """
+
+    corners: tuple[int, int, int, int]
+    children: tuple[AreaBlock, ...]
+    depth: int
+
+
+@functools.cache
+def area_blocks(n1: int, n2: int) -> AreaBlock:
+    """The recursion tree of an ``n1 × n2`` grid; fully subdivided, its leaves' corner means give
+    :func:`area_weights` per axis."""
+
+    def halves(lo, hi):
+        if hi - lo <= 1:
+            return [(lo, hi)]
+        m = (lo + hi) / 2
+        return [(lo, int(np.floor(m))), (int(np.ceil(m)), hi)]
+
+    def block(r1, r2, depth):
+        corners = tuple(u * n2 + v for u in r1 for v in r2)
+        children = ()
+        if r1[1] - r1[0] > 1 or r2[1] - r2[0] > 1:
+            children = tuple(block(c1, c2, depth + 1) for c1 in halves(*r1) for c2 in halves(*r2))
+        return AreaBlock(corners, children, depth)
+
+    return block((0, n1 - 1), (0, n2 - 1), 0)
+
+
 def _area_samples(light: Light, dtype):
     """The grid of shadow-ray targets and their weights (semantics §2.5): point (i, j) at
-    centre + axis1 (i/(n1-1) - ½) + axis2 (j/(n2-1) - ½)."""
+    centre + axis1 (i/(n1-1) - ½) + axis2 (j/(n2-1) - ½); with ``circular``, each point's offset
+    (a, b) is scaled by max(|a|, |b|)/√(a² + b²), onto the disc the square grid is inscribed in."""
     a = light.area
     w1, w2 = area_weights(a.size1), area_weights(a.size2)
     f1 = np.zeros(1) if a.size1 == 1 else np.arange(a.size1) / (a.size1 - 1) - 0.5
     f2 = np.zeros(1) if a.size2 == 1 else np.arange(a.size2) / (a.size2 - 1) - 0.5
     fu, fv = (g.reshape(-1) for g in np.meshgrid(f1, f2, indexing="ij"))
+    if a.circular:  # the square grid pulled radially onto the disc it is inscribed in (semantics §2.5)
+        r_square, r_disc = np.maximum(np.abs(fu), np.abs(fv)), np.hypot(fu, fv)
+        shrink = np.divide(r_square, r_disc, out=np.ones_like(r_disc), where=r_disc > 0)
+        fu, fv = fu * shrink, fv * shrink
     weights = jnp.asarray(np.outer(w1, w2).reshape(-1), dtype)
     positions = (light.position[None, :] + jnp.asarray(fu, dtype)[:, None] * a.axis1[None, :]
                  + jnp.asarray(fv, dtype)[:, None] * a.axis2[None, :])
@@ -222,11 +275,12 @@ LIGHT_TYPES: tuple[LightType, ...] = (
               geometry=_parallel_geometry, sdl_keywords={"parallel": "flag"},
               lower=lambda values, linear: {"parallel": True}),
     # only the shadow is area-sampled, so a shadowless area light needs no samples; jitter is not
-    # simulated (a deterministic grid) and adaptive is full subdivision, so both are read and unused
+    # simulated (a deterministic grid), so it is read and unused
     LightType("area_light", True, ("area_lights",),
               lambda light: light.area is not None and not light.shadowless, shadow_samples=_area_samples,
-              describe=lambda light: f"area {light.area.size1}x{light.area.size2}",
-              defaults={"area_light": None, "circular": False, "orient": False},
+              describe=lambda light: f"area {light.area.size1}x{light.area.size2}"
+              + ("" if light.area.adaptive is None else f" adaptive {light.area.adaptive}"),
+              defaults={"area_light": None, "circular": False, "orient": False, "adaptive": None},
               sdl_keywords={"area_light": ("vector", "vector", "size", "size"), "circular": "flag",
                             "orient": "flag", "adaptive": "float?", "jitter": "float?",
                             "area_illumination": "float?"},

@@ -1,14 +1,14 @@
 """The ray scheduler: a tree of rays traced level by level, as one ``lax.scan``, then combined.
 
 It knows rays only as :class:`~._model.Rays` and hits only through one function,
-``shade_one(ray) -> Shading`` (the local colour seen by one ray and the children it spawns, each
-with the ``coef`` and ``power`` its colour comes back with). It knows nothing of lights, textures
-or surfaces. What it does:
+``shade_rays(rays) -> Shading`` (for each ray of a batch, the local colour it sees and the
+children it spawns, each with the ``coef`` and ``power`` its colour comes back with). It knows
+nothing of lights, textures or surfaces. What it does:
 
   * levels: each level of the ray tree lives in a pool of ray slots; one ``lax.scan`` step shades
     the whole pool and writes the children into the next level's pool, so the shading body is
     traced once and compile time does not grow with the depth;
-  * chunks: a pool is shaded (``vmap``) in chunks with the live rays moved to the front; blocks
+  * chunks: a pool is shaded in chunks with the live rays moved to the front; blocks
     of chunks and chunks with no live ray are skipped with ``lax.cond``, so the empty slots of the
     tree cost almost nothing;
   * pools: either as wide as the tree's widest level (exact), or ``capacity`` slots per camera
@@ -29,6 +29,7 @@ import jax
 import jax.numpy as jnp
 
 from ..kernels import safe_pow
+from ._chunks import map_live, zeros_like_shapes
 from ._model import Rays, Shading, dead_rays
 
 
@@ -69,55 +70,15 @@ def slots_per_ray(branch: int, depth: int, capacity: int | None = None) -> int:
     return full if capacity is None else min(full, capacity)
 
 
-def _partition(alive):
-    """A permutation putting live rays first (stable), and its inverse, in O(n) (no sort)."""
-    n = alive.shape[0]
-    before = jnp.cumsum(alive.astype(jnp.int32))  # live rays up to and including each
-    index = jnp.arange(n, dtype=jnp.int32)
-    # a dead ray's place: after every live ray, then the dead ones before it (index + 1 - before)
-    pos = jnp.where(alive, before - 1, before[-1] + index - before)
-    order = jnp.zeros(n, jnp.int32).at[pos].set(index)
-    return order, pos
-
-
-def _divisor_near(n: int, target: int) -> int:
-    """The divisor of ``n`` closest to ``target`` (at least 1)."""
-    divisors = [k for k in range(1, n + 1) if n % k == 0]
-    return min(divisors, key=lambda k: abs(k - max(1, target)))
-
-
-def _shade_pool(shade_one: Callable[[Rays], Shading], rays: Rays, chunk: int) -> Shading:
-    """``shade_one`` over a pool, in chunks of ``chunk`` rays with the live rays moved to the front;
-    chunks with no live ray are skipped (``lax.cond`` runs only the taken branch and differentiates
-    like any branch), so the empty slots of the tree cost almost nothing."""
-    shade_all = jax.vmap(shade_one)
+def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int) -> Shading:
+    """``shade_rays`` over a pool, in chunks of ``chunk`` rays with the live rays moved to the front;
+    chunks with no live ray are skipped (``_chunks.map_live``), so the empty slots of the tree cost
+    almost nothing."""
     n = rays.origin.shape[0]
-    if chunk >= n:  # one vmap over the pool, skipped when the pool is empty (deep levels)
-        shapes = jax.eval_shape(shade_all, rays)
-        return jax.lax.cond(jnp.any(rays.alive), lambda: shade_all(rays), lambda: _zeros(shapes))
-    order, inverse = _partition(rays.alive)
-    n_chunks = n // chunk
-    # two levels of skipping: blocks of chunks, then chunks, so a sparse level costs
-    # O(blocks + chunks of one block) loop steps rather than O(chunks)
-    per_block = _divisor_near(n_chunks, int(n_chunks ** 0.5))
-    blocks = jax.tree.map(lambda a: a[order].reshape((n_chunks // per_block, per_block, chunk) + a.shape[1:]),
-                          rays)
-    shapes = jax.eval_shape(shade_all, jax.tree.map(lambda a: a[0, 0], blocks))
-
-    def one_chunk(r: Rays) -> Shading:
-        return jax.lax.cond(jnp.any(r.alive), lambda: shade_all(r), lambda: _zeros(shapes))
-
-    def one_block(r: Rays) -> Shading:
-        return jax.lax.cond(jnp.any(r.alive), lambda: jax.lax.map(one_chunk, r),
-                            lambda: _zeros(shapes, (per_block,)))
-
-    out = jax.lax.map(one_block, blocks)
-    return jax.tree.map(lambda x: x.reshape((n,) + x.shape[3:])[inverse], out)
-
-
-def _zeros(shapes, lead=()):
-    """Zeros shaped as ``shapes`` (a tree of ``ShapeDtypeStruct``), with ``lead`` axes in front."""
-    return jax.tree.map(lambda x: jnp.zeros(lead + x.shape, x.dtype), shapes)
+    if chunk >= n:  # one call over the pool, skipped when the pool is empty (deep levels)
+        shapes = jax.eval_shape(shade_rays, rays)
+        return jax.lax.cond(jnp.any(rays.alive), lambda: shade_rays(rays), lambda: zeros_like_shapes(shapes))
+    return map_live(shade_rays, rays, rays.alive, chunk)
 
 
 def _pad(rays: Rays, size: int) -> Rays:
@@ -180,16 +141,17 @@ def _combine(colour_next, rec: LevelRecord):
     return out, None
 
 
-def trace_tree(shade_one: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
+def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
                capacity: int | None = None) -> tuple[jax.Array, jax.Array]:
     """Colours (N, 3) of the trees of N root rays, ``depth`` levels deep, one scan step per level.
 
     Args:
-        shade_one: one ray → its :class:`Shading` with ``branch`` children (a static count).
+        shade_rays: a batch of rays → their :class:`Shading`, ``branch`` children each (a static
+                   count); it sees a chunk of a pool at a time.
         rays:      the N root rays.
         depth:     levels of the tree (1: only the root rays are shaded).
         branch:    child slots per ray.
-        chunk:     rays shaded per ``vmap`` call; chunks without a live ray are skipped.
+        chunk:     rays shaded per ``shade_rays`` call; chunks without a live ray are skipped.
         capacity:  ``None`` (exact): the pool is as wide as the tree's widest level
                    (``N·branch^(depth-1)``) and the children of slot i go to slots i + width·s.
                    ``c``: the pool has ``N·c`` slots and the live children are compacted into it,
@@ -208,10 +170,10 @@ def trace_tree(shade_one: Callable[[Rays], Shading], rays: Rays, *, depth: int, 
     compact = capacity is not None and size < n * full
     pool = _pad(rays, size)
     if depth == 1:
-        return _shade_pool(shade_one, pool, chunk).local[:n], jnp.zeros((), jnp.int32)
+        return _shade_pool(shade_rays, pool, chunk).local[:n], jnp.zeros((), jnp.int32)
 
     def level(pool: Rays, k):
-        shading = _shade_pool(shade_one, pool, chunk)
+        shading = _shade_pool(shade_rays, pool, chunk)
         children = shading.children
         has_next = k + 1 < depth
         live = [c.ray.alive & has_next for c in children]

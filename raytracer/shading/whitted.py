@@ -5,7 +5,7 @@ and the refracted ray, combine — is two pieces joined at one function:
 
   * ``_model.shade(ctx, ray)``: POV-Ray's shading model for ONE ray (its hit, local lighting over
     the texture layers, shadows, and the children it spawns with their coefficients);
-  * ``_scheduler.trace_tree(shade_one, rays, …)``: the tree of rays as a ``lax.scan`` over trace
+  * ``_scheduler.trace_tree(shade_rays, rays, …)``: the tree of rays as a ``lax.scan`` over trace
     levels (pools, chunk skipping, compaction) and the reverse combine ``local + coef · child``.
 
 Per-ray decisions are masks and weights: a child whose weight falls below ``adc_bailout`` (or that
@@ -18,7 +18,7 @@ import jax
 
 from .._plan import Effects
 from ._model import TraceContext as TraceContext
-from ._model import camera_rays, child_slots, shade
+from ._model import camera_rays, child_slots, shade_batch
 from ._model import initial_media as initial_media
 from ._model import make_context as make_context
 from ._scheduler import slots_per_ray, trace_tree
@@ -38,8 +38,8 @@ def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None,
 
     # a function, not functools.partial(shade, ctx): JAX names traced functions after their source,
     # and for a partial it prints the arguments: the whole context (14 s for 1,000 spheres)
-    def shade_one(ray):
-        return shade(ctx, ray)
+    def shade_rays(rays):
+        return shade_batch(ctx, rays)
 
-    return trace_tree(shade_one, camera_rays(o, d, media), depth=eff.depth,
+    return trace_tree(shade_rays, camera_rays(o, d, media), depth=eff.depth,
                       branch=child_slots(eff), chunk=chunk, capacity=capacity)

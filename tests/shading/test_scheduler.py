@@ -7,6 +7,7 @@ lays out pools, skips chunks or compacts.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -26,7 +27,7 @@ def toy_shader(branch: int, depth: int, local: float, coef: float, power: float 
         return Shading(local=jnp.where(ray.alive, local, 0.0) * jnp.ones(3, ray.weight.dtype),
                        children=children)
 
-    return shade_one
+    return jax.vmap(shade_one)
 
 
 def roots(n: int) -> Rays:
@@ -91,7 +92,7 @@ def test_child_colour_is_raised_to_its_power():
 
 def test_partition_puts_live_rays_first_in_order_and_returns_the_inverse():
     """``_partition`` (which the chunked shading relies on) against numpy's stable partition."""
-    from raytracer.shading._scheduler import _partition
+    from raytracer.shading._chunks import partition as _partition
 
     rng = np.random.default_rng(3)
     for n, p in [(1, 0.5), (7, 0.0), (7, 1.0), (1000, 0.3)]:
