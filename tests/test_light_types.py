@@ -98,3 +98,13 @@ def test_area_light_axes_and_position_follow_the_light_transform():
     np.testing.assert_allclose(light.area.axis1, [0, 0, -1], atol=1e-12)
     np.testing.assert_allclose(light.area.axis2, [2, 0, 0], atol=1e-12)
     np.testing.assert_allclose(light.position, [-5, 5, 0], atol=1e-12)
+
+
+def test_light_items_that_change_nothing_are_warned():
+    scene = _scene("light_source { <0, 5, -5> rgb 1 area_light x, z, 3, 3 adaptive 1 jitter orient "
+                   "area_illumination on }")
+    warned = " ".join(str(w) for w in scene.warnings)
+    assert all(f"[{kw}]" in warned for kw in ("jitter", "orient", "area_illumination")), warned
+    assert len(scene.warnings) == 3  # adaptive and the grid are simulated
+    quiet = _scene("light_source { <0, 5, -5> rgb 1 area_light x, z, 3, 3 circular area_illumination off }")
+    assert not quiet.warnings

@@ -290,6 +290,14 @@ LIGHT_TYPES: tuple[LightType, ...] = (
 )
 """Every light type and modifier, each with the effects it needs; one entry per POV-Ray keyword."""
 
+UNSIMULATED_LIGHT_KEYWORDS: Mapping[str, str] = {
+    "jitter": "area-light jitter is not simulated (the sample grid stays regular)",
+    "orient": "area-light orient is not simulated (the grid keeps its axes)",
+    "area_illumination": "area_illumination is not simulated (diffuse and highlights come from the light's centre)",
+}
+"""``light_source`` items that are read and change nothing (semantics §2.5): the parser warns when
+one is given (``area_illumination`` only when on)."""
+
 LIGHT_EFFECTS: tuple[str, ...] = tuple(dict.fromkeys(e for t in LIGHT_TYPES for e in t.effects))
 """The ``Effects`` flags that only lights decide."""
 

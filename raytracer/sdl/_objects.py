@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene._lights import LIGHT_SDL_KEYWORDS
+from ..scene._lights import LIGHT_SDL_KEYWORDS, UNSIMULATED_LIGHT_KEYWORDS
 from ..shapes import SDL_KEYWORDS
 from ._convert import as_int
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
@@ -401,6 +401,8 @@ def _light_item(p, rec, t):
                 p.warn(f"{kw} light", f"{kw} lights are treated as {light_type.rendered_as}s", t.loc)
         else:
             rec.values[kw] = _light_value(p, how)
+            if kw in UNSIMULATED_LIGHT_KEYWORDS and rec.values[kw] not in (0, 0.0, False):
+                p.warn(kw, UNSIMULATED_LIGHT_KEYWORDS[kw], t.loc)
     elif kw == "looks_like":
         p.warn("looks_like", "light_source looks_like is not supported; dropped", t.loc)
         skip_braces(p)
