@@ -506,3 +506,31 @@ def test_the_api_turns_the_persistent_compilation_cache_on_unless_one_is_configu
         assert jax.config.jax_compilation_cache_dir == str(tmp_path / "xla")
     finally:
         jax.config.update("jax_compilation_cache_dir", before)
+
+
+def test_shadow_rays_skip_no_shadow_objects_without_their_crossings():
+    """Shadow rays compute the crossings of shadow casters only (``_geometry.candidate_view``): a
+    ``no_shadow`` CSG object on the shadow ray leaves the point lit (0.1 + diffuse·cos 45°), a
+    casting one blocks it, and only the casting one's primitives are the shadow rays' candidates."""
+    def scene(modifier):
+        return rt.load_scene(f"""#version 3.7;
+            global_settings {{ assumed_gamma 1.0 }}
+            camera {{ location <0, 0, -5> look_at 0 }}
+            light_source {{ <0, {10 * S}, {-1 - 10 * S}> color rgb 1 }}
+            sphere {{ 0, 1 pigment {{ rgb 1 }} finish {{ ambient 0.1 diffuse 1 }} }}
+            #declare C = <0, {3 * S}, {-1 - 3 * S}>;
+            difference {{ sphere {{ C, 0.3 }} sphere {{ C, 0.1 }}
+                         pigment {{ rgb 1 }} {modifier} }}""")
+
+    np.testing.assert_allclose(one_pixel(scene("no_shadow")), 0.1 + S, rtol=1e-5)
+    np.testing.assert_allclose(one_pixel(scene("")), 0.1, rtol=1e-5)
+
+    from raytracer._plan import make_plan
+    from raytracer.shading._accel import MASK_SHADOW
+    from raytracer.shading._geometry import candidate_view, pack_geometry, visibility_bits
+
+    plan = make_plan(scene("no_shadow"))
+    geo = pack_geometry(plan, jnp.float32, accelerate=False)
+    view = candidate_view(geo, plan, lambda i: bool(visibility_bits(plan.prims[i]) & MASK_SHADOW))
+    assert set(view.cand_prim.tolist()) == {0} and set(geo.cand_prim.tolist()) == {0, 1, 2}
+    assert view.conditions is None  # the big sphere has no CSG condition

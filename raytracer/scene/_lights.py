@@ -188,16 +188,21 @@ def area_blocks(n1: int, n2: int) -> AreaBlock:
     return block((0, n1 - 1), (0, n2 - 1), 0)
 
 
+CIRCULAR_OFFSET = 0.002  # POV-Ray 3.7 shifts a circular grid by this (in [-1, 1]² units; measured)
+
+
 def _area_samples(light: Light, dtype):
     """The grid of shadow-ray targets and their weights (semantics §2.5): point (i, j) at
     centre + axis1 (i/(n1-1) - ½) + axis2 (j/(n2-1) - ½); with ``circular``, each point's offset
-    (a, b) is scaled by max(|a|, |b|)/√(a² + b²), onto the disc the square grid is inscribed in."""
+    (a, b) in [-1, 1]² (plus ``CIRCULAR_OFFSET``) is scaled by max(|a|, |b|)/√(a² + b²), onto the
+    disc the square grid is inscribed in."""
     a = light.area
     w1, w2 = area_weights(a.size1), area_weights(a.size2)
     f1 = np.zeros(1) if a.size1 == 1 else np.arange(a.size1) / (a.size1 - 1) - 0.5
     f2 = np.zeros(1) if a.size2 == 1 else np.arange(a.size2) / (a.size2 - 1) - 0.5
     fu, fv = (g.reshape(-1) for g in np.meshgrid(f1, f2, indexing="ij"))
     if a.circular:  # the square grid pulled radially onto the disc it is inscribed in (semantics §2.5)
+        fu, fv = fu + CIRCULAR_OFFSET / 2, fv + CIRCULAR_OFFSET / 2  # (fu, fv) are half the square's
         r_square, r_disc = np.maximum(np.abs(fu), np.abs(fv)), np.hypot(fu, fv)
         shrink = np.divide(r_square, r_disc, out=np.ones_like(r_disc), where=r_disc > 0)
         fu, fv = fu * shrink, fv * shrink
@@ -293,7 +298,8 @@ LIGHT_TYPES: tuple[LightType, ...] = (
 UNSIMULATED_LIGHT_KEYWORDS: Mapping[str, str] = {
     "jitter": "area-light jitter is not simulated (the sample grid stays regular)",
     "orient": "area-light orient is not simulated (the grid keeps its axes)",
-    "area_illumination": "area_illumination is not simulated (diffuse and highlights come from the light's centre)",
+    "area_illumination": "area_illumination is not simulated (diffuse and highlights come from the "
+                         "light's centre)",
 }
 """``light_source`` items that are read and change nothing (semantics §2.5): the parser warns when
 one is given (``area_illumination`` only when on)."""

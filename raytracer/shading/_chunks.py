@@ -52,8 +52,8 @@ def map_live(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = 
     order, inverse = partition(alive)
     n_chunks = n // chunk
     per_block = divisor_near(n_chunks, int(n_chunks ** 0.5)) if blocks else n_chunks
-    sorted_items = jax.tree.map(lambda a: a[order].reshape((n_chunks // per_block, per_block, chunk) + a.shape[1:]),
-                                (items, alive))
+    lead = (n_chunks // per_block, per_block, chunk)
+    sorted_items = jax.tree.map(lambda a: a[order].reshape(lead + a.shape[1:]), (items, alive))
     shapes = jax.eval_shape(fn, jax.tree.map(lambda a: a[0, 0], sorted_items[0]))
 
     def one_chunk(x):

@@ -236,17 +236,23 @@ def _to_object(m, o, d):
     return m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d
 
 
-def all_crossings(geo: PackedGeometry, o, d):
-    """Every crossing of the ray with every primitive.
+def all_crossings(geo: PackedGeometry, o, d, members=None):
+    """Every crossing of the ray with every primitive not in the hierarchy, or with the members
+    ``members`` (per group, an index array: a :class:`CandidateView`'s) only.
 
     Returns:
         t: (C,) ray parameters (world units of ``|d|``), +inf where a slot is empty.
         n: (C, 3) unit outward world normals (``inverse`` not applied).
     """
     ts, ns = [jnp.zeros(0, o.dtype)], [jnp.zeros((0, 3), o.dtype)]
-    for group, shapes, ofw in zip(geo.groups, geo.shapes, geo.object_from_world, strict=True):
+    for g, (group, shapes, ofw) in enumerate(zip(geo.groups, geo.shapes, geo.object_from_world, strict=True)):
         if group.accelerated:
             continue
+        if members is not None and members[g].size < len(group.prims):
+            if not members[g].size:
+                continue
+            shapes = jax.tree_util.tree_map(lambda a, idx=members[g]: a[idx], shapes)
+            ofw = ofw[members[g]]
 
         def one(shape, ofw_i):
             oo, dd = _to_object(ofw_i, o, d)
@@ -258,6 +264,41 @@ def all_crossings(geo: PackedGeometry, o, d):
         ts.append(t.reshape(-1))
         ns.append(n.reshape(-1, 3))
     return jnp.concatenate(ts), jnp.concatenate(ns)
+
+
+@dataclasses.dataclass(frozen=True)
+class CandidateView:
+    """Some primitives' candidate slots (whole members of the groups not accelerated) and the CSG
+    conditions of those slots: what a query that ignores the other primitives computes (shadow
+    rays skip ``no_shadow`` objects without computing their crossings). Inside tests of a kept
+    slot's conditions still reach every primitive of its CSG tree.
+
+    members:    per group, the indices of its kept members (empty for an accelerated group).
+    cand_prim:  (C',) the primitive of each slot, in ``all_crossings(…, members)`` order.
+    conditions: the slots' CSG conditions, or None (no kept slot has any).
+    """
+
+    members: tuple
+    cand_prim: np.ndarray
+    conditions: CSGConditions | None
+
+
+def candidate_view(geo: PackedGeometry, plan: Plan, keep) -> CandidateView:
+    """The view of the primitives ``i`` with ``keep(i)``."""
+    members, cand_prim = [], []
+    for g in geo.groups:
+        if g.accelerated:
+            members.append(np.zeros(0, np.int32))
+            continue
+        k = int(np.count_nonzero(geo.cand_prim == g.prims[0]))  # slots per member
+        kept = [j for j, i in enumerate(g.prims) if keep(i)]
+        members.append(np.asarray(kept, np.int32))
+        cand_prim.extend(g.prims[j] for j in kept for _ in range(k))
+    cand_prim = np.asarray(cand_prim, np.int32)
+    conditions = build_csg_conditions(geo, plan, cand_prim) if geo.conditions is not None else None
+    if conditions is not None and not conditions.cand.size:
+        conditions = None
+    return CandidateView(tuple(members), cand_prim, conditions)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -365,19 +406,20 @@ class CSGConditions:
     want: np.ndarray  # (Q,) bool
 
 
-def build_csg_conditions(geo: PackedGeometry, plan: Plan) -> CSGConditions:
+def build_csg_conditions(geo: PackedGeometry, plan: Plan, cand_prim=None) -> CSGConditions:
+    """The conditions of the candidate slots ``cand_prim`` (default: all of ``geo``'s)."""
     trees, cand, want = [], [], []
-    for c in range(geo.n_candidates):
-        for cond in plan.prims[int(geo.cand_prim[c])].conditions:
+    for c, prim in enumerate(geo.cand_prim if cand_prim is None else cand_prim):
+        for cond in plan.prims[int(prim)].conditions:
             trees.append((cond.tree, c))
             cand.append(c)
             want.append(cond.want)
     return CSGConditions(build_inside_circuit(trees), np.array(cand, np.int32), np.array(want, bool))
 
 
-def csg_mask(geo: PackedGeometry, plan: Plan, o, d, t):
-    """(C,) bool: crossings that satisfy their primitive's CSG / clipping conditions."""
-    conds = geo.conditions
+def csg_mask(geo: PackedGeometry, conds: CSGConditions | None, o, d, t):
+    """(C,) bool: crossings that satisfy their primitive's CSG / clipping conditions ``conds``
+    (``geo.conditions``, or a :class:`CandidateView`'s)."""
     if conds is None:
         return jnp.ones(t.shape, bool)
     safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
@@ -437,7 +479,7 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     if geo.n_candidates:
         t, n = all_crossings(geo, o, d)
         ok = visible & (t > t_min) & jnp.isfinite(t) & (t < _accel.T_MAX)
-        ok = ok & csg_mask(geo, plan, o, d, t)
+        ok = ok & csg_mask(geo, geo.conditions, o, d, t)
         ts.append(jnp.where(ok, t, jnp.inf))
         ns.append(n)
         prims.append(jnp.asarray(geo.cand_prim))

@@ -53,13 +53,14 @@ from ..scene._lights import area_blocks, light_types, point_geometry
 from . import _accel, lighting
 from ._chunks import divisor_near, map_live
 from ._geometry import (
+    CandidateView,
     PackedGeometry,
     all_crossings,
     build_inside_circuit,
+    candidate_view,
     closest_hit,
     csg_mask,
     evaluate_inside,
-    static_prim_mask,
     visibility_bits,
 )
 from ._materials import PackedMaterials, pigment_at
@@ -210,10 +211,10 @@ class TraceContext:
     eps: float  # relative spawn offset (times 1 + |p|)
     vis_camera: np.ndarray  # (C,) visible to camera and transmitted rays
     vis_reflect: np.ndarray  # (C,) visible to reflected rays
-    casts_shadow: np.ndarray  # (C,)
-    transparent_cands: np.ndarray  # (C,) candidate belongs to a transparent-capable prim
-    inverse_sign: np.ndarray  # (C,) -1 where the prim is inverted
-    fading_cands: np.ndarray  # candidate slots of transparent prims whose interior may fade
+    shadow: CandidateView  # the candidates that cast shadows (slots S below)
+    transparent_cands: np.ndarray  # (S,) slot belongs to a transparent-capable prim
+    inverse_sign: np.ndarray  # (S,) -1 where the prim is inverted
+    fading_cands: np.ndarray  # shadow slots of transparent prims whose interior may fade
     medium: np.ndarray  # (P,) the medium of each prim: the first prim sharing its interior record
     accel_filters: bool  # the hierarchy holds transparent shadow-casting items (``MASK_FILTER``)
 
@@ -222,16 +223,18 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
                  background, dtype) -> TraceContext:
     prims = plan.prims
     bits = np.array([visibility_bits(p) for p in prims], np.int32)  # the hierarchy's items use them too
+    # shadow rays compute the crossings of shadow casters only (no_shadow objects are skipped)
+    shadow = candidate_view(geo, plan, lambda i: bool(bits[i] & (_accel.MASK_SHADOW | _accel.MASK_FILTER)))
     return TraceContext(
         plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
         background=background.astype(dtype), dtype=dtype,
         eps=2e-5 if dtype == jnp.float32 else 1e-9,
         vis_camera=(bits[geo.cand_prim] & _accel.MASK_CAMERA) != 0,
         vis_reflect=(bits[geo.cand_prim] & _accel.MASK_REFLECT) != 0,
-        casts_shadow=(bits[geo.cand_prim] & (_accel.MASK_SHADOW | _accel.MASK_FILTER)) != 0,
-        transparent_cands=static_prim_mask(geo, lambda i: bool(mats.transparent[i])),
-        inverse_sign=geo.prim_sign[geo.cand_prim],
-        fading_cands=np.flatnonzero(static_prim_mask(geo, lambda i: prims[i].transparent and prims[i].fades)),
+        shadow=shadow,
+        transparent_cands=np.asarray(mats.transparent, bool)[shadow.cand_prim],
+        inverse_sign=geo.prim_sign[shadow.cand_prim],
+        fading_cands=np.flatnonzero([prims[i].transparent and prims[i].fades for i in shadow.cand_prim]),
         medium=_medium_ids(prims),
         accel_filters=geo.accel is not None and any(
             bits[i] & _accel.MASK_FILTER for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
@@ -260,11 +263,12 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     if ctx.geo.accel is not None and ctx.accel_filters:
         # transparent items the hierarchy holds: each crossing filters by its layers' pigments
         one = _accel_filter(ctx, o, l, scale, dist - scale)
-    if not ctx.geo.n_candidates:
+    view = ctx.shadow
+    if not view.cand_prim.size:
         return jnp.where(blocked, 0.0, 1.0) * one
-    t, n = all_crossings(ctx.geo, o, l)
-    ok = jnp.asarray(ctx.casts_shadow) & jnp.isfinite(t) & (t > scale) & (t < dist - scale)
-    ok = ok & csg_mask(ctx.geo, ctx.plan, o, l, t)
+    t, n = all_crossings(ctx.geo, o, l, view.members)
+    ok = jnp.isfinite(t) & (t > scale) & (t < dist - scale)
+    ok = ok & csg_mask(ctx.geo, view.conditions, o, l, t)
     if not ctx.plan.effects.filtered_shadows:
         return jnp.where(jnp.any(ok) | blocked, 0.0, 1.0) * one
     opaque = ok & ~jnp.asarray(ctx.transparent_cands)
@@ -277,7 +281,7 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     # 316,000 operations that took 4 minutes to compile.)
     cands = np.flatnonzero(ctx.transparent_cands)
     if cands.size:
-        prims = ctx.geo.cand_prim[cands]
+        prims = view.cand_prim[cands]
         slot, layer = np.nonzero(ctx.mats.layer_present[prims])  # (pairs,) static
         rows = jnp.asarray(prims[slot] * n_layers + layer, jnp.int32)
         where = cands[slot]
@@ -297,7 +301,7 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
         accepted = jnp.where(ok, t, -jnp.inf)
         tc = accepted[fading]
         prev = jnp.max(jnp.where(accepted[None, :] < tc[:, None], accepted[None, :], 0.0), axis=1)
-        prims = ctx.geo.cand_prim[fading]
+        prims = view.cand_prim[fading]
         exiting = ok[fading] & (jnp.einsum("ri,i->r", n[fading], l)
                                 * jnp.asarray(ctx.inverse_sign[fading], n.dtype) > 0)
         m = ctx.mats
@@ -530,7 +534,8 @@ def _light_arrival(ctx: TraceContext, light: Light, p, p_spawn, n, visibility=No
     surface (``n·l > 1e-10``, semantics §2.4)."""
     l, c, cos_nl, shadow_len = _unshadowed(ctx, light, p, n)
     if visibility is None:
-        visibility = _light_visibility(ctx, light, light_types(light, ctx.plan.effects), p_spawn, l, shadow_len)
+        types = light_types(light, ctx.plan.effects)
+        visibility = _light_visibility(ctx, light, types, p_spawn, l, shadow_len)
     return _Arrival(l, c * visibility, cos_nl, cos_nl > lighting.NL_EPSILON)
 
 
@@ -761,7 +766,10 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
         if not batched:
             visibility.append(None)
             continue
-        _, c, cos_nl, _ = jax.vmap(lambda p, n: _unshadowed(ctx, light, p, n))(s.p, s.n)
+        def unshadowed(p, n, light=light):
+            return _unshadowed(ctx, light, p, n)
+
+        _, c, cos_nl, _ = jax.vmap(unshadowed)(s.p, s.n)
         live = s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1)
         visibility.append(_adaptive_visibility(ctx, light, s.p_out, live, c))
     return jax.vmap(lambda r, s_, v: shade(ctx, r, s_, v))(rays, s, tuple(visibility))

@@ -66,12 +66,12 @@ def test_the_full_recursion_gives_povrays_weights():
     for n1, n2 in [(1, 1), (1, 5), (2, 3), (3, 3), (4, 4), (5, 5), (5, 2), (6, 7), (9, 9)]:
         w = np.zeros(n1 * n2)
 
-        def spread(b, weight):
+        def spread(b, weight, w=w):
             if not b.children:
                 for k in b.corners:
                     w[k] += weight / 4
             for c in b.children:
-                spread(c, weight / len(b.children))
+                spread(c, weight / len(b.children), w)
 
         spread(area_blocks(n1, n2), 1.0)
         np.testing.assert_allclose(w, np.outer(area_weights(n1), area_weights(n2)).ravel(), atol=1e-15)
@@ -81,7 +81,8 @@ def test_the_full_recursion_gives_povrays_weights():
 @pytest.mark.parametrize("case", CASES, ids=list(CASES))
 def test_adaptive_sampling_follows_the_closed_forms(case):
     adaptive, colour, bar, transmit, expected = CASES[case]
-    pixel = np.asarray(rt.render(rt.load_scene(_one_point(adaptive, colour, bar, transmit)), width=1, height=1))
+    scene = rt.load_scene(_one_point(adaptive, colour, bar, transmit))
+    pixel = np.asarray(rt.render(scene, width=1, height=1))
     np.testing.assert_allclose(pixel[0, 0], colour * expected, rtol=1e-5)
 
 
@@ -110,11 +111,11 @@ cylinder {{ <-2.5, 0, 1>, <-2.5, 3, 1>, 0.15 pigment {{ rgb 0.5 }} }}
 @pytest.mark.slow
 @pytest.mark.parametrize("options, full_was", [
     # a sphere, a transparent box and a thin post: adaptive 0 misses the post's shadow where it
-    # falls between the corners, and stops at faint filtered differences (we rendered it fully
-    # subdivided: 39.8 dB)
-    ("adaptive 0", 40.0),
-    # circular: the grid pulled onto a disc (we ignored it: 33.6 dB on a similar scene)
-    ("circular adaptive 1", 45.0),
+    # falls between the corners, and stops at faint filtered differences (58.0 dB; rendered fully
+    # subdivided, as before: 36.7 dB)
+    ("adaptive 0", 36.7),
+    # circular: the grid pulled onto a disc, shifted by 0.002 (62.9 dB; as a square grid: 34.7 dB)
+    ("circular adaptive 1", 34.7),
 ])
 def test_soft_shadows_match_povray(options, full_was):
     from validation.metrics import psnr
@@ -123,10 +124,10 @@ def test_soft_shadows_match_povray(options, full_was):
     text = PENUMBRA.format(options=options)
     pov = render_povray(text, 160, 120)
     ours = np.asarray(rt.render(rt.load_scene(text), width=160, height=120))
-    assert psnr(ours, pov) >= 48.0
+    assert psnr(ours, pov) >= 55.0
     # the rule matters here: the plain grid is far from POV-Ray's image
     plain = np.asarray(rt.render(rt.load_scene(PENUMBRA.format(options="")), width=160, height=120))
-    assert psnr(plain, pov) <= full_was
+    assert psnr(plain, pov) <= full_was + 1.0
 
 
 @pytest.mark.slow  # a reverse-mode program and a few forward ones
@@ -151,3 +152,28 @@ def test_adaptive_shadows_differentiate_like_their_samples():
     fd = (image(c0 + eps * tangent) - image(c0 - eps * tangent)) / (2 * eps)
     err = np.abs(np.asarray(jvp) - np.asarray(fd)).max(axis=-1)
     assert (err <= 2e-3).mean() >= 0.99, np.sort(err.ravel())[-5:]
+
+
+def test_circular_grid_points_sit_where_povray_puts_them():
+    """Sample points of ``circular`` lights located one by one in POV-Ray 3.7 renders (a tiny
+    occluder scanned across each point's shadow ray; ±2e-4 world units), against ours: the square
+    grid shifted by 0.002 and pulled radially onto the disc (semantics §2.5)."""
+    from raytracer.scene._lights import _area_samples
+
+    def point(n1, n2, a1, a2, u, v):
+        light = rt.Light(position=(0.0, 0.0, 0.0),
+                         area=rt.AreaLight(a1, a2, n1, n2, circular=True))
+        positions, _ = _area_samples(light, jnp.float32)
+        return np.asarray(positions)[u * n2 + v][[0, 2]]
+
+    x, z = (4.0, 0.0, 0.0), (0.0, 0.0, 4.0)
+    # (grid, axes, index) → measured (x, z); a 7×7 grid's (u, v) = (6, 4) is (a, b) = (1, 1/3)
+    measured = [((7, 7, x, z, 6, 4), (1.90042, 0.63601)),
+                ((7, 7, x, z, 5, 4), (1.19562, 0.59962)),
+                ((7, 7, x, z, 6, 5), (1.66681, 1.11241)),
+                ((7, 7, x, z, 1, 2), (-1.18971, -0.59306)),
+                ((4, 4, x, z, 2, 3), (0.63600, 1.90040))]
+    for args, where in measured:
+        np.testing.assert_allclose(point(*args), where, atol=3e-4)
+    # oblique axes: (a, b) = (0.5, 1) on a 5×5 light with a2 = <2, 0, 3>
+    np.testing.assert_allclose(point(5, 5, x, (2.0, 0.0, 3.0), 3, 4), (1.79360, 1.34360), atol=3e-4)
