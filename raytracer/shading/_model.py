@@ -481,7 +481,10 @@ def _adaptive_visibility(ctx: TraceContext, light: Light, p_spawn, live, colour)
         blocks, corners, parent, valid, member, initial = table
         split_here = split[:, parent] & valid[None] & _differ(colour, cols[:, corners])  # (B, M)
         split = split.at[:, blocks].set(split_here)
-        need = jnp.any(split_here[:, :, None] & member[None], axis=1) | initial[None]
+        # the new corners of the blocks that split: (B, M) @ (M, P) (not a (B, M, P) mask: 17×17
+        # lights have 64 blocks of 289 points on a level)
+        asked = jnp.dot(split_here.astype(ctx.dtype), member.astype(ctx.dtype)) > 0
+        need = asked | initial[None]
         need = need & ~done & live[:, None]  # (B, P)
         new = map_live(trace, (rays, samples), need.reshape(-1), chunk).reshape(cols.shape)
         return (jnp.where(need[..., None], new, cols), done | need, split), None
