@@ -159,12 +159,10 @@ class AreaBlock:
     corners:  the grid indices ``u·size2 + v`` of its corners (repeated on an axis of width 0).
     children: the blocks it splits into (each axis wider than 1 is split at the floor and ceil of
               its midpoint), or () for a leaf.
-    depth:    splits from the whole grid (0).
     """
 
     corners: tuple[int, int, int, int]
     children: tuple[AreaBlock, ...]
-    depth: int
 
 
 @functools.cache
@@ -178,14 +176,14 @@ def area_blocks(n1: int, n2: int) -> AreaBlock:
         m = (lo + hi) / 2
         return [(lo, int(np.floor(m))), (int(np.ceil(m)), hi)]
 
-    def block(r1, r2, depth):
+    def block(r1, r2):
         corners = tuple(u * n2 + v for u in r1 for v in r2)
         children = ()
         if r1[1] - r1[0] > 1 or r2[1] - r2[0] > 1:
-            children = tuple(block(c1, c2, depth + 1) for c1 in halves(*r1) for c2 in halves(*r2))
-        return AreaBlock(corners, children, depth)
+            children = tuple(block(c1, c2) for c1 in halves(*r1) for c2 in halves(*r2))
+        return AreaBlock(corners, children)
 
-    return block((0, n1 - 1), (0, n2 - 1), 0)
+    return block((0, n1 - 1), (0, n2 - 1))
 
 
 CIRCULAR_OFFSET = 0.002  # POV-Ray 3.7 shifts a circular grid by this (in [-1, 1]² units; measured)

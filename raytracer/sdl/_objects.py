@@ -401,7 +401,7 @@ def _light_item(p, rec, t):
                 p.warn(f"{kw} light", f"{kw} lights are treated as {light_type.rendered_as}s", t.loc)
         else:
             rec.values[kw] = _light_value(p, how)
-            if kw in UNSIMULATED_LIGHT_KEYWORDS and rec.values[kw] not in (0, 0.0, False):
+            if kw in UNSIMULATED_LIGHT_KEYWORDS and rec.values[kw] != 0:  # None: given bare
                 p.warn(kw, UNSIMULATED_LIGHT_KEYWORDS[kw], t.loc)
     elif kw == "looks_like":
         p.warn("looks_like", "light_source looks_like is not supported; dropped", t.loc)

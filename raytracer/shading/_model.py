@@ -2,8 +2,10 @@
 
 ``shade(ctx, ray)`` takes one ray and returns a :class:`Shading`: the local colour at the hit and
 the children the hit spawns (:class:`Child`: the child ray with the coefficient and exponent its
-colour is combined with). It knows nothing of pools, levels, chunks or compaction: the scheduler
-(``_scheduler.py``) calls it under ``vmap`` and assembles the tree.
+colour is combined with). It knows nothing of pools, levels or compaction of the tree: the
+scheduler (``_scheduler.py``) calls ``shade_batch(ctx, rays)`` on chunks of a pool (``shade``
+vmapped; the shadows of adaptive area lights are computed for the chunk at once) and assembles
+the tree.
 
 What one hit computes:
   * every texture layer, top first (semantics §2.3): each layer's ambient + emission + diffuse + highlights

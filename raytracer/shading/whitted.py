@@ -3,8 +3,9 @@
 The seed's recursion — shoot shadow rays to all lights, add the local lighting, shoot the reflected
 and the refracted ray, combine — is two pieces joined at one function:
 
-  * ``_model.shade(ctx, ray)``: POV-Ray's shading model for ONE ray (its hit, local lighting over
-    the texture layers, shadows, and the children it spawns with their coefficients);
+  * ``_model.shade_batch(ctx, rays)``: POV-Ray's shading model for a batch of rays (each one's hit,
+    local lighting over the texture layers, shadows, and the children it spawns with their
+    coefficients): ``shade(ctx, ray)`` vmapped, with adaptive area lights' shadows done per batch;
   * ``_scheduler.trace_tree(shade_rays, rays, …)``: the tree of rays as a ``lax.scan`` over trace
     levels (pools, chunk skipping, compaction) and the reverse combine ``local + coef · child``.
 
