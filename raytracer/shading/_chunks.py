@@ -54,11 +54,14 @@ def map_live(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = 
     per_block = divisor_near(n_chunks, int(n_chunks ** 0.5)) if blocks else n_chunks
     lead = (n_chunks // per_block, per_block, chunk)
     sorted_items = jax.tree.map(lambda a: a[order].reshape(lead + a.shape[1:]), (items, alive))
-    shapes = jax.eval_shape(fn, jax.tree.map(lambda a: a[0, 0], sorted_items[0]))
+    # fn behind a jit boundary: the two nested conds would otherwise linearise it four times in
+    # reverse mode (JAX linearises a cond's branches twice; a jaxpr's linearisation is cached)
+    fn_jit = jax.jit(fn)
+    shapes = jax.eval_shape(fn_jit, jax.tree.map(lambda a: a[0, 0], sorted_items[0]))
 
     def one_chunk(x):
         it, live = x
-        return jax.lax.cond(jnp.any(live), lambda: fn(it), lambda: zeros_like_shapes(shapes))
+        return jax.lax.cond(jnp.any(live), lambda: fn_jit(it), lambda: zeros_like_shapes(shapes))
 
     def one_block(x):
         it, live = x

@@ -675,7 +675,7 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
         att_col = lighting.interior_fade(s.t, fd, fp, mats.fade_color[prim], on=~s.entering)
     else:
         att_col = jnp.ones(3, ctx.dtype)
-    t_weight = weight * jnp.max(jnp.abs(fil))
+    t_weight = jax.lax.stop_gradient(weight * jnp.max(jnp.abs(fil)))
     t_alive = s.found & (layers.trans > settings.adc_bailout) & (t_weight >= settings.adc_bailout)
     t_alive = t_alive & jnp.asarray(mats.transparent)[prim]  # opaque pigments never transmit
     # TIR is found by the refraction step, so it only replaces the mirror ray where that step
@@ -697,7 +697,7 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
 def _mirror(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers, tir) -> Child:
     """The mirror ray, with the layers' summed reflection colour and the top layer's exponent."""
     settings = ctx.settings
-    w = ray.weight * layers.r_weight
+    w = jax.lax.stop_gradient(ray.weight * layers.r_weight)
     r_alive = s.found & jnp.any(layers.reflec != 0) & ~tir & (w >= settings.adc_bailout)
     expo = ctx.mats.finish["refl_exponent"][s.prim * ctx.mats.n_layers]  # top layer's
     child = Rays(origin=s.p_out, direction=lighting.reflect(ray.direction, s.n), weight=w,

@@ -76,8 +76,13 @@ def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int) -
     almost nothing."""
     n = rays.origin.shape[0]
     if chunk >= n:  # one call over the pool, skipped when the pool is empty (deep levels)
-        shapes = jax.eval_shape(shade_rays, rays)
-        return jax.lax.cond(jnp.any(rays.alive), lambda: shade_rays(rays), lambda: zeros_like_shapes(shapes))
+        # a jit boundary: JAX linearises each branch of a cond twice (once to find which outputs
+        # have tangents), and the inner jaxpr's linearisation is cached, so reverse mode traces the
+        # shading once, not twice (glass.pov's reverse-mode trace: 8.7 → 5.4 s); eval_shape's trace
+        # is reused by the branch
+        shade = jax.jit(shade_rays)
+        shapes = jax.eval_shape(shade, rays)
+        return jax.lax.cond(jnp.any(rays.alive), lambda: shade(rays), lambda: zeros_like_shapes(shapes))
     return map_live(shade_rays, rays, rays.alive, chunk)
 
 
