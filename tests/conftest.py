@@ -2,6 +2,8 @@
 float64 fixture, and the ``povray`` marker's skip.
 
 * ``x64``: float64 for the duration of one test (parameters created inside it are float64).
+* ``slow``: besides the tests marked in their files, those listed in ``tests/slow_tests.txt``
+  (measured in a full run by ``scripts/slow_tests.py``); ``make test-fast`` leaves them out.
 * ``@pytest.mark.povray``: the test runs the ``povray`` binary; it is skipped where POV-Ray is not
   installed (``validation.povray.povray_executable``, which honours ``$POVRAY``).
 * XLA compiles for compile time, not run time (``FAST_COMPILE_XLA_FLAGS``): the suite's images are
@@ -56,8 +58,25 @@ def pytest_unconfigure(config):
         shutil.rmtree(os.environ.pop(env), ignore_errors=True)
 
 
+_SLOW_LIST = os.path.join(os.path.dirname(__file__), "slow_tests.txt")
+
+
+def _measured_slow() -> set[str]:
+    """Node ids measured slow in a full run (``scripts/slow_tests.py`` writes the list)."""
+    try:
+        with open(_SLOW_LIST) as f:
+            return {line.strip() for line in f if line.strip() and not line.startswith("#")}
+    except FileNotFoundError:
+        return set()
+
+
 def pytest_collection_modifyitems(config, items):
     from validation.povray import povray_executable
+
+    slow = _measured_slow()
+    for item in items:
+        if item.nodeid in slow:
+            item.add_marker(pytest.mark.slow)
 
     if povray_executable() is None:
         skip = pytest.mark.skip(reason="povray is not installed")

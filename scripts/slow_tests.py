@@ -1,0 +1,61 @@
+"""Writes ``tests/slow_tests.txt``: the tests that took at least ``THRESHOLD_S`` in a full run.
+
+``make test-fast`` leaves out the tests marked ``slow``. Besides the tests marked in their files,
+``tests/conftest.py`` marks those listed in ``tests/slow_tests.txt``, which this script makes from
+the JUnit report of a full run (``make slow-list`` runs both), so the fast loop is chosen by
+measurement rather than by guess:
+
+    .venv/bin/python -m pytest -q -n 2 --dist worksteal -p no:cacheprovider --junitxml=out/junit.xml
+    .venv/bin/python scripts/slow_tests.py out/junit.xml
+
+A test's time is its own (set-up, call and tear-down), measured with two workers on two cores:
+almost all of it is tracing and compiling its JAX programs.
+"""
+
+from __future__ import annotations
+
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+THRESHOLD_S = 0.5
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "tests" / "slow_tests.txt"
+
+
+def node_id(classname: str, name: str) -> str:
+    """pytest's node id from JUnit's ``classname`` (dotted module, then classes) and ``name``."""
+    parts = classname.split(".")
+    for k in range(len(parts), 0, -1):
+        path = Path(*parts[:k]).with_suffix(".py")
+        if (ROOT / path).is_file():
+            return "::".join([path.as_posix(), *parts[k:], name])
+    raise ValueError(f"no test file for {classname}")
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 1:
+        print(__doc__, file=sys.stderr)
+        return 2
+    tree = ET.parse(argv[0])
+    rows = []
+    for case in tree.iter("testcase"):
+        if case.find("skipped") is not None:
+            continue
+        rows.append((float(case.get("time", 0.0)), node_id(case.get("classname"), case.get("name"))))
+    slow = sorted(nid for t, nid in rows if t >= THRESHOLD_S)
+    total = sum(t for t, _ in rows)
+    fast = sum(t for t, _ in rows if t < THRESHOLD_S)
+    header = [
+        f"# Tests that took at least {THRESHOLD_S} s in a full run ({len(rows)} tests, "
+        f"{total / 60:.1f} CPU-min; the {len(rows) - len(slow)} others: {fast / 60:.1f} CPU-min).",
+        "# tests/conftest.py marks them slow (make test-fast leaves them out). Made by",
+        "# scripts/slow_tests.py from the run's JUnit report; do not edit by hand.",
+    ]
+    OUT.write_text("\n".join(header + slow) + "\n")
+    print(f"{OUT}: {len(slow)} of {len(rows)} tests", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
