@@ -79,6 +79,20 @@ def test_plot_and_tables_from_rows(tmp_path):
     assert md.count("| ours |") == 6
 
 
+def test_reverse_compile_entry_point_times_each_scene(tmp_path):
+    from benchmarks import reverse_compile
+
+    scene = tmp_path / "s.pov"
+    scene.write_text("camera { location <0, 0, -3> look_at 0 } light_source { <1, 2, -3> rgb 1 } "
+                     "sphere { 0, 1 pigment { rgb 0.5 } }")
+    out = tmp_path / "table.md"
+    assert reverse_compile.main([str(scene), "--size", "2", "2", "--out", str(out)]) == 0
+    (row,) = [line for line in out.read_text().splitlines() if line.startswith("| s |")]
+    lower_s, compile_s, total_s = (float(x) for x in row.strip("|").split("|")[1:])
+    assert lower_s > 0 and compile_s > 0 and abs(total_s - lower_s - compile_s) <= 0.11
+    assert "0 of 1 over 10 s" in out.read_text()
+
+
 @pytest.mark.povray
 def test_speed_entry_point_writes_json_and_markdown(tmp_path):
     assert speed.main(["--out", str(tmp_path), "--scenes", "seed", "--scale", "0.05", "--repeats", "1"]) == 0
