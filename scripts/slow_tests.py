@@ -1,4 +1,5 @@
-"""Writes ``tests/slow_tests.txt``: the tests that took at least ``THRESHOLD_S`` in a full run.
+"""Writes ``tests/slow_tests.txt``: the tests that took at least ``THRESHOLD_S`` in a full run (in
+any of the runs whose reports are given: a shared machine's times vary).
 
 ``make test-fast`` leaves out the tests marked ``slow``. Besides the tests marked in their files,
 ``tests/conftest.py`` marks those listed in ``tests/slow_tests.txt``, which this script makes from
@@ -6,7 +7,7 @@ the JUnit report of a full run (``make slow-list`` runs both), so the fast loop 
 measurement rather than by guess:
 
     .venv/bin/python -m pytest -q -n 2 --dist worksteal -p no:cacheprovider --junitxml=out/junit.xml
-    .venv/bin/python scripts/slow_tests.py out/junit.xml
+    .venv/bin/python scripts/slow_tests.py out/junit.xml [older-run.xml ...]
 
 A test's time is its own (set-up, call and tear-down), measured with two workers on two cores:
 almost all of it is tracing and compiling its JAX programs.
@@ -34,20 +35,22 @@ def node_id(classname: str, name: str) -> str:
 
 
 def main(argv: list[str]) -> int:
-    if len(argv) != 1:
+    if not argv:
         print(__doc__, file=sys.stderr)
         return 2
-    tree = ET.parse(argv[0])
-    rows = []
-    for case in tree.iter("testcase"):
-        if case.find("skipped") is not None:
-            continue
-        rows.append((float(case.get("time", 0.0)), node_id(case.get("classname"), case.get("name"))))
+    # each test of the first (newest) report, with its longest time over the reports given
+    longest: dict[str, float] = {}
+    for k, report in enumerate(argv):
+        for case in ET.parse(report).iter("testcase"):
+            nid = node_id(case.get("classname"), case.get("name"))
+            if case.find("skipped") is None and (k == 0 or nid in longest):
+                longest[nid] = max(longest.get(nid, 0.0), float(case.get("time", 0.0)))
+    rows = [(t, nid) for nid, t in longest.items()]
     slow = sorted(nid for t, nid in rows if t >= THRESHOLD_S)
     total = sum(t for t, _ in rows)
     fast = sum(t for t, _ in rows if t < THRESHOLD_S)
     header = [
-        f"# Tests that took at least {THRESHOLD_S} s in a full run ({len(rows)} tests, "
+        f"# Tests that took at least {THRESHOLD_S} s in one of {len(argv)} full runs ({len(rows)} tests, "
         f"{total / 60:.1f} CPU-min; the {len(rows) - len(slow)} others: {fast / 60:.1f} CPU-min).",
         "# tests/conftest.py marks them slow (make test-fast leaves them out). Made by",
         "# scripts/slow_tests.py from the run's JUnit report; do not edit by hand.",
