@@ -53,7 +53,7 @@ def main(argv: list[str]) -> int:
         f"# Tests that took at least {THRESHOLD_S} s in one of {len(argv)} full runs ({len(rows)} tests, "
         f"{total / 60:.1f} CPU-min; the {len(rows) - len(slow)} others: {fast / 60:.1f} CPU-min).",
         "# tests/conftest.py marks them slow (make test-fast leaves them out). Made by",
-        "# scripts/slow_tests.py from the run's JUnit report; do not edit by hand.",
+        "# scripts/slow_tests.py from the runs' JUnit reports; do not edit by hand.",
     ]
     OUT.write_text("\n".join(header + slow) + "\n")
     print(f"{OUT}: {len(slow)} of {len(rows)} tests", file=sys.stderr)
