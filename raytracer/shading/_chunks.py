@@ -2,9 +2,8 @@
 front (a stable partition, no sort), cut into chunks, and chunks without a live item are skipped
 with ``lax.cond`` (which runs only the taken branch and differentiates like any branch).
 
-The scheduler shades its pools of rays this way, and the shading model refines only the area-light
-samples that POV-Ray's adaptive rule asks for (a few per cent of a pool's rays: those in a
-penumbra).
+The scheduler shades its pools of rays this way, and the shading model traces an adaptive area
+light's full grid only for the points in a penumbra (a few per cent of a pool's points).
 """
 
 from __future__ import annotations

@@ -371,7 +371,7 @@ def _adaptive(ctx: TraceContext, light: Light) -> bool:
             and light.area.adaptive is not None):
         return False
     # split N times everywhere down to the leaves: every sample is traced, as without adaptive
-    return _adaptive_plan(light.area.size1, light.area.size2, light.area.adaptive).blocks.shape[0] > 1
+    return _adaptive_plan(light.area.size1, light.area.size2, light.area.adaptive).blocks.shape[0] > 0
 
 
 ADAPTIVE_THRESHOLD = 0.1  # corner samples differ when colour·filter differs by more (see _differ)
@@ -396,27 +396,26 @@ def _differ(colour, corners):
 class _AdaptivePlan(NamedTuple):
     """The static tables of adaptive sampling over an area light's recursion tree (all blocks in
     breadth-first order, ``j``; two extra columns of the split table: ``pad`` (written by padding,
-    never read) and ``always`` (True: the root's parent)). Round 0 traces the first N levels'
-    corners; round r ≥ 1 decides the blocks of depth N + r - 1 and traces their children's new
-    corners. Per round (leading axis), padded to the widest level:
+    never read) and ``always`` (True: the root's parent)). The first N levels split whatever the
+    samples; decision round r (r ≥ 0) decides the blocks of depth N + r that have children. Per
+    round (leading axis), padded to the widest level:
 
     blocks:  (R, M) block index (``pad`` for padding); corners (R, M, 4) their corners' grid
              indices; parent (R, M) their parents' (``always`` for the root); valid (R, M);
-    member:  (R, M, P) grid index k is a corner of one of the block's children;
-    initial: (R, P) traced in this round whatever the decisions (round 0: the first N levels).
-    split0:  (NB + 2,) the split table before round 1: the first N levels split, ``always``.
-    tree:    the root block (for the final means).
+    first:   (P,) the first N levels' corners (what round 0 decides on);
+    split0:  (NB + 2,) the split table before round 0: the first N levels split, ``always``;
+    levels:  per depth of the tree, from the root: the blocks' indices (n,), their corners (n, 4)
+             and their children as indices into the next depth's blocks (n, 4) with weights (n, 4)
+             (1/number of children; 0 pads) — the final means, bottom up.
     """
 
     blocks: np.ndarray
     corners: np.ndarray
     parent: np.ndarray
     valid: np.ndarray
-    member: np.ndarray
-    initial: np.ndarray
+    first: np.ndarray
     split0: np.ndarray
-    index: dict
-    tree: object
+    levels: tuple
 
 
 @functools.cache
@@ -430,26 +429,35 @@ def _adaptive_plan(n1: int, n2: int, forced: int) -> _AdaptivePlan:
     pad, always = len(every), len(every) + 1
     parent_of = {id(c): index[id(b)] for b in every for c in b.children}
     forced = min(forced, len(levels) - 1)
-    n_points = n1 * n2
-    decided = [[b for b in level if b.children] for level in levels[forced:-1]]  # rounds 1…R
+    decided = [[b for b in level if b.children] for level in levels[forced:-1]]
     width = max([len(level) for level in decided] + [1])
-    rounds = 1 + len(decided)
-    blocks = np.full((rounds, width), pad, np.int32)
-    corners = np.zeros((rounds, width, 4), np.int32)
-    parent = np.full((rounds, width), always, np.int32)
-    valid = np.zeros((rounds, width), bool)
-    member = np.zeros((rounds, width, n_points), bool)
-    initial = np.zeros((rounds, n_points), bool)
-    initial[0, [k for level in levels[:forced + 1] for b in level for k in b.corners]] = True
-    for r, level in enumerate(decided, start=1):
+    blocks = np.full((len(decided), width), pad, np.int32)
+    corners = np.zeros((len(decided), width, 4), np.int32)
+    parent = np.full((len(decided), width), always, np.int32)
+    valid = np.zeros((len(decided), width), bool)
+    first = np.zeros(n1 * n2, bool)
+    first[[k for level in levels[:forced + 1] for b in level for k in b.corners]] = True
+    for r, level in enumerate(decided):
         for m, b in enumerate(level):
             blocks[r, m], corners[r, m], valid[r, m] = index[id(b)], b.corners, True
             parent[r, m] = parent_of.get(id(b), always)
-            member[r, m, [k for c in b.children for k in c.corners]] = True
     split0 = np.zeros(len(every) + 2, bool)
     split0[[index[id(b)] for level in levels[:forced] for b in level if b.children]] = True
     split0[always] = True
-    return _AdaptivePlan(blocks, corners, parent, valid, member, initial, split0, index, root)
+    tables = []
+    for depth, level in enumerate(levels):
+        below = {id(c): i for i, c in enumerate(levels[depth + 1])} if depth + 1 < len(levels) else {}
+        children = np.zeros((len(level), 4), np.int32)
+        weights = np.zeros((len(level), 4))
+        for m, b in enumerate(level):
+            for i, c in enumerate(b.children):
+                children[m, i], weights[m, i] = below[id(c)], 1 / len(b.children)
+        tables.append((np.asarray([index[id(b)] for b in level], np.int32),
+                       np.asarray([b.corners for b in level], np.int32), children, weights))
+    return _AdaptivePlan(blocks, corners, parent, valid, first, split0, tuple(tables))
+
+
+SAMPLES_PER_CHUNK = 2048  # shadow rays traced per skippable chunk of adaptive area sampling
 
 
 def _adaptive_visibility(ctx: TraceContext, light: Light, p_spawn, live, colour):
@@ -459,52 +467,66 @@ def _adaptive_visibility(ctx: TraceContext, light: Light, p_spawn, live, colour)
     is split only where its corner samples differ (:func:`_differ`, on the arriving colours
     ``colour`` (B, 3) times the filters), else its value is the mean of its corners.
 
-    Only the samples the rule asks for are traced, and only for the ``live`` points (B,) (lit, with
-    a hit): each round's (point, sample) pairs are compacted and traced in chunks, the rest skipped
-    (``map_live``), so a scene pays for its penumbrae, not for the whole grid. The rounds are one
-    ``lax.scan`` (the shadow test is traced once, whatever the grid). The choice of blocks is
-    piecewise constant (no gradient); the samples' filters and the means differentiate as usual.
+    What is traced, for the ``live`` points (B,) (lit, with a hit): the first N levels' corners for
+    every point, and the rest of the grid only for the points where the first block the rule
+    decides splits (a penumbra: a few per cent of the points); the others' value is already
+    decided. Each set is traced per point, densely, with the live points moved to the front and
+    chunks without one skipped (``map_live``). The rule is then applied to the traced grid as
+    selects, round by round (one ``lax.scan``): a sample it never asks for is traced for a
+    penumbra point but never read. Partitioning points rather than (point, sample) pairs round by
+    round costs a few more shadow rays in penumbrae and much less compaction (session 13:
+    ``docs/performance.md``). The choice of blocks is piecewise constant (no gradient); the
+    samples' filters and the means differentiate as usual.
     """
     area = light.area
     sampler = next(t.shadow_samples for t in light_types(light, ctx.plan.effects) if t.shadow_samples)
     positions, _ = sampler(light, ctx.dtype)
     plan = _adaptive_plan(area.size1, area.size2, area.adaptive)
-    b_size, n_points = p_spawn.shape[0], positions.shape[0]
-    rays = jnp.repeat(jnp.arange(b_size, dtype=jnp.int32), n_points)
-    samples = jnp.tile(jnp.arange(n_points, dtype=jnp.int32), b_size)
-    chunk = divisor_near(b_size * n_points, max(32, b_size // 2))
+    b_size = p_spawn.shape[0]
+    first = np.flatnonzero(plan.first)  # traced for every live point
+    rest = np.flatnonzero(~plan.first)  # traced where the first decision splits
+    back = np.argsort(np.concatenate([first, rest]))  # grid order from [first, rest]
 
-    def trace(items):
-        r, k = items
-        return jax.vmap(lambda p, q: _sample_filter(ctx, p, q))(p_spawn[r], positions[k])
+    def traced(ks, alive):
+        q = positions[ks]
 
-    def round_(carry, table):
-        cols, done, split = carry
-        blocks, corners, parent, valid, member, initial = table
-        split_here = split[:, parent] & valid[None] & _differ(colour, cols[:, corners])  # (B, M)
-        split = split.at[:, blocks].set(split_here)
-        # the new corners of the blocks that split: (B, M) @ (M, P) (not a (B, M, P) mask: 17×17
-        # lights have 64 blocks of 289 points on a level)
-        asked = jnp.dot(split_here.astype(ctx.dtype), member.astype(ctx.dtype)) > 0
-        need = asked | initial[None]
-        need = need & ~done & live[:, None]  # (B, P)
-        new = map_live(trace, (rays, samples), need.reshape(-1), chunk).reshape(cols.shape)
-        return (jnp.where(need[..., None], new, cols), done | need, split), None
+        def trace(p):  # (chunk, 3) points → (chunk, K, 3) filters
+            return jax.vmap(lambda p1: jax.vmap(lambda q1: _sample_filter(ctx, p1, q1))(q))(p)
 
-    start = (jnp.zeros((b_size, n_points, 3), ctx.dtype), jnp.zeros((b_size, n_points), bool),
-             jnp.broadcast_to(jnp.asarray(plan.split0), (b_size, plan.split0.size)))
-    tables = tuple(jnp.asarray(a) for a in (plan.blocks, plan.corners, plan.parent, plan.valid,
-                                            plan.member, plan.initial))
-    (cols, _, split), _ = jax.lax.scan(round_, start, tables)
+        chunk = divisor_near(b_size, max(1, SAMPLES_PER_CHUNK // len(ks)))
+        return map_live(trace, p_spawn, alive, chunk)
 
-    def value(b):
-        corners = sum(cols[:, k] for k in b.corners) / 4
-        if not b.children:
-            return corners
-        children = sum(value(c) for c in b.children) / len(b.children)
-        return jnp.where(split[:, plan.index[id(b)], None], children, corners)
+    def decide(cols):
+        def step(split, table):
+            blocks, corners, parent, valid = table
+            split_here = split[:, parent] & valid[None] & _differ(colour, cols[:, corners])  # (B, M)
+            return split.at[:, blocks].set(split_here), split_here
+        return step
 
-    return value(plan.tree)
+    tables = tuple(jnp.asarray(a) for a in (plan.blocks, plan.corners, plan.parent, plan.valid))
+    start = jnp.broadcast_to(jnp.asarray(plan.split0), (b_size, plan.split0.size))
+    ahead = traced(first, live)
+    coarse = jnp.concatenate([ahead, jnp.zeros((b_size, len(rest), 3), ctx.dtype)], axis=1)[:, back]
+    _, split_first = decide(coarse)(start, jax.tree.map(lambda a: a[0], tables))  # on ``first`` only
+    penumbra = live & jnp.any(split_first, axis=1)
+    cols = jnp.concatenate([ahead, traced(rest, penumbra)], axis=1)[:, back] if len(rest) else coarse
+    split, _ = jax.lax.scan(decide(cols), start, tables)
+
+    return _block_means(plan, cols, split)
+
+
+def _block_means(plan: _AdaptivePlan, cols, split):
+    """The root's value (B, 3) of the recursion tree, bottom up, one depth at a time: a block that
+    split (``split`` (B, NB + 2)) is the mean of its children, any other the mean of its corners'
+    filters ``cols`` (B, P, 3)."""
+    value = None  # (B, n, 3) of the depth below
+    for blocks, corners, children, weights in reversed(plan.levels):
+        mean = jnp.mean(cols[:, corners], axis=2)  # (B, n, 3)
+        if value is not None:
+            below = jnp.einsum("bnkc,nk->bnc", value[:, children], jnp.asarray(weights, cols.dtype))
+            mean = jnp.where(split[:, blocks, None], below, mean)
+        value = mean
+    return value[:, 0]
 
 
 # ---------------------------------------------------------------- local shading

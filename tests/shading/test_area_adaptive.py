@@ -177,3 +177,31 @@ def test_circular_grid_points_sit_where_povray_puts_them():
         np.testing.assert_allclose(point(*args), where, atol=3e-4)
     # oblique axes: (a, b) = (0.5, 1) on a 5×5 light with a2 = <2, 0, 3>
     np.testing.assert_allclose(point(5, 5, x, (2.0, 0.0, 3.0), 3, 4), (1.79360, 1.34360), atol=3e-4)
+
+
+def test_block_means_follow_the_recursion():
+    """The final means, computed one depth at a time over the plan's tables, against the recursion
+    written out over the blocks (a split block: its children's mean; any other: its corners')
+    for random filters and random split tables, on grids with one-wide and odd axes."""
+    from raytracer.shading._model import _adaptive_plan, _block_means
+
+    rng = np.random.default_rng(3)
+    for n1, n2 in [(5, 1), (4, 4), (6, 7), (17, 17)]:
+        plan = _adaptive_plan(n1, n2, 0)
+        root = area_blocks(n1, n2)
+        every, frontier = [], [root]
+        while frontier:  # breadth first, the plan's block order
+            every += frontier
+            frontier = [c for b in frontier for c in b.children]
+        index = {id(b): j for j, b in enumerate(every)}
+        cols = rng.random((3, n1 * n2, 3))
+        split = rng.random((3, len(every) + 2)) < 0.6
+
+        def value(b, i, cols=cols, split=split, index=index):
+            if b.children and split[i, index[id(b)]]:
+                return sum(value(c, i) for c in b.children) / len(b.children)
+            return sum(cols[i, k] for k in b.corners) / 4
+
+        want = np.stack([value(root, i) for i in range(3)])
+        np.testing.assert_allclose(_block_means(plan, jnp.asarray(cols), jnp.asarray(split)), want,
+                                   rtol=1e-6)
