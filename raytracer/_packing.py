@@ -20,6 +20,7 @@ which the same static plan is made inside.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import pickle
 
 import jax
@@ -86,12 +87,31 @@ def any_traced(xs) -> bool:
 
 def stack(xs, dtype=None):
     """``jnp.stack(xs)`` (cast to ``dtype``); numpy's when every entry is a concrete value, so
-    packing a large scene is not one JAX dispatch per object."""
+    packing a large scene is not one JAX dispatch per object. Traced entries are stacked by one
+    jitted call (:func:`traced_op`)."""
     if not any_traced(xs):
         out = np.stack([np.asarray(x) for x in xs])
         return out if dtype is None else out.astype(dtype)
+    return traced_op(_stack, tuple(xs), None if dtype is None else np.dtype(dtype).name)
+
+
+def _stack(xs, dtype):
     out = jnp.stack([jnp.asarray(x) for x in xs])
     return out if dtype is None else out.astype(dtype)
+
+
+@functools.partial(jax.jit, static_argnums=(0, 2))
+def _traced_op(fn, xs, static):
+    return fn(xs, static)
+
+
+def traced_op(fn, xs, static=None):
+    """``fn(xs, static)`` as one jitted call: packing a traced scene gathers one entry per object,
+    and under an eager transformation (``jax.grad(loss)(scene)`` without ``jit``) each primitive
+    of it is linearised on its own, every call (200 spheres: 8,500 primitives, 6 s a gradient).
+    As one call, the transformation sees one primitive and caches its rule. ``fn`` a module-level
+    function, ``static`` hashable."""
+    return _traced_op(fn, xs, static)
 
 
 def inverse_affines(m):

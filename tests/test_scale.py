@@ -45,6 +45,27 @@ def test_program_has_the_same_operations_for_20_and_200_spheres(tmp_path, monkey
     assert args20 == args200 < 100
 
 
+
+def test_packing_a_traced_scene_is_the_same_operations_for_20_and_200_spheres(tmp_path):
+    """Under ``jax.grad`` without ``jit`` (an optimisation loop's eager step) the packing is traced
+    again on every call, and each of its primitives is linearised on its own: gathering one entry
+    per object made that 8,500 primitives (6 s a gradient) for 200 spheres. The gathers are one
+    jitted call each, so the traced packing does not grow with the number of objects."""
+    counts = []
+    for n in (20, 200):
+        path = tmp_path / f"s{n}.pov"
+        path.write_text(_spheres(n))
+        scene = load_scene(path, width=16, height=12)
+        p, rest = eqx.partition(scene, eqx.is_inexact_array)
+
+        def packed(p, rest=rest):
+            leaves = jax.tree_util.tree_leaves(pack(eqx.combine(p, rest)))
+            return [x for x in leaves if isinstance(x, jax.Array)]
+
+        jaxpr = jax.make_jaxpr(packed)(p)
+        counts.append(len(jaxpr.eqns))
+    assert counts[0] == counts[1] < 200, counts
+
 # ---------------------------------------------------------------- memory of the ray tree (item 3)
 _GLASS_BOX = """#version 3.7;
 global_settings { assumed_gamma 1.0 max_trace_level 20 }

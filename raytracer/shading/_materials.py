@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import patterns
-from .._packing import any_traced, inverse_affines, register_packed, stack
+from .._packing import any_traced, inverse_affines, register_packed, stack, traced_op
 from .._plan import Plan
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
 
@@ -74,6 +74,11 @@ def _padded(xs, m: int, dtype):
     if not any_traced(xs):
         return np.stack([np.concatenate([np.asarray(x), np.repeat(np.asarray(x)[-1:], m - x.shape[0], 0)])
                          for x in xs]).astype(dtype)
+    return traced_op(_padded_traced, tuple(xs), (m, np.dtype(dtype).name))
+
+
+def _padded_traced(xs, static):
+    m, dtype = static
     return jnp.stack([jnp.concatenate([x, jnp.repeat(x[-1:], m - x.shape[0], 0)]) if x.shape[0] < m
                       else jnp.asarray(x) for x in xs]).astype(dtype)
 
