@@ -3,7 +3,7 @@ front (a stable partition, no sort), cut into chunks, and chunks without a live 
 with ``lax.cond`` (which runs only the taken branch and differentiates like any branch).
 
 The scheduler shades its pools of rays this way, and the shading model traces an adaptive area
-light's full grid only for the points in a penumbra (a few per cent of a pool's points).
+light's full grid only for the points in a penumbra.
 """
 
 from __future__ import annotations

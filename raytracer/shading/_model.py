@@ -469,12 +469,12 @@ def _adaptive_visibility(ctx: TraceContext, light: Light, p_spawn, live, colour)
 
     What is traced, for the ``live`` points (B,) (lit, with a hit): the first N levels' corners for
     every point, and the rest of the grid only for the points where the first block the rule
-    decides splits (a penumbra: a few per cent of the points); the others' value is already
-    decided. Each set is traced per point, densely, with the live points moved to the front and
-    chunks without one skipped (``map_live``). The rule is then applied to the traced grid as
-    selects, round by round (one ``lax.scan``): a sample it never asks for is traced for a
-    penumbra point but never read. Partitioning points rather than (point, sample) pairs round by
-    round costs a few more shadow rays in penumbrae and much less compaction (session 13:
+    decides splits (a penumbra); the others' value is already decided. Each set is traced per
+    point, densely, with the live points moved to the front and chunks without one skipped
+    (``map_live``). The rule is then applied to the traced grid as selects, round by round (one
+    ``lax.scan``): a sample it never asks for is traced for a penumbra point but never read.
+    Partitioning points rather than (point, sample) pairs round by round costs up to about twice
+    the shadow rays in penumbrae (``lights/soft``) and much less compaction (session 13:
     ``docs/performance.md``). The choice of blocks is piecewise constant (no gradient); the
     samples' filters and the means differentiate as usual.
     """
