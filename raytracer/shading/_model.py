@@ -460,9 +460,12 @@ def _adaptive_plan(n1: int, n2: int, forced: int) -> _AdaptivePlan:
 SAMPLES_PER_CHUNK = 2048  # shadow rays traced per skippable chunk of adaptive area sampling
 
 
-def _adaptive_visibility(ctx: TraceContext, light: Light, p_spawn, live, colour):
-    """The shadow filters (B, 3) of an area light with ``adaptive`` N for a batch of B shading
-    points (semantics §2.5), as POV-Ray samples it: the grid's recursion tree
+def _adaptive_visibility(ctx: TraceContext, plan: _AdaptivePlan, positions, p_spawn, live, colour):
+    """The shadow filters (L·B, 3) of L area lights with the same grid and ``adaptive`` N (one
+    ``plan``; their sample ``positions`` (L, P, 3)) for a batch of B shading points each (``p_spawn``,
+    ``live``, ``colour``: (L·B, …), light by light): one traced shadow test serves them all, so a
+    scene's identical area lights do not each add a copy to the program. Each light is sampled
+    as POV-Ray samples it (semantics §2.5): the grid's recursion tree
     (:func:`~raytracer.scene._lights.area_blocks`) is split N times everywhere; below that, a block
     is split only where its corner samples differ (:func:`_differ`, on the arriving colours
     ``colour`` (B, 3) times the filters), else its value is the mean of its corners.
@@ -478,23 +481,22 @@ def _adaptive_visibility(ctx: TraceContext, light: Light, p_spawn, live, colour)
     ``docs/performance.md``). The choice of blocks is piecewise constant (no gradient); the
     samples' filters and the means differentiate as usual.
     """
-    area = light.area
-    sampler = next(t.shadow_samples for t in light_types(light, ctx.plan.effects) if t.shadow_samples)
-    positions, _ = sampler(light, ctx.dtype)
-    plan = _adaptive_plan(area.size1, area.size2, area.adaptive)
-    b_size = p_spawn.shape[0]
+    b_size = p_spawn.shape[0]  # L·B
+    light_of = jnp.repeat(jnp.arange(positions.shape[0], dtype=jnp.int32), b_size // positions.shape[0])
     first = np.flatnonzero(plan.first)  # traced for every live point
     rest = np.flatnonzero(~plan.first)  # traced where the first decision splits
     back = np.argsort(np.concatenate([first, rest]))  # grid order from [first, rest]
 
     def traced(ks, alive):
-        q = positions[ks]
+        q = positions[:, ks]  # (L, K, 3)
 
-        def trace(p):  # (chunk, 3) points → (chunk, K, 3) filters
-            return jax.vmap(lambda p1: jax.vmap(lambda q1: _sample_filter(ctx, p1, q1))(q))(p)
+        def trace(items):  # (chunk, 3) points and their lights → (chunk, K, 3) filters
+            def one(p, light):
+                return jax.vmap(lambda q1: _sample_filter(ctx, p, q1))(q[light])
+            return jax.vmap(one)(*items)
 
         chunk = divisor_near(b_size, max(1, SAMPLES_PER_CHUNK // len(ks)))
-        return map_live(trace, p_spawn, alive, chunk)
+        return map_live(trace, (p_spawn, light_of), alive, chunk)
 
     def decide(cols):
         def step(split, table):
@@ -788,15 +790,28 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     if not any(adaptive):
         return jax.vmap(lambda r: shade(ctx, r))(rays)
     s = jax.vmap(lambda r: _surface(ctx, r))(rays)
-    visibility = []
-    for light, batched in zip(ctx.lights, adaptive, strict=True):
-        if not batched:
-            visibility.append(None)
-            continue
-        def unshadowed(p, n, light=light):
-            return _unshadowed(ctx, light, p, n)
+    grids: dict[tuple, list[int]] = {}  # lights with one plan share their traced shadow test
+    for i, (light, batched) in enumerate(zip(ctx.lights, adaptive, strict=True)):
+        if batched:
+            grids.setdefault((light.area.size1, light.area.size2, light.area.adaptive), []).append(i)
+    visibility: list = [None] * len(ctx.lights)
+    b_size = rays.origin.shape[0]
+    for key, ids in grids.items():
+        lives, colours, positions = [], [], []
+        for i in ids:
+            light = ctx.lights[i]
 
-        _, c, cos_nl, _ = jax.vmap(unshadowed)(s.p, s.n)
-        live = s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1)
-        visibility.append(_adaptive_visibility(ctx, light, s.p_out, live, c))
+            def unshadowed(p, n, light=light):
+                return _unshadowed(ctx, light, p, n)
+
+            _, c, cos_nl, _ = jax.vmap(unshadowed)(s.p, s.n)
+            lives.append(s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1))
+            colours.append(c)
+            sampler = next(t.shadow_samples for t in light_types(light, ctx.plan.effects) if t.shadow_samples)
+            positions.append(sampler(light, ctx.dtype)[0])
+        seen = _adaptive_visibility(ctx, _adaptive_plan(*key), jnp.stack(positions),
+                                    jnp.tile(s.p_out, (len(ids), 1)), jnp.concatenate(lives),
+                                    jnp.concatenate(colours))
+        for j, i in enumerate(ids):
+            visibility[i] = seen[j * b_size:(j + 1) * b_size]
     return jax.vmap(lambda r, s_, v: shade(ctx, r, s_, v))(rays, s, tuple(visibility))

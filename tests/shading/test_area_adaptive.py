@@ -205,3 +205,19 @@ def test_block_means_follow_the_recursion():
         want = np.stack([value(root, i) for i in range(3)])
         np.testing.assert_allclose(_block_means(plan, jnp.asarray(cols), jnp.asarray(split)), want,
                                    rtol=1e-6)
+
+
+def test_area_lights_of_one_grid_share_a_shadow_test_and_add_up():
+    """Two adaptive lights with the same grid are sampled by one traced shadow test over (point,
+    light) pairs. Light adds up: with no ambient, the image lit by both is the sum of the images
+    lit by each alone, which fails if a pair's samples came from the other light."""
+    lights = ["light_source { <-3, 8, 1> color rgb 0.6 area_light <6, 0, 0>, <0, 0, 6>, 5, 5 adaptive 0 }",
+              "light_source { <4, 6, -2> color rgb <0.3, 0.5, 0.9> area_light <4, 0, 0>, <0, 0, 4>, 5, 5 "
+              "adaptive 0 circular }"]
+    scene = [line for line in PENUMBRA.format(options="").splitlines() if not line.startswith("light_source")]
+    scene.insert(2, "#default { finish { ambient 0 } }")  # after #version and global_settings
+    body = "\n".join([*scene, ""]).replace("ambient 0.1", "ambient 0")
+    both, *alone = (np.asarray(rt.render(rt.load_scene(body + "\n".join(ls) + "\n"), width=40, height=30))
+                    for ls in (lights, lights[:1], lights[1:]))
+    np.testing.assert_allclose(both, alone[0] + alone[1], rtol=1e-5, atol=1e-6)
+    assert np.abs(alone[0] - alone[1]).max() > 0.1  # the two lights' shadows differ
