@@ -468,9 +468,9 @@ def _adaptive_visibility(ctx: TraceContext, plan: _AdaptivePlan, positions, p_sp
     as POV-Ray samples it (semantics §2.5): the grid's recursion tree
     (:func:`~raytracer.scene._lights.area_blocks`) is split N times everywhere; below that, a block
     is split only where its corner samples differ (:func:`_differ`, on the arriving colours
-    ``colour`` (B, 3) times the filters), else its value is the mean of its corners.
+    ``colour`` times the filters), else its value is the mean of its corners.
 
-    What is traced, for the ``live`` points (B,) (lit, with a hit): the first N levels' corners for
+    What is traced, for the ``live`` points (lit, with a hit): the first N levels' corners for
     every point, and the rest of the grid only for the points where the first block the rule
     decides splits (a penumbra); the others' value is already decided. Each set is traced per
     point, densely, with the live points moved to the front and chunks without one skipped
@@ -784,8 +784,9 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
 
 def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     """:func:`shade` for a batch of rays (a leading axis). The shadows of lights with adaptive area
-    sampling are computed for the batch at once (:func:`_adaptive_visibility`: only the samples
-    the rule asks for are traced); everything else is one ray's computation, vmapped."""
+    sampling are computed for the batch at once (:func:`_adaptive_visibility`: the full grid only
+    for points in a penumbra; lights of one grid together); everything else is one ray's
+    computation, vmapped."""
     adaptive = [_adaptive(ctx, light) for light in ctx.lights]
     if not any(adaptive):
         return jax.vmap(lambda r: shade(ctx, r))(rays)
