@@ -108,3 +108,18 @@ def test_light_items_that_change_nothing_are_warned():
     assert len(scene.warnings) == 3  # adaptive and the grid are simulated
     quiet = _scene("light_source { <0, 5, -5> rgb 1 area_light x, z, 3, 3 circular area_illumination off }")
     assert not quiet.warnings
+
+
+def test_an_area_grid_too_large_to_hold_is_a_located_error():
+    """An area light's penumbra points trace their whole grid at once, so a grid the renderer
+    cannot hold (1024×1024 ran out of memory) is refused where it is written, in the SDL and in
+    the Python API, and the largest grid it holds loads."""
+    from raytracer.scene._lights import MAX_AREA_SAMPLES
+    from raytracer.sdl import SceneError
+
+    with pytest.raises(SceneError, match=r"^<string>:3:20: an area_light grid of 512×300 = 153,600"):
+        _scene("light_source { <0, 5, -5> rgb 1\n  area_light x, z, 512, 300 adaptive 1 }")
+    assert _scene("light_source { <0, 5, -5> rgb 1 area_light x, z, 256, 256 adaptive 1 }").lights
+    assert 256 * 256 == MAX_AREA_SAMPLES
+    with pytest.raises(ValueError, match="300×512"):
+        rt.AreaLight((1.0, 0, 0), (0, 0, 1.0), 300, 512)

@@ -55,6 +55,22 @@ class AreaLight(eqx.Module):
     orient: bool = eqx.field(static=True, default=False)
     adaptive: int | None = eqx.field(static=True, default=None)
 
+    def __check_init__(self):
+        if self.size1 * self.size2 > MAX_AREA_SAMPLES:
+            raise ValueError(area_grid_too_large(self.size1, self.size2))
+
+
+# Samples of one area light's grid. A shading point in a penumbra traces its whole grid at once
+# (``_model._adaptive_visibility``; without ``adaptive``, every point does): 256×256 at 160×120 took
+# 40 s and 2.2 GB, 512×512 176 s and 7.9 GB, 1024×1024 ran out of memory (session 13).
+MAX_AREA_SAMPLES = 256 * 256
+
+
+def area_grid_too_large(n1: int, n2: int) -> str:
+    return (f"an area_light grid of {n1}×{n2} = {n1 * n2:,} samples is more than this renderer "
+            f"holds ({MAX_AREA_SAMPLES:,} per light, e.g. 256×256): every sample of a point in a "
+            "penumbra is traced at once")
+
 
 class Light(eqx.Module):
     """A POV-Ray ``light_source``.

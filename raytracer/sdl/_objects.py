@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene._lights import LIGHT_SDL_KEYWORDS, UNSIMULATED_LIGHT_KEYWORDS
+from ..scene._lights import (
+    LIGHT_SDL_KEYWORDS,
+    MAX_AREA_SAMPLES,
+    UNSIMULATED_LIGHT_KEYWORDS,
+    area_grid_too_large,
+)
 from ..shapes import SDL_KEYWORDS
 from ._convert import as_int
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
@@ -360,11 +365,16 @@ def _light_value(p, how):
         return float_(p)
     if how == "float?":
         return float_(p) if _starts_value(p) else None
-    values = []
+    values, sizes = [], []
     for i, part in enumerate(how):
         if i:
             opt_comma(p)
+        if part == "size":
+            sizes.append(p.peek().loc)
         values.append(_area_size(p) if part == "size" else vector3(p))
+    grid = [v for v, part in zip(values, how, strict=True) if part == "size"]
+    if len(grid) == 2 and grid[0] * grid[1] > MAX_AREA_SAMPLES:
+        raise p.error(area_grid_too_large(*grid), sizes[0])
     return tuple(values)
 
 
