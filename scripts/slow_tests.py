@@ -35,13 +35,18 @@ def node_id(classname: str, name: str) -> str:
 
 
 def main(argv: list[str]) -> int:
-    if not argv:
+    if not argv or any(a.startswith("-") for a in argv):
         print(__doc__, file=sys.stderr)
         return 2
     # each test of the first (newest) report, with its longest time over the reports given
     longest: dict[str, float] = {}
     for k, report in enumerate(argv):
-        for case in ET.parse(report).iter("testcase"):
+        try:
+            cases = list(ET.parse(report).iter("testcase"))
+        except (OSError, ET.ParseError) as e:
+            print(f"slow_tests.py: {report}: not a readable JUnit report ({e})", file=sys.stderr)
+            return 2
+        for case in cases:
             nid = node_id(case.get("classname"), case.get("name"))
             if case.find("skipped") is None and (k == 0 or nid in longest):
                 longest[nid] = max(longest.get(nid, 0.0), float(case.get("time", 0.0)))
