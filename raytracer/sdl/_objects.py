@@ -365,16 +365,16 @@ def _light_value(p, how):
         return float_(p)
     if how == "float?":
         return float_(p) if _starts_value(p) else None
-    values, sizes = [], []
+    values, grid, at = [], [], None
     for i, part in enumerate(how):
         if i:
             opt_comma(p)
         if part == "size":
-            sizes.append(p.peek().loc)
-        values.append(_area_size(p) if part == "size" else vector3(p))
-    grid = [v for v, part in zip(values, how, strict=True) if part == "size"]
+            at = at or p.peek().loc
+            grid.append(_area_size(p))
+        values.append(grid[-1] if part == "size" else vector3(p))
     if len(grid) == 2 and grid[0] * grid[1] > MAX_AREA_SAMPLES:
-        raise p.error(area_grid_too_large(*grid), sizes[0])
+        raise p.error(area_grid_too_large(*grid), at)
     return tuple(values)
 
 

@@ -340,12 +340,17 @@ def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
     return jnp.where(crossed.overflow, 0.0, filt)
 
 
+def _shadow_sampler(types):
+    """The sampler ``(light, dtype) → (positions, weights)`` of a light's types, or None."""
+    return next((t.shadow_samples for t in types if t.shadow_samples is not None), None)
+
+
 def _light_visibility(ctx: TraceContext, light: Light, types, p_spawn, l, shadow_len):
     """The shadow filter of one light: one shadow ray, or the weighted sum over the shadow samples of
     its type (area lights; vmapped, so compile time does not grow with the grid)."""
     if not _casts_shadows(ctx, types):
         return jnp.ones(3, ctx.dtype)
-    sampler = next((t.shadow_samples for t in types if t.shadow_samples is not None), None)
+    sampler = _shadow_sampler(types)
     if sampler is None:
         return _shadow_filter(ctx, p_spawn, l, shadow_len)
     positions, weights = sampler(light, ctx.dtype)
@@ -367,7 +372,7 @@ def _adaptive(ctx: TraceContext, light: Light) -> bool:
     """Whether the light's shadow is POV-Ray's adaptive area sampling with something left to
     decide (computed for a batch of rays at once by :func:`_adaptive_visibility`)."""
     types = light_types(light, ctx.plan.effects)
-    if not (_casts_shadows(ctx, types) and any(t.shadow_samples is not None for t in types)
+    if not (_casts_shadows(ctx, types) and _shadow_sampler(types) is not None
             and light.area.adaptive is not None):
         return False
     # split N times everywhere down to the leaves: every sample is traced, as without adaptive
@@ -507,11 +512,13 @@ def _adaptive_visibility(ctx: TraceContext, plan: _AdaptivePlan, positions, p_sp
 
     tables = tuple(jnp.asarray(a) for a in (plan.blocks, plan.corners, plan.parent, plan.valid))
     start = jnp.broadcast_to(jnp.asarray(plan.split0), (b_size, plan.split0.size))
-    ahead = traced(first, live)
-    coarse = jnp.concatenate([ahead, jnp.zeros((b_size, len(rest), 3), ctx.dtype)], axis=1)[:, back]
-    _, split_first = decide(coarse)(start, jax.tree.map(lambda a: a[0], tables))  # on ``first`` only
+    ahead = traced(first, live)  # (L·B, |first|, 3)
+    # the first decision reads only corners in ``first`` (ascending): its corner table into ``ahead``
+    in_first = np.searchsorted(first, plan.corners[0])
+    round0 = (tables[0][0], jnp.asarray(in_first), tables[2][0], tables[3][0])
+    _, split_first = decide(ahead)(start, round0)
     penumbra = live & jnp.any(split_first, axis=1)
-    cols = jnp.concatenate([ahead, traced(rest, penumbra)], axis=1)[:, back] if len(rest) else coarse
+    cols = jnp.concatenate([ahead, traced(rest, penumbra)], axis=1)[:, back] if len(rest) else ahead[:, back]
     split, _ = jax.lax.scan(decide(cols), start, tables)
 
     return _block_means(plan, cols, split)
@@ -808,8 +815,7 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
             _, c, cos_nl, _ = jax.vmap(unshadowed)(s.p, s.n)
             lives.append(s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1))
             colours.append(c)
-            sampler = next(t.shadow_samples for t in light_types(light, ctx.plan.effects) if t.shadow_samples)
-            positions.append(sampler(light, ctx.dtype)[0])
+            positions.append(_shadow_sampler(light_types(light, ctx.plan.effects))(light, ctx.dtype)[0])
         seen = _adaptive_visibility(ctx, _adaptive_plan(*key), jnp.stack(positions),
                                     jnp.tile(s.p_out, (len(ids), 1)), jnp.concatenate(lives),
                                     jnp.concatenate(colours))
