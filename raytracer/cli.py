@@ -193,18 +193,21 @@ def _summary(scene) -> list[str]:
 
 def _acceleration_text(p) -> str:
     from .shading import _accel
-    from .shading._geometry import accelerated_prims, native_items
+    from .shading._geometry import hierarchy_choice, native_items
 
     if _accel.mode() == "none":
         why = _accel.unavailable_reason() or "RAYTRACER_ACCEL=none"
         return f"acceleration: none ({why}): every ray tests every primitive"
-    held = accelerated_prims(p)
-    n = sum(held)
+    held, csg = hierarchy_choice(p)
+    in_csg = set(csg)
+    members = sum(1 for u in p.prim_unit if u in in_csg)
+    n = sum(held) + members
     if not n:
         return (f"acceleration: none (fewer than {_accel.MIN_ITEMS} primitives or triangles it can hold): "
                 "every ray tests every primitive")
-    items = sum(native_items(prim.obj.shape) for prim, ok in zip(p.prims, held, strict=True) if ok)
-    return (f"acceleration: {_accel.mode()} BVH over {n} of {len(p.prims)} primitives ({items} items); "
+    items = sum(native_items(prim.obj.shape) for prim, ok in zip(p.prims, held, strict=True) if ok) + len(csg)
+    objects = f", {len(csg)} of them CSG objects of {members} primitives" if csg else ""
+    return (f"acceleration: {_accel.mode()} BVH over {n} of {len(p.prims)} primitives ({items} items{objects}); "
             f"every ray tests the other {len(p.prims) - n}")
 
 

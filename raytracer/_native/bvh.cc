@@ -7,7 +7,8 @@
 //
 // Items. An item is one primitive (a sphere, a box) or one triangle of a mesh. Each carries
 // ITEM_PARAMS numbers: its object_from_world affine map (3×4, row-major) and its shape in object
-// space (sphere: centre, radius; box: two corners; triangle: three vertices; torus: its radii). The intersections
+// space (sphere: centre, radius; box: two corners; triangle: three vertices; torus: its radii; plane: normal,
+// distance, only as a member of a CSG unit, below). The intersections
 // below are computed in double precision whatever the input type.
 //
 // Layout of the hierarchy (written by bvh_build, M = 2n - 1 nodes at most, root 0): node_box (M, 6) =
@@ -49,6 +50,9 @@ constexpr int KIND_TRIANGLE = 2;
 constexpr int KIND_FRUSTUM = 3;  // cylinder and cone: base, base radius, cap, cap radius, open
 constexpr int KIND_DISC = 4;     // centre, normal, radius, hole radius
 constexpr int KIND_TORUS = 5;    // major and minor radius (the x-z plane, the y axis through the hole)
+constexpr int KIND_PLANE = 6;    // unit normal, distance: a member of a CSG unit only (it is unbounded)
+constexpr int KIND_CSG = 7;      // a CSG unit: params[0] is its program's offset (see CSG units)
+constexpr int MAX_CROSSINGS = 8; // crossings of one member a CSG unit looks at (a frustum has 4)
 constexpr int BINS = 16;
 constexpr int MAX_LEAF = 4;
 constexpr int STACK = 128;
@@ -424,12 +428,65 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     double rho2 = dot3(p, p);
     if (rho2 > q[6] * q[6] || rho2 < q[7] * q[7]) return INFINITY;
     t0 = t;
+  } else if (kind == KIND_PLANE) {
+    const double nn = std::sqrt(dot3(q, q)), dn = dot3(q, r.d);
+    if (dn == 0.0 || !(nn > 0.0)) return INFINITY;
+    t0 = (q[3] * nn - dot3(q, r.o)) / dn;
   } else {
     return INFINITY;
   }
   if (t0 > tmin && t0 < tmax) return t0;
   if (t1 > tmin && t1 < tmax) return t1;
   return INFINITY;
+}
+
+// Whether the world point p is strictly inside the item's solid (POV-Ray's inside tests, as the
+// shapes' JAX `inside`): the half-space behind a disc or a plane, the solid of an open cylinder;
+// a triangle has no inside.
+template <typename T>
+inline bool item_inside(int32_t kind, const T* params, const double* pw) {
+  double p[ITEM_PARAMS];
+  for (int k = 0; k < ITEM_PARAMS; ++k) p[k] = static_cast<double>(params[k]);
+  double x[3];
+  for (int i = 0; i < 3; ++i) x[i] = p[4 * i] * pw[0] + p[4 * i + 1] * pw[1] + p[4 * i + 2] * pw[2] + p[4 * i + 3];
+  const double* q = p + 12;
+  if (kind == KIND_SPHERE) {
+    const double l[3] = {x[0] - q[0], x[1] - q[1], x[2] - q[2]};
+    return dot3(l, l) < q[3] * q[3];
+  }
+  if (kind == KIND_BOX) {
+    for (int k = 0; k < 3; ++k) {
+      const double lo = std::min(q[k], q[3 + k]), hi = std::max(q[k], q[3 + k]);
+      if (!(x[k] > lo && x[k] < hi)) return false;
+    }
+    return true;
+  }
+  if (kind == KIND_FRUSTUM) {
+    const double *base = q, *cap = q + 4;
+    double axis[3] = {cap[0] - base[0], cap[1] - base[1], cap[2] - base[2]};
+    const double length = std::sqrt(dot3(axis, axis));
+    if (!(length > 0.0)) return false;
+    for (double& a : axis) a /= length;
+    const double l[3] = {x[0] - base[0], x[1] - base[1], x[2] - base[2]};
+    const double h = dot3(l, axis);
+    const double lp[3] = {l[0] - h * axis[0], l[1] - h * axis[1], l[2] - h * axis[2]};
+    const double rad = q[3] + (q[7] - q[3]) / length * h;
+    return h > 0.0 && h < length && dot3(lp, lp) < rad * rad;
+  }
+  if (kind == KIND_DISC) {
+    const double nn = std::sqrt(dot3(q + 3, q + 3));
+    const double l[3] = {x[0] - q[0], x[1] - q[1], x[2] - q[2]};
+    return nn > 0.0 && dot3(q + 3, l) / nn < 0.0;
+  }
+  if (kind == KIND_TORUS) {  // the factored quartic (its sign, well conditioned near the surface)
+    const double R = q[0], r = q[1];
+    const double rho = std::sqrt(x[0] * x[0] + x[2] * x[2]);
+    const double a = (rho - R) * (rho - R) + x[1] * x[1] - r * r;
+    const double b = (rho + R) * (rho + R) + x[1] * x[1] - r * r;
+    return a * b < 0.0;
+  }
+  if (kind == KIND_PLANE) return dot3(q, x) < q[3] * std::sqrt(dot3(q, q));
+  return false;
 }
 
 template <typename T>
@@ -442,7 +499,8 @@ struct Scene {
   const T* params;
   const int32_t* unit;  // (n_items,) the bounding unit of each item
   const T* unit_box;    // (n_units, 6) lo xyz, hi xyz
-  int64_t n_items, n_units;
+  const int32_t* program;  // the CSG units' programs (see CSG units)
+  int64_t n_items, n_units, n_program;
 };
 
 inline bool slab(const double* box_lo, const double* box_hi, const double* o, const double* inv, double tmin,
@@ -454,6 +512,75 @@ inline bool slab(const double* box_lo, const double* box_hi, const double* o, co
     tmax = std::fmin(tmax, std::fmax(a, b));
   }
   return tmin <= tmax;
+}
+
+// ------------------------------------------------------------------------------------- CSG units
+// A CSG object with a finite box (POV-Ray's bound: semantics §4.4) is one item of the hierarchy,
+// of kind KIND_CSG; its members (its primitives, with the clipping objects) are items after the
+// hierarchy's (never in `order`), and its program, in `program` from offset params[0], says which
+// crossing of a member counts (the rule of _plan: a crossing of a member counts where the point is
+// inside or outside other parts of the object, semantics §4.2):
+//
+//   [n_members, then per member: its item, its first condition, its number of conditions]
+//   a condition: [node, want] (the node's inside test must equal want)
+//   a node: [op, inverse, a, b]: op 0 a member's inside test (a: its item), 1 all, 2 any,
+//           3 difference (the first and none of the others) of the b nodes listed from offset a
+//
+// Every offset is absolute. The query visits a member's item with its first counted crossing, so
+// the closest hit names the member, whose JAX kernel computes the hit again.
+template <typename T>
+bool node_inside(const Scene<T>& s, int32_t node, const double* p) {
+  const int32_t* n = s.program + node;
+  bool v;
+  if (n[0] == 0) {
+    v = item_inside(s.kind[n[2]], s.params + ITEM_PARAMS * static_cast<int64_t>(n[2]), p);
+  } else {
+    const int32_t* kids = s.program + n[2];
+    if (n[0] == 1) {
+      v = true;
+      for (int32_t j = 0; j < n[3] && v; ++j) v = node_inside(s, kids[j], p);
+    } else if (n[0] == 2) {
+      v = false;
+      for (int32_t j = 0; j < n[3] && !v; ++j) v = node_inside(s, kids[j], p);
+    } else {
+      v = n[3] > 0 && node_inside(s, kids[0], p);
+      for (int32_t j = 1; j < n[3] && v; ++j) v = !node_inside(s, kids[j], p);
+    }
+  }
+  return v != (n[1] != 0);
+}
+
+// The first counted crossing in (tmin, tmax) of the unit's members of mask `want`; its member's item
+// in `member` (-1 when none). A member's crossings are taken in order, each from the last.
+template <typename T>
+double csg_hit(const Scene<T>& s, int32_t item, const double* o, const double* d, double tmin, double tmax,
+               int32_t want, int32_t& member) {
+  const int32_t* prog = s.program + static_cast<int64_t>(s.params[ITEM_PARAMS * static_cast<int64_t>(item)]);
+  double best = tmax;
+  member = -1;
+  for (int32_t m = 0; m < prog[0]; ++m) {
+    const int32_t* mem = prog + 1 + 3 * m;
+    const int32_t it = mem[0];
+    if ((s.mask[it] & want) == 0) continue;
+    const T* params = s.params + ITEM_PARAMS * static_cast<int64_t>(it);
+    double t = tmin;
+    for (int k = 0; k < MAX_CROSSINGS; ++k) {
+      t = item_hit(s.kind[it], params, o, d, t, best);
+      if (!(t < best)) break;
+      const double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+      bool counts = true;
+      for (int32_t c = 0; c < mem[2] && counts; ++c) {
+        const int32_t* cond = s.program + mem[1] + 2 * c;
+        counts = node_inside(s, cond[0], p) == (cond[1] != 0);
+      }
+      if (counts) {
+        best = t;
+        member = it;
+        break;
+      }
+    }
+  }
+  return member >= 0 ? best : INFINITY;
 }
 
 // Visits, in near-to-far order of the hierarchy's nodes, every item of mask `want` that the segment
@@ -480,6 +607,12 @@ void walk(const Scene<T>& s, const double* o, const double* d, double tmin, doub
       for (int32_t j = info[0]; j < info[0] + info[1]; ++j) {
         const int32_t it = s.order[j];
         if ((s.mask[it] & want) == 0) continue;
+        if (s.kind[it] == KIND_CSG) {
+          int32_t member;
+          const double t = csg_hit(s, it, o, d, tmin, limit, want, member);
+          if (member >= 0 && t < limit && visit(member, t)) return;
+          continue;
+        }
         double t = item_hit(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), o, d, tmin, limit);
         if (t < limit && visit(it, t)) return;
       }
@@ -660,7 +793,9 @@ struct RayOperands {
   ffi::Buffer<ffi::S32> node_info, order, kind, mask;
   ffi::Buffer<DT> params;
   ffi::Buffer<ffi::S32> unit;
-  ffi::Buffer<DT> unit_box, origin, direction, tmin, tmax;
+  ffi::Buffer<DT> unit_box;
+  ffi::Buffer<ffi::S32> program;
+  ffi::Buffer<DT> origin, direction, tmin, tmax;
   ffi::Buffer<ffi::S32> want;
 };
 
@@ -668,22 +803,25 @@ struct RayOperands {
 #define RAY_OPERAND_PARAMS(DT)                                                                             \
   ffi::Buffer<DT> node_box, ffi::Buffer<ffi::S32> node_info, ffi::Buffer<ffi::S32> order,                \
       ffi::Buffer<ffi::S32> kind, ffi::Buffer<ffi::S32> mask, ffi::Buffer<DT> params,                    \
-      ffi::Buffer<ffi::S32> unit, ffi::Buffer<DT> unit_box, ffi::Buffer<DT> origin,                      \
-      ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax, ffi::Buffer<ffi::S32> want
+      ffi::Buffer<ffi::S32> unit, ffi::Buffer<DT> unit_box, ffi::Buffer<ffi::S32> program,              \
+      ffi::Buffer<DT> origin, ffi::Buffer<DT> direction, ffi::Buffer<DT> tmin, ffi::Buffer<DT> tmax,     \
+      ffi::Buffer<ffi::S32> want
 #define RAY_OPERAND_NAMES \
-  node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want
+  node_box, node_info, order, kind, mask, params, unit, unit_box, program, origin, direction, tmin, tmax, want
 
 template <ffi::DataType DT, typename Body>
 ffi::Error rays_impl(ffi::ThreadPool& pool, const RayOperands<DT>& a, const char* what, const Body& body) {
   using T = ffi::NativeType<DT>;
   Scene<T> s{a.node_box.typed_data(), a.node_info.typed_data(), a.order.typed_data(), a.kind.typed_data(),
              a.mask.typed_data(), a.params.typed_data(), a.unit.typed_data(), a.unit_box.typed_data(),
-             static_cast<int64_t>(a.kind.element_count()), static_cast<int64_t>(a.unit_box.element_count()) / 6};
+             a.program.typed_data(), static_cast<int64_t>(a.kind.element_count()),
+             static_cast<int64_t>(a.unit_box.element_count()) / 6,
+             static_cast<int64_t>(a.program.element_count())};
   const int64_t rays = static_cast<int64_t>(a.tmin.element_count());
   auto size = [](const auto& buffer) { return static_cast<int64_t>(buffer.element_count()); };
   if (size(a.origin) != 3 * rays || size(a.direction) != 3 * rays || size(a.tmax) != rays ||
       size(a.want) != rays || size(a.params) != ITEM_PARAMS * s.n_items || size(a.mask) != s.n_items ||
-      size(a.order) != s.n_items || size(a.unit) != s.n_items || size(a.unit_box) != 6 * s.n_units)
+      size(a.order) > s.n_items || size(a.unit) != s.n_items || size(a.unit_box) != 6 * s.n_units)
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, std::string(what) + ": inconsistent operand sizes");
   const T* o = a.origin.typed_data();
   const T* d = a.direction.typed_data();
@@ -754,8 +892,8 @@ ffi::Error all_impl(ffi::ThreadPool pool, RAY_OPERAND_PARAMS(DT),
 
 }  // namespace
 
-// node_box, node_info, order, kind, mask, params, unit, unit_box, origin, direction, tmin, tmax, want
-//   -> item, SECOND
+// node_box, node_info, order, kind, mask, params, unit, unit_box, program, origin, direction, tmin, tmax,
+// want -> item, SECOND
 #define QUERY_BINDING(DT, SECOND)                                                                          \
   ffi::Ffi::Bind()                                                                                       \
       .Ctx<ffi::ThreadPool>()                                                                            \
@@ -767,6 +905,7 @@ ffi::Error all_impl(ffi::ThreadPool pool, RAY_OPERAND_PARAMS(DT),
       .Arg<ffi::Buffer<DT>>()                                                                            \
       .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
       .Arg<ffi::Buffer<DT>>()                                                                            \
+      .Arg<ffi::Buffer<ffi::S32>>()                                                                      \
       .Arg<ffi::Buffer<DT>>()                                                                            \
       .Arg<ffi::Buffer<DT>>()                                                                            \
       .Arg<ffi::Buffer<DT>>()                                                                            \

@@ -51,6 +51,8 @@ T_MAX = 1e7  # crossings beyond are ignored (the hierarchy's queries and ``_geom
 # blocks shadow rays (opaque), filters them (transparent: every crossing multiplies the light)
 MASK_CAMERA, MASK_REFLECT, MASK_SHADOW, MASK_FILTER = 1, 2, 4, 8
 JAX_TWIN_KERNELS = frozenset(range(5))  # the kernels ``_accel_jax`` has (sphere … disc: no torus)
+KIND_CSG = 7  # an item that is a CSG object (bvh.cc's CSG units: its members and program)
+MAX_PROGRAM = 1 << 24  # the program's offsets travel in the items' parameters: exact in float32
 FILTER_ITEMS = 16  # transparent items a filtered shadow segment keeps (the nearest; see ``filtering``)
 
 
@@ -168,6 +170,7 @@ class AccelGroup:
     first: int  # its first item
     members: int  # primitives in the group
     per_member: int  # items per primitive (1, or a mesh's triangles)
+    csg: bool = False  # members of CSG objects (``CsgUnits``): the query names the crossing it counts
 
 
 @dataclasses.dataclass
@@ -176,7 +179,7 @@ class Accel:
 
     groups: tuple[AccelGroup, ...]
     item_prim: jax.Array  # (n,) int32 primitive of each item
-    # the query's scene operands: node_box, node_info, order, kind, mask, params, unit, unit_box
+    # the query's scene operands: node_box, node_info, order, kind, mask, params, unit, unit_box, program
     tables: tuple
     n_items: int
 
@@ -198,52 +201,112 @@ def _group_items(shape, ofw, wfo):
 
 
 def one_unit(n: int, dtype):
-    """The unit tables of ``n`` items in one bounding unit (no tie between units to decide)."""
-    return np.zeros(n, np.int32), np.zeros((1, 6), dtype)
+    """The unit tables of ``n`` items in one bounding unit (no tie between units to decide), and an
+    empty CSG program."""
+    return np.zeros(n, np.int32), np.zeros((1, 6), dtype), np.zeros(1, np.int32)
+
+
+@dataclasses.dataclass(frozen=True)
+class CsgUnits:
+    """CSG objects the hierarchy holds as one item each (``_geometry.csg_units``): the native query
+    finds the crossing of a member that the object's conditions count (bvh.cc, CSG units).
+
+    units:   (U',) the bounding unit of each (an index into the plan's units and ``unit_boxes``).
+    program: the programs, bvh.cc's layout, with member items numbered from the first member item.
+    offsets: (U',) where each unit's program starts.
+    masks:   (U',) the OR of its members' visibility bits.
+    """
+
+    units: np.ndarray
+    program: np.ndarray
+    offsets: np.ndarray
+    masks: np.ndarray
 
 
 def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, dtype, prim_unit=None,
-               unit_boxes=None) -> Accel:
+               unit_boxes=None, csg: CsgUnits | None = None, csg_groups=()) -> Accel:
     """Items and hierarchy of the accelerated groups. ``groups``: (group index, prim indices) pairs,
     ``shapes[g]`` / ``*_from_*[g]`` that group's stacked shapes and (n, 4, 4) maps; ``prim_mask`` (P,)
     int: each primitive's visibility bits; ``prim_unit`` (P,) and ``unit_boxes`` ((U, 3), (U, 3)):
     each primitive's bounding unit and the units' world boxes, which decide ties between coincident
-    surfaces (``_geometry.unit_boxes``; None: one unit)."""
+    surfaces (``_geometry.unit_boxes``; None: one unit). ``csg``: the CSG objects held as items, whose
+    members are the primitives of ``csg_groups`` (pairs as ``groups``'), in that order.
+
+    The items are the groups' (in the hierarchy), then one per CSG object (in the hierarchy, its box
+    its unit's), then the CSG members' (not in the hierarchy: their objects' programs name them)."""
     sg = jax.lax.stop_gradient
     boxes, kinds, params, prims, accel_groups = [], [], [], [], []
     first = 0
-    for g, prim_ids in groups:
+
+    def add(g, prim_ids, is_csg):
+        nonlocal first
         b, p = _group_items(jax.tree_util.tree_map(sg, shapes[g]), sg(object_from_world[g]),
                             sg(world_from_object[g]))
         n = len(prim_ids)
         k = p.shape[0] // n
-        boxes.append(b)
+        if not is_csg:
+            boxes.append(b)
         params.append(p)
         kinds.append(np.full(n * k, type(shapes[g]).native_kernel, np.int32))
         prims.append(np.repeat(np.asarray(prim_ids, np.int32), k))
-        accel_groups.append(AccelGroup(g, first, n, k))
+        accel_groups.append(AccelGroup(g, first, n, k, is_csg))
         first += n * k
+
+    for g, prim_ids in groups:
+        add(g, prim_ids, False)
+    held = np.concatenate(prims) if prims else np.zeros(0, np.int32)
+    masks = np.asarray(prim_mask, np.int32)[held]
+    units = np.asarray(prim_unit, np.int32)[held] if unit_boxes is not None else None
+    program = np.zeros(1, np.int32)
+    if csg is not None:
+        n_csg = len(csg.units)
+        lo, hi = (sg(b)[csg.units] for b in unit_boxes)
+        boxes.append(jnp.concatenate([lo, hi], axis=-1).astype(boxes[0].dtype if boxes else dtype))
+        params.append(jnp.zeros((n_csg, ITEM_PARAMS), dtype).at[:, 0].set(csg.offsets.astype(dtype)))
+        kinds.append(np.full(n_csg, KIND_CSG, np.int32))
+        prims.append(np.zeros(n_csg, np.int32))  # (never named by a query: it names the member)
+        masks = np.concatenate([masks, csg.masks])
+        units = np.concatenate([units, csg.units])
+        first += n_csg
+        member_base = first  # the members' items follow the objects'
+        for g, prim_ids in csg_groups:
+            add(g, prim_ids, True)
+        masks = np.concatenate([masks, np.asarray(prim_mask, np.int32)[np.concatenate(prims[-len(csg_groups):])]])
+        units = np.concatenate([units, np.asarray(prim_unit, np.int32)[np.concatenate(prims[-len(csg_groups):])]])
+        program = _relocate(csg, member_base)
+        if program.size >= MAX_PROGRAM:
+            raise ValueError(f"the CSG programs hold {program.size} numbers, more than {MAX_PROGRAM}")
     boxes = jnp.concatenate(boxes).astype(dtype)
     item_prim = np.concatenate(prims)
     node_box, node_info, order = _hierarchy()[0](boxes)
     if unit_boxes is None:
-        item_unit, unit_box = one_unit(len(item_prim), dtype)
+        item_unit, unit_box, _ = one_unit(len(item_prim), dtype)
     else:
-        item_unit = np.asarray(prim_unit, np.int32)[item_prim]
+        item_unit = units
         unit_box = jnp.concatenate([sg(unit_boxes[0]), sg(unit_boxes[1])], axis=-1).astype(dtype)
-    tables = (node_box, node_info, order, jnp.asarray(np.concatenate(kinds)),
-              jnp.asarray(np.asarray(prim_mask, np.int32)[item_prim]), jnp.concatenate(params).astype(dtype),
-              jnp.asarray(item_unit), jnp.asarray(unit_box))
+    tables = (node_box, node_info, order, jnp.asarray(np.concatenate(kinds)), jnp.asarray(masks),
+              jnp.concatenate(params).astype(dtype), jnp.asarray(item_unit), jnp.asarray(unit_box),
+              jnp.asarray(program))
     return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first)
+
+
+def _relocate(csg: CsgUnits, member_base: int) -> np.ndarray:
+    """``csg.program`` with its member items (written as ``-1 - member``) numbered from
+    ``member_base``, the first member item."""
+    program = csg.program.copy()
+    members = program < 0
+    program[members] = member_base + (-1 - program[members])
+    return program
 
 
 def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array):
     """The closest item hit beyond ``t_min`` by rays whose visibility bit is ``want``, computed
     again by its primitive's kernel: ``(found, t, prim, unit world normal)`` (``inverse`` not
-    applied); ``t`` is +inf where nothing is found."""
+    applied); ``t`` is +inf where nothing is found. A member of a CSG object answers with its
+    crossing nearest the one the query counted (its others may lie where the object is not)."""
     sg = jax.lax.stop_gradient
     want = jnp.asarray(want, jnp.int32)
-    item, _ = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
+    item, t_chosen = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
     chosen = jnp.maximum(item, 0)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
     for ag in accel.groups:
@@ -256,7 +319,7 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
         t, n = shape.sub_hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d, sub)
         ok = mine & (t > t_min) & jnp.isfinite(t) & (t < T_MAX)
         tt = jnp.where(ok, t, jnp.inf)
-        c = jnp.argmin(tt)
+        c = jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_chosen), jnp.inf)) if ag.csg else jnp.argmin(tt)
         closer = tt[c] < best_t
         best_t = jnp.where(closer, tt[c], best_t)
         best_n = jnp.where(closer, safe_normalize(n[c] @ m[:3, :3]), best_n)
@@ -291,6 +354,8 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     chosen = jnp.maximum(item, 0)
     ts = []
     for ag in accel.groups:
+        if ag.csg:
+            continue  # (a CSG object with a transparent shadow caster is not an item)
         local = chosen - ag.first
         mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)
         local = jnp.where(mine, local, 0)

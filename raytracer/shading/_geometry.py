@@ -20,9 +20,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._packing import inverse_affines, register_packed, stack
-from .._plan import InAll, InDiff, InPrim, InsideTree, Plan
+from .._plan import InAll, InAny, InDiff, InPrim, InsideTree, Plan
 from ..kernels import safe_normalize
 from ..shapes import AbstractShape, world_bounds
+from ..shapes._base import NATIVE_PLANE
 from . import _accel
 from ._accel import Accel
 
@@ -36,6 +37,7 @@ class Group:
     prims: tuple[int, ...]  # indices into plan.prims
     solid: bool  # has an inside test
     accelerated: bool = False  # chosen by the hierarchy (``_accel``), not a candidate of every ray
+    csg_member: bool = False  # (accelerated) members of CSG objects the hierarchy holds (``csg_units``)
 
 
 @dataclasses.dataclass
@@ -77,7 +79,7 @@ def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
     (``filter_query``: the native one) and no interior fade (whose attenuation needs the ordered
     crossings of every fading object: those stay candidates)."""
     kernel = type(prim.obj.shape).native_kernel
-    if kernel is None or (kernels is not None and kernel not in kernels):
+    if kernel is None or kernel == NATIVE_PLANE or (kernels is not None and kernel not in kernels):
         return False
     if not prim.rendered or prim.conditions:
         return False
@@ -104,29 +106,142 @@ def native_items(shape: AbstractShape) -> int:
 
 
 def accelerated_prims(plan: Plan, accelerate: bool | None = None) -> list[bool]:
-    """Which primitives the native hierarchy chooses among (see ``pack_geometry``)."""
+    """Which primitives the native hierarchy chooses among, as items of their own (see
+    ``pack_geometry``)."""
+    return hierarchy_choice(plan, accelerate)[0]
+
+
+def hierarchy_choice(plan: Plan, accelerate: bool | None = None) -> tuple[list[bool], tuple[int, ...]]:
+    """What the native hierarchy holds: which primitives are items of their own, and which bounding
+    units are CSG objects it evaluates (``csg_units``); nothing when they make fewer than
+    ``_accel.MIN_ITEMS`` items."""
     if accelerate is None:
         accelerate = _accel.mode() != "none"  # native, or its JAX twin (RAYTRACER_ACCEL=jax)
-    twin = _accel.mode() == "jax"  # the pure-JAX twin: no all-crossings query, no torus kernel
+    twin = _accel.mode() == "jax"  # the pure-JAX twin: no all-crossings query, no torus kernel, no CSG
     kernels = _accel.JAX_TWIN_KERNELS if twin else None
     held = [accelerate and _accelerable(p, not twin, kernels) for p in plan.prims]
-    items = sum(native_items(p.obj.shape) for p, ok in zip(plan.prims, held, strict=True) if ok)
-    return held if items >= _accel.MIN_ITEMS else [False] * len(plan.prims)
+    csg = csg_units(plan, prim_bits(plan)) if accelerate and not twin else ()
+    items = sum(native_items(p.obj.shape) for p, ok in zip(plan.prims, held, strict=True) if ok) + len(csg)
+    return (held, csg) if items >= _accel.MIN_ITEMS else ([False] * len(plan.prims), ())
+
+
+def _tree_prims(tree: InsideTree) -> set[int]:
+    return {tree.prim} if isinstance(tree, InPrim) else set().union(*map(_tree_prims, tree.terms))
+
+
+def _inverts(tree: InsideTree) -> bool:
+    return tree.inverse or (not isinstance(tree, InPrim) and any(map(_inverts, tree.terms)))
+
+
+def _bounded(tree: InsideTree, plan: Plan) -> bool:
+    """Whether POV-Ray's box of the object (``unit_boxes``) is finite: an intersection's is as soon
+    as one part's is, a union's or merge's when all are, a difference's when its first part's is."""
+    if isinstance(tree, InPrim):
+        return type(plan.prims[tree.prim].obj.shape).native_kernel != NATIVE_PLANE
+    if isinstance(tree, InAll):
+        return any(_bounded(t, plan) for t in tree.terms)
+    if isinstance(tree, InAny):
+        return all(_bounded(t, plan) for t in tree.terms)
+    return _bounded(tree.terms[0], plan)
+
+
+def prim_bits(plan: Plan) -> np.ndarray:
+    """(P,) int32: ``visibility_bits`` of every primitive."""
+    return np.array([visibility_bits(p) for p in plan.prims], np.int32)
+
+
+def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
+    """The bounding units the native hierarchy holds as CSG objects (one item each, its box the
+    unit's; bvh.cc evaluates which crossing of a member counts): CSG and clipped objects whose
+    primitives all have a native kernel and one item (planes too: the object's box bounds them), no
+    ``inverse`` (its box would not bound it), a finite box, and no transparent shadow caster (a filtered
+    shadow needs every crossing). ``bits``: ``prim_bits(plan)``."""
+    members: dict[int, list[int]] = {}
+    for i, u in enumerate(plan.prim_unit):
+        members.setdefault(u, []).append(i)
+    prims_of: dict[int, set[int]] = {}  # by id(tree): a unit's conditions share their trees
+
+    def tree_prims(tree):
+        if id(tree) not in prims_of:
+            prims_of[id(tree)] = _tree_prims(tree)
+        return prims_of[id(tree)]
+
+    def member_ok(i, mine):
+        p = plan.prims[i]
+        shape_type = type(p.obj.shape)
+        return (shape_type.native_kernel is not None and shape_type.n_native_items(p.obj.shape) == 1
+                and not bits[i] & _accel.MASK_FILTER
+                and all(tree_prims(c.tree) <= mine for c in p.conditions))
+
+    chosen = []
+    for u, tree in enumerate(plan.units):
+        if isinstance(tree, InPrim) or _inverts(tree) or not _bounded(tree, plan):
+            continue
+        ids = members.get(u, [])
+        mine = set(ids)
+        if all(member_ok(i, mine) for i in ids):
+            chosen.append(u)
+    return tuple(chosen)
+
+
+def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int], bits: np.ndarray) -> _accel.CsgUnits:
+    """The programs of the CSG objects ``units`` (bvh.cc's layout: CSG units), a member written as
+    ``-1 - member_rank[prim]`` (``_accel.pack_accel`` numbers the members' items)."""
+    members: dict[int, list[int]] = {}
+    for i, u in enumerate(plan.prim_unit):
+        members.setdefault(u, []).append(i)
+    ops = {InAll: 1, InAny: 2, InDiff: 3}
+    prog: list[int] = []
+    offsets, masks = [], []
+    for u in units:
+        rendered = [i for i in members[u] if plan.prims[i].rendered]
+        offsets.append(len(prog))
+        prog.append(len(rendered))
+        header = len(prog)
+        prog.extend([0] * (3 * len(rendered)))
+        at_node: dict[int, int] = {}
+
+        def node(tree: InsideTree) -> int:
+            if id(tree) not in at_node:
+                if isinstance(tree, InPrim):
+                    row = [0, int(tree.inverse), -1 - member_rank[tree.prim], 0]
+                else:
+                    kids = [node(t) for t in tree.terms]
+                    row = [ops[type(tree)], int(tree.inverse), len(prog), len(kids)]
+                    prog.extend(kids)
+                    row[2] = len(prog) - len(kids)
+                at_node[id(tree)] = len(prog)
+                prog.extend(row)
+            return at_node[id(tree)]
+
+        for j, i in enumerate(rendered):
+            conds = [(node(c.tree), int(c.want)) for c in plan.prims[i].conditions]
+            prog[header + 3 * j: header + 3 * j + 3] = [-1 - member_rank[i], len(prog), len(conds)]
+            for pair in conds:
+                prog.extend(pair)
+        masks.append(np.bitwise_or.reduce(bits[rendered]) if rendered else 0)
+    return _accel.CsgUnits(np.asarray(units, np.int32), np.asarray(prog, np.int32),
+                           np.asarray(offsets, np.int32), np.asarray(masks, np.int32))
 
 
 def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGeometry:
     """Every primitive of ``plan`` packed by group. ``accelerate``: let the native hierarchy choose
     among the primitives it can (None: when ``_accel.mode()`` is native and there are at least
     ``_accel.MIN_ITEMS`` items)."""
-    accel_ok = accelerated_prims(plan, accelerate)
+    accel_ok, csg = hierarchy_choice(plan, accelerate)
+    in_csg = np.zeros(len(plan.prims), bool)
+    chosen = set(csg)
+    in_csg[[i for i, u in enumerate(plan.prim_unit) if u in chosen]] = True
     keyed: dict[tuple, list[int]] = {}
     for i, p in enumerate(plan.prims):
-        keyed.setdefault((_variant(p.obj.shape), accel_ok[i]), []).append(i)
+        role = "item" if accel_ok[i] else "csg" if in_csg[i] else "candidate"
+        keyed.setdefault((_variant(p.obj.shape), role), []).append(i)
     groups, shapes, ofw, wfo, where, cand_prim = [], [], [], [], {}, []
-    for (_, accelerated), ids in keyed.items():
+    for (_, role), ids in keyed.items():
         members = [plan.prims[i].obj.shape for i in ids]
         k = members[0].n_crossings()
-        groups.append(Group(members[0].kind, tuple(ids), type(members[0]).solid, accelerated))
+        accelerated = role != "candidate"
+        groups.append(Group(members[0].kind, tuple(ids), type(members[0]).solid, accelerated, role == "csg"))
         shapes.append(_stack(members))
         transforms = [plan.prims[i].world_from_object() for i in ids]
         wfo.append(stack([np.eye(4) if t is None else t.matrix for t in transforms], dtype))
@@ -138,16 +253,22 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
     geo = PackedGeometry(tuple(groups), tuple(shapes), tuple(ofw), where,
                          np.asarray(cand_prim, dtype=np.int32), len(cand_prim),
                          prim_sign=np.array([-1.0 if p.inverse else 1.0 for p in plan.prims]))
-    if len(plan.units) > 1:
+    if len(plan.units) > 1 or csg:
         geo = dataclasses.replace(geo, prim_unit=np.asarray(plan.prim_unit, np.int32),
                                   unit_boxes=unit_boxes(plan, geo, wfo))
-    accel_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.accelerated]
-    if accel_groups:
+    accel_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.accelerated and not grp.csg_member]
+    csg_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.csg_member]
+    if accel_groups or csg_groups:
+        bits, programs = prim_bits(plan), None
+        if csg:
+            rank = {int(i): r for r, i in enumerate(i for _, ids in csg_groups for i in ids)}
+            programs = csg_program(plan, csg, rank, bits)
         geo = dataclasses.replace(geo, accel=_accel.pack_accel(
-            shapes, ofw, wfo, accel_groups, [visibility_bits(p) for p in plan.prims], dtype,
-            geo.prim_unit, geo.unit_boxes))
+            shapes, ofw, wfo, accel_groups, bits, dtype,
+            geo.prim_unit, geo.unit_boxes, programs, csg_groups))
     if plan.effects.csg:
-        geo = dataclasses.replace(geo, conditions=build_csg_conditions(geo, plan))
+        conditions = build_csg_conditions(geo, plan)
+        geo = dataclasses.replace(geo, conditions=conditions if conditions.cand.size else None)
     return geo
 
 
@@ -161,10 +282,13 @@ def _group_bounds(shapes, mats):
     start); a large or traced one is one jitted vmap."""
     leaves = jax.tree_util.tree_leaves((shapes, mats))
     n = mats.shape[0]
-    if n <= _NUMPY_BOUNDS_MAX and all(isinstance(x, np.ndarray) for x in leaves):
+    concrete = all(isinstance(x, np.ndarray) for x in leaves)
+    if n <= _NUMPY_BOUNDS_MAX and concrete:
         boxes = [world_bounds(jax.tree_util.tree_map(lambda a, j=j: a[j], shapes), mats[j]) for j in range(n)]
         return np.stack([b[0] for b in boxes]), np.stack([b[1] for b in boxes])
-    return _world_bounds(jax.lax.stop_gradient(shapes), jax.lax.stop_gradient(mats))
+    lo, hi = _world_bounds(jax.lax.stop_gradient(shapes), jax.lax.stop_gradient(mats))
+    # concrete boxes stay numpy: the CSG circuit over them is then numpy too, not one dispatch per op
+    return (np.asarray(lo), np.asarray(hi)) if concrete else (lo, hi)
 
 
 def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:

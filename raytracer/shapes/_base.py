@@ -227,6 +227,7 @@ def read_arguments(cls: type[AbstractShape], args: ShapeArgs) -> dict:
 
 # the kernels of raytracer/_native/bvh.cc
 NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC, NATIVE_TORUS = 0, 1, 2, 3, 4, 5
+NATIVE_PLANE = 6  # unbounded: only a member of a CSG object the hierarchy holds (``_accel``)
 
 
 def box_corners(lo, hi):

@@ -11,9 +11,11 @@ from .._dtype import as_float
 from ..kernels._common import masked_hits
 from ..kernels._numerics import as_float_arrays, safe_normalize, solve_linear
 from ._base import (
+    NATIVE_PLANE,
     AbstractShape,
     MitsubaShape,
     apply_point,
+    native_params,
     unit,
 )
 
@@ -67,6 +69,12 @@ class Plane(AbstractShape):
 
     def inside(self, p):
         return plane_inside(self.normal, self.distance, p)
+
+    # unbounded: never an item of its own, only a member of a bounded CSG object (``_accel``)
+    native_kernel: ClassVar[int] = NATIVE_PLANE
+
+    def native_items(self):
+        return native_params(self.normal, self.distance), jnp.zeros((1, 1, 3), jnp.result_type(self.normal))
 
     @classmethod
     def parse_sdl(cls, keyword, args):

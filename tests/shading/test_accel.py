@@ -96,15 +96,15 @@ def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
     assert kinds == (kinds_twin | {"torus"} if ACCEL == "native" else kinds_twin)
     # the loop's 70, the mesh2's 3 triangles, the mirror sphere and the three flagged spheres, the
     # tori (native only); the transparent glass sphere and mesh filter shadows, which only the
-    # native hierarchy can ask
-    native = 1 + 2 + 2 if ACCEL == "native" else 0
+    # native hierarchy can ask; the difference, one item and its two members (native only)
+    native = 1 + 2 + 2 + 3 if ACCEL == "native" else 0
     assert geo.accel.n_items == 70 + 3 + 4 + native
     left = [plan.prims[i] for i in range(len(plan.prims)) if i not in held]
-    # the plane (unbounded), the box and sphere of the difference (and with the JAX twin the
-    # transparent sphere and mesh, and the tori)
-    extra = [] if ACCEL == "native" else ["mesh", "sphere", "torus", "torus"]
-    assert sorted(p.kind for p in left) == sorted(["box", "plane", "sphere"] + extra)
-    assert sum(bool(p.conditions) for p in left) == 2
+    # the plane (unbounded) (and with the JAX twin the transparent sphere and mesh, the tori, and
+    # the box and sphere of the difference)
+    extra = [] if ACCEL == "native" else ["mesh", "sphere", "torus", "torus", "box", "sphere"]
+    assert sorted(p.kind for p in left) == sorted(["plane"] + extra)
+    assert sum(bool(p.conditions) for p in left) == (0 if ACCEL == "native" else 2)
 
 
 def test_the_hierarchy_gives_the_candidate_paths_image_and_derivatives(scene, monkeypatch):
@@ -238,7 +238,7 @@ def test_closest_query_breaks_ties_as_povray_tests_objects(x64):
         node_box, node_info, order = _accel._build(jnp.asarray(boxes[perm]))
         tables = (node_box, node_info, order, jnp.asarray(kind[perm]), jnp.full(3, 7, jnp.int32),
                   jnp.asarray(params[perm]), jnp.asarray(np.asarray(item_unit, np.int32)[perm]),
-                  jnp.asarray(np.asarray(unit_box, float)))
+                  jnp.asarray(np.asarray(unit_box, float)), jnp.zeros(1, jnp.int32))
         it, t = _accel._closest_query(tables, o, d, jnp.zeros(1), jnp.full(1, 1e7), jnp.ones(1, jnp.int32))
         assert float(t[0]) == 4.0
         return int(perm[int(it[0])])
@@ -301,3 +301,100 @@ def test_closest_query_finds_the_first_torus_crossing(x64):
     np.testing.assert_array_equal(np.asarray(item), want)
     hit = want >= 0
     np.testing.assert_allclose(np.asarray(t)[hit], first.min(axis=1)[hit], rtol=1e-9)
+
+
+# CSG objects the native hierarchy holds as one item each (``_geometry.csg_units``), next to those
+# it must leave to the candidates: an ``inverse`` one, a transparent shadow caster, a kind without
+# a native kernel
+CSG_SCENE = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 6, -12> look_at <0, 0.5, 0> angle 50 }
+light_source { <-8, 14, -9> color rgb 1 }
+light_source { <9, 6, -4> color rgb 0.4 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
+#declare R = seed(3);
+#for (i, 0, 24)
+  #declare P = <rand(R) * 10 - 5, 0.2 + rand(R) * 1.5, rand(R) * 8 - 3>;
+  #switch (mod(i, 5))
+  #case (0) difference { box { -0.4, 0.4 } cylinder { -y, y, 0.25 } rotate <30 * rand(R), 60 * rand(R), 0>
+                         translate P pigment { rgb <0.9, rand(R), 0.2> } } #break
+  #case (1) intersection { sphere { 0, 0.5 } plane { <rand(R) - 0.5, 1, 0.2>, 0.1 } translate P
+                           pigment { rgb <0.2, 0.8, rand(R)> } } #break
+  #case (2) merge { sphere { 0, 0.35 } cone { -0.5 * y, 0.3, 0.5 * y, 0 } rotate 40 * x translate P
+                    pigment { rgb <rand(R), 0.5, 0.7> } finish { phong 0.6 } } #break
+  #case (3) sphere { 0, 0.5 clipped_by { box { -1, <1, 0.2, 1> } } translate P
+                    pigment { rgb <1, 0.4, rand(R)> } } #break
+  #case (4) difference { torus { 0.5, 0.2 } box { <0, -1, -1>, <1, 1, 1> } rotate <70, 20 * rand(R), 0>
+                         translate P pigment { rgb <0.1, 0.7, rand(R)> } } #break
+  #end
+#end
+union { sphere { 0, 0.6 } box { <-1, -0.2, -0.2>, <1, 0.2, 0.2> } clipped_by { plane { x, 0.5 } }
+        pigment { rgb <0.8, 0.8, 0.3> } translate <-3, 1, -5> }
+difference { intersection { box { -0.6, 0.6 } sphere { 0, 0.8 } } cylinder { -z, z, 0.3 }
+             sphere { <0, 0.6, 0>, 0.3 no_shadow } pigment { rgb <0.3, 0.3, 1> } translate <2, 0.7, -5> }
+difference { sphere { 0, 1 } sphere { 0, 0.9 } plane { -z, 0 } pigment { rgb <1, 0.2, 0.2> } translate <-0.5, 1, -4> }
+difference { box { -0.3, 0.3 } sphere { 0, 0.4 } inverse pigment { rgb 0.7 } translate <0, 0.3, -6> }
+intersection { sphere { 0, 0.5 } box { -0.4, 0.4 } pigment { rgbf <1, 0.5, 0.5, 0.7> } translate <1, 0.5, -6.5> }
+intersection { superellipsoid { <0.3, 0.3> } sphere { 0, 1.2 } pigment { rgb 0.6 } scale 0.4 translate <3, 0.5, -3> }
+"""
+
+
+@pytest.mark.slow  # two forward-mode programs
+@pytest.mark.skipif(ACCEL != "native", reason="the native hierarchy evaluates CSG objects; its JAX twin does not")
+def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivatives(tmp_path, monkeypatch):
+    """A CSG object is one item: the native query finds the first crossing of a member that the
+    object's conditions count (bvh.cc's programs, in float64), the member's kernel computes the hit
+    again. Pixels and derivatives are the candidate path's, shadows included."""
+    path = tmp_path / "csg.pov"
+    path.write_text(CSG_SCENE)
+    scene = load_scene(path, width=48, height=36)
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    plan = make_plan(scene)
+    geo = pack_geometry(plan, jnp.float32)
+    left = sorted(plan.prims[i].kind for g in geo.groups if not g.accelerated for i in g.prims)
+    # the floor; the inverse difference, the transparent intersection, the superellipsoid's
+    assert left == sorted(["plane", "box", "sphere", "sphere", "box", "superellipsoid", "sphere"])
+    csg_items = int(np.count_nonzero(np.asarray(geo.accel.tables[3]) == _accel.KIND_CSG))
+    assert csg_items == 25 + 3
+    tangent = _tangent(scene, seed=1)
+    out = {}
+    for mode in ("native", "none"):
+        monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+        jax.clear_caches()
+        image, d_image = jax.jvp(lambda s: render(s, width=48, height=36), (scene,), (tangent,))
+        out[mode] = np.asarray(image), np.asarray(d_image)
+    (ours, d_ours), (reference, d_reference) = out["native"], out["none"]
+    assert np.isfinite(ours).all() and np.isfinite(d_ours).all()
+    diff = np.abs(ours - reference).max(axis=-1)
+    assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
+    assert np.abs(d_reference).max() > 1.0
+    np.testing.assert_allclose(d_ours, d_reference, rtol=1e-4, atol=1e-4)
+
+
+@pytest.mark.povray
+@pytest.mark.skipif(ACCEL != "native", reason="the native hierarchy evaluates CSG objects; its JAX twin does not")
+def test_a_csg_object_is_seen_only_within_povrays_box_of_it(tmp_path, monkeypatch):
+    """POV-Ray bounds an intersection by the overlap of its bounded parts' boxes and shows nothing
+    outside it: a disc's box is flat, so of an intersection with a disc only the face on the disc
+    is seen, not the half cylinder below it (semantics §4.4). The hierarchy's item is that box."""
+    from validation.metrics import psnr
+    from validation.povray import render_povray
+
+    text = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0.3, 0.8, -3> look_at <0, -0.1, 0> angle 40 }
+light_source { <-8, 14, -9> color rgb 1 }
+background { rgb <0.1, 0.2, 0.3> }
+intersection { cylinder { -x, x, 0.3 } disc { 0, y, 2 } box { -0.5, 0.5 } pigment { rgb 0.8 } }
+#for (i, 0, 7) sphere { <-1.4 + 0.4 * i, 0.9, 1>, 0.1 pigment { rgb <1, 0.5, 0.2> } } #end
+"""
+    pov = render_povray(text, 80, 60)
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    ours = np.asarray(render(load_scene(text), width=80, height=60))
+    assert psnr(ours, pov) >= 60.0
+    # every primitive a candidate: the half cylinder is drawn (the candidate path has no boxes)
+    monkeypatch.setenv("RAYTRACER_ACCEL", "none")
+    jax.clear_caches()
+    assert psnr(np.asarray(render(load_scene(text), width=80, height=60)), pov) < 40.0
