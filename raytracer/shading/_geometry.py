@@ -129,20 +129,24 @@ def _tree_prims(tree: InsideTree) -> set[int]:
     return {tree.prim} if isinstance(tree, InPrim) else set().union(*map(_tree_prims, tree.terms))
 
 
-def _inverts(tree: InsideTree) -> bool:
-    return tree.inverse or (not isinstance(tree, InPrim) and any(map(_inverts, tree.terms)))
+MAX_CSG_HEIGHT = 64  # deeper CSG trees stay candidates (bvh.cc evaluates a tree by recursion)
+
+
+def _height(tree: InsideTree) -> int:
+    return 0 if isinstance(tree, InPrim) else 1 + max(map(_height, tree.terms))
 
 
 def _bounded(tree: InsideTree, plan: Plan) -> bool:
     """Whether POV-Ray's box of the object (``unit_boxes``) is finite: an intersection's is as soon
-    as one part's is, a union's or merge's when all are, a difference's when its first part's is."""
+    as one part that is not inverted has one, a union's or merge's when all parts' are, a
+    difference's when its first part's is."""
     if isinstance(tree, InPrim):
         return type(plan.prims[tree.prim].obj.shape).native_kernel != NATIVE_PLANE
     if isinstance(tree, InAll):
-        return any(_bounded(t, plan) for t in tree.terms)
+        return any(_bounded(t, plan) and not t.inverse for t in tree.terms)
     if isinstance(tree, InAny):
         return all(_bounded(t, plan) for t in tree.terms)
-    return _bounded(tree.terms[0], plan)
+    return _bounded(tree.terms[0], plan) and not tree.terms[0].inverse
 
 
 def prim_bits(plan: Plan) -> np.ndarray:
@@ -153,9 +157,9 @@ def prim_bits(plan: Plan) -> np.ndarray:
 def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
     """The bounding units the native hierarchy holds as CSG objects (one item each, its box the
     unit's; bvh.cc evaluates which crossing of a member counts): CSG and clipped objects whose
-    primitives all have a native kernel and one item (planes too: the object's box bounds them), no
-    ``inverse`` (its box would not bound it), a finite box, and no transparent shadow caster (a filtered
-    shadow needs every crossing). ``bits``: ``prim_bits(plan)``."""
+    primitives all have a native kernel and one item (planes too: the object's box bounds them), a
+    finite box, no transparent shadow caster (a filtered shadow needs every crossing) and a tree at
+    most ``MAX_CSG_HEIGHT`` deep. ``bits``: ``prim_bits(plan)``."""
     members: dict[int, list[int]] = {}
     for i, u in enumerate(plan.prim_unit):
         members.setdefault(u, []).append(i)
@@ -175,7 +179,7 @@ def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
 
     chosen = []
     for u, tree in enumerate(plan.units):
-        if isinstance(tree, InPrim) or _inverts(tree) or not _bounded(tree, plan):
+        if isinstance(tree, InPrim) or not _bounded(tree, plan) or _height(tree) > MAX_CSG_HEIGHT:
             continue
         ids = members.get(u, [])
         mine = set(ids)
@@ -296,8 +300,9 @@ def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
     (semantics §4.4): a primitive's box is its shape's ``bounds()`` carried to the world
     (``world_from_object``: per group, (n, 4, 4)) and grown by ``pov_bounds_margin`` (±inf where
     unbounded); a union or merge holds its parts' boxes, an intersection (and a clipped object)
-    their overlap, a difference its first part's box; ``inverse`` changes nothing. Only a choice
-    depends on them: no gradient flows. One vectorised step per group and per height of the CSG
+    the overlap of their parts that are not inverted, a difference its first part's box; ``inverse``
+    changes nothing else (an inverted object's own box is its box). The hierarchy also culls by them
+    (a CSG object it holds is seen only in its box, as in POV-Ray). No gradient flows. One vectorised step per group and per height of the CSG
     units' inside circuit, not one per object; numpy when every box is concrete (no JAX dispatch:
     a cold start compiles nothing here), jnp otherwise."""
     boxes = [None if plan.prims[g.prims[0]].obj.shape.bounds() is None else _group_bounds(shapes, mats)
@@ -328,9 +333,13 @@ def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
         inf = np.full((1, 3), np.inf)
         vlo = xp.concatenate([inf, -inf, prim_lo[circuit.leaf_prim]])  # False: empty, True: all
         vhi = xp.concatenate([-inf, inf, prim_hi[circuit.leaf_prim]])
-        for is_all, children, negate, _ in circuit.levels:
-            klo = xp.where(negate[..., None], -np.inf, vlo[children])
-            khi = xp.where(negate[..., None], np.inf, vhi[children])
+        inverted = np.zeros(2 + circuit.leaf_prim.shape[0], bool)  # static: which nodes are inverse
+        for is_all, children, negate, inverse in circuit.levels:
+            # an intersection (and so a difference) is bounded by its parts that are not inverted
+            skip = (negate | (inverted[children] & is_all[:, None]))[..., None]
+            klo = xp.where(skip, -np.inf, vlo[children])
+            khi = xp.where(skip, np.inf, vhi[children])
+            inverted = np.concatenate([inverted, inverse])
             a = is_all[:, None]
             vlo = xp.concatenate([vlo, xp.where(a, klo.max(axis=1), klo.min(axis=1))])
             vhi = xp.concatenate([vhi, xp.where(a, khi.min(axis=1), khi.max(axis=1))])
