@@ -51,3 +51,34 @@ def test_coincident_surfaces_show_the_one_povray_tests_first(tmp_path, text):
     ours = np.asarray(rt.render(rt.load_scene(path), width=32, height=24))
     # measured 86 dB (bounded objects) and 84 dB (plane); 17 and 15 dB before
     assert metrics.psnr(ours, render_povray(path, 32, 24)) >= 40.0
+
+
+def test_an_intersection_is_bounded_by_its_parts_that_are_not_inverted():
+    """POV-Ray's box of ``intersection { A B { inverse } }`` (the idiom for A minus B) is A's: an
+    inverted part bounds nothing. Were it the overlap of both boxes, the object's box would not hold
+    it, and the hierarchy, which culls by the box, would cut the ring below out of the image."""
+    import jax.numpy as jnp
+
+    import raytracer as rt
+    from raytracer._plan import make_plan
+    from raytracer.shading._geometry import csg_units, pack_geometry, prim_bits, unit_boxes
+
+    scene = rt.load_scene(_HEAD + """
+intersection { box { <-1, -0.1, -1>, <1, 0.1, 1> } box { -0.7, 0.7 inverse } pigment { R } }
+intersection { sphere { 0, 0.5 } sphere { <0.3, 0, 0>, 0.4 inverse } pigment { R } translate 3 * x }
+difference { box { -1, 1 } sphere { 0, 1.5 } pigment { G } translate -3 * x }
+intersection { box { -1, 1 } sphere { 0, 0.5 } inverse pigment { G } translate 3 * y }
+merge { sphere { 0, 0.5 } sphere { <1, 0, 0>, 0.5 inverse } pigment { G } translate -3 * y }
+intersection { plane { y, 0 } plane { x, 0 inverse } pigment { G } }
+""")
+    plan = make_plan(scene)
+    geo = pack_geometry(plan, jnp.float64, accelerate=False)
+    lo, hi = unit_boxes(plan, geo, [np.linalg.inv(np.asarray(m)) for m in geo.object_from_world])
+    np.testing.assert_allclose(lo[:5], [[-1, -0.1, -1], [2.5, -0.5, -0.5], [-4, -1, -1], [-0.5, 2.5, -0.5],
+                                        [-0.5, -3.5, -0.5]], atol=1e-12)
+    np.testing.assert_allclose(hi[:5], [[1, 0.1, 1], [3.5, 0.5, 0.5], [-2, 1, 1], [0.5, 3.5, 0.5],
+                                        [1.5, -2.5, 0.5]], atol=1e-12)
+    assert np.isinf(lo[5]).all() and np.isinf(hi[5]).all()  # a plane, and an inverted one: unbounded
+    # the hierarchy holds the five bounded ones (the inverted intersection too: its surface is the
+    # intersection's, inside its box), not the unbounded one
+    assert csg_units(plan, prim_bits(plan)) == (0, 1, 2, 3, 4)
