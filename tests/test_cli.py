@@ -26,6 +26,23 @@ def test_info_prints_objects_lights_and_the_plan(capsys):
     assert "depth: 1" in out
 
 
+def test_info_says_which_csg_objects_the_hierarchy_holds(tmp_path, capsys, monkeypatch):
+    from raytracer.shading import _accel
+
+    if _accel.unavailable_reason() is not None:
+        pytest.skip(str(_accel.unavailable_reason()))
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    scene = tmp_path / "csg.pov"
+    scene.write_text("camera { location -5 * z look_at 0 }\nplane { y, -1 pigment { rgb 1 } }\n"
+                     "#for (i, 0, 8) difference { box { -0.4, 0.4 } sphere { 0, 0.5 } translate i * x } #end\n"
+                     "intersection { sphere { 0, 1 } quadric { <1, 1, 0>, 0, 0, -0.5 } }\n")
+    assert main(["info", str(scene)]) == 0
+    out = capsys.readouterr().out
+    # 9 differences of 2 primitives (one item each); the plane and the quadric's intersection stay
+    assert "BVH over 18 of 21 primitives (9 items, 9 of them CSG objects of 18 primitives)" in out
+    assert "every ray tests the other 3" in out
+
+
 def test_scene_error_exits_2_with_location_and_no_traceback(tmp_path, capsys):
     bad = tmp_path / "bad.pov"
     bad.write_text("sphere { <0, 0, 0>, 1\n  pigment { color rgb <1, 0, 0> }\n")
