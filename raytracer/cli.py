@@ -205,10 +205,10 @@ def _acceleration_text(p) -> str:
     if not n:
         return (f"acceleration: none (fewer than {_accel.MIN_ITEMS} primitives or triangles it can hold): "
                 "every ray tests every primitive")
-    items = sum(native_items(prim.obj.shape) for prim, ok in zip(p.prims, held, strict=True) if ok) + len(csg)
+    items = len(csg) + sum(native_items(prim.obj.shape) for prim, ok in zip(p.prims, held, strict=True) if ok)
     objects = f", {len(csg)} of them CSG objects of {members} primitives" if csg else ""
-    return (f"acceleration: {_accel.mode()} BVH over {n} of {len(p.prims)} primitives ({items} items{objects}); "
-            f"every ray tests the other {len(p.prims) - n}")
+    return (f"acceleration: {_accel.mode()} BVH over {n} of {len(p.prims)} primitives "
+            f"({items} items{objects}); every ray tests the other {len(p.prims) - n}")
 
 
 def _vec(v) -> str:

@@ -34,7 +34,8 @@ def test_info_says_which_csg_objects_the_hierarchy_holds(tmp_path, capsys, monke
     monkeypatch.setenv("RAYTRACER_ACCEL", "native")
     scene = tmp_path / "csg.pov"
     scene.write_text("camera { location -5 * z look_at 0 }\nplane { y, -1 pigment { rgb 1 } }\n"
-                     "#for (i, 0, 8) difference { box { -0.4, 0.4 } sphere { 0, 0.5 } translate i * x } #end\n"
+                     "#for (i, 0, 8) difference { box { -0.4, 0.4 } sphere { 0, 0.5 } translate i * x }\n"
+                     "#end\n"
                      "intersection { sphere { 0, 1 } quadric { <1, 1, 0>, 0, 0, -0.5 } }\n")
     assert main(["info", str(scene)]) == 0
     out = capsys.readouterr().out

@@ -271,8 +271,9 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         member_base = first  # the members' items follow the objects'
         for g, prim_ids in csg_groups:
             add(g, prim_ids, True)
-        masks = np.concatenate([masks, np.asarray(prim_mask, np.int32)[np.concatenate(prims[-len(csg_groups):])]])
-        units = np.concatenate([units, np.asarray(prim_unit, np.int32)[np.concatenate(prims[-len(csg_groups):])]])
+        member_prims = np.concatenate([np.asarray(ids, np.int32) for _, ids in csg_groups])
+        masks = np.concatenate([masks, np.asarray(prim_mask, np.int32)[member_prims]])
+        units = np.concatenate([units, np.asarray(prim_unit, np.int32)[member_prims]])
         program = _relocate(csg, member_base)
         if program.size >= MAX_PROGRAM:
             raise ValueError(f"the CSG programs hold {program.size} numbers, more than {MAX_PROGRAM}")

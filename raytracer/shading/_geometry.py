@@ -188,7 +188,8 @@ def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
     return tuple(chosen)
 
 
-def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int], bits: np.ndarray) -> _accel.CsgUnits:
+def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int],
+                bits: np.ndarray) -> _accel.CsgUnits:
     """The programs of the CSG objects ``units`` (bvh.cc's layout: CSG units), a member written as
     ``-1 - member_rank[prim]`` (``_accel.pack_accel`` numbers the members' items)."""
     members: dict[int, list[int]] = {}
@@ -205,12 +206,12 @@ def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int], b
         prog.extend([0] * (3 * len(rendered)))
         at_node: dict[int, int] = {}
 
-        def node(tree: InsideTree) -> int:
+        def node(tree: InsideTree, at_node=at_node) -> int:
             if id(tree) not in at_node:
                 if isinstance(tree, InPrim):
                     row = [0, int(tree.inverse), -1 - member_rank[tree.prim], 0]
                 else:
-                    kids = [node(t) for t in tree.terms]
+                    kids = [node(t, at_node) for t in tree.terms]
                     row = [ops[type(tree)], int(tree.inverse), len(prog), len(kids)]
                     prog.extend(kids)
                     row[2] = len(prog) - len(kids)
@@ -302,9 +303,10 @@ def unit_boxes(plan: Plan, geo: PackedGeometry, world_from_object) -> tuple:
     unbounded); a union or merge holds its parts' boxes, an intersection (and a clipped object)
     the overlap of their parts that are not inverted, a difference its first part's box; ``inverse``
     changes nothing else (an inverted object's own box is its box). The hierarchy also culls by them
-    (a CSG object it holds is seen only in its box, as in POV-Ray). No gradient flows. One vectorised step per group and per height of the CSG
-    units' inside circuit, not one per object; numpy when every box is concrete (no JAX dispatch:
-    a cold start compiles nothing here), jnp otherwise."""
+    (a CSG object it holds is seen only in its box, as in POV-Ray). No gradient flows. One
+    vectorised step per group and per height of the CSG units' inside circuit, not one per object;
+    numpy when every box is concrete (no JAX dispatch: a cold start compiles nothing here), jnp
+    otherwise."""
     boxes = [None if plan.prims[g.prims[0]].obj.shape.bounds() is None else _group_bounds(shapes, mats)
              for g, shapes, mats in zip(geo.groups, geo.shapes, world_from_object, strict=True)]
     xp = np if all(b is None or isinstance(b[0], np.ndarray) for b in boxes) else jnp

@@ -303,6 +303,8 @@ def test_closest_query_finds_the_first_torus_crossing(x64):
     np.testing.assert_allclose(np.asarray(t)[hit], first.min(axis=1)[hit], rtol=1e-9)
 
 
+NO_TWIN_CSG = "the native hierarchy evaluates CSG objects; its JAX twin does not"
+
 # CSG objects the native hierarchy holds as one item each (``_geometry.csg_units``), next to those
 # it must leave to the candidates: an ``inverse`` one, a transparent shadow caster, a kind without
 # a native kernel
@@ -333,15 +335,18 @@ union { sphere { 0, 0.6 } box { <-1, -0.2, -0.2>, <1, 0.2, 0.2> } clipped_by { p
         pigment { rgb <0.8, 0.8, 0.3> } translate <-3, 1, -5> }
 difference { intersection { box { -0.6, 0.6 } sphere { 0, 0.8 } } cylinder { -z, z, 0.3 }
              sphere { <0, 0.6, 0>, 0.3 no_shadow } pigment { rgb <0.3, 0.3, 1> } translate <2, 0.7, -5> }
-difference { sphere { 0, 1 } sphere { 0, 0.9 } plane { -z, 0 } pigment { rgb <1, 0.2, 0.2> } translate <-0.5, 1, -4> }
+difference { sphere { 0, 1 } sphere { 0, 0.9 } plane { -z, 0 } pigment { rgb <1, 0.2, 0.2> }
+             translate <-0.5, 1, -4> }
 difference { box { -0.3, 0.3 } sphere { 0, 0.4 } inverse pigment { rgb 0.7 } translate <0, 0.3, -6> }
-intersection { sphere { 0, 0.5 } box { -0.4, 0.4 } pigment { rgbf <1, 0.5, 0.5, 0.7> } translate <1, 0.5, -6.5> }
-intersection { superellipsoid { <0.3, 0.3> } sphere { 0, 1.2 } pigment { rgb 0.6 } scale 0.4 translate <3, 0.5, -3> }
+intersection { sphere { 0, 0.5 } box { -0.4, 0.4 } pigment { rgbf <1, 0.5, 0.5, 0.7> }
+               translate <1, 0.5, -6.5> }
+intersection { superellipsoid { <0.3, 0.3> } sphere { 0, 1.2 } pigment { rgb 0.6 } scale 0.4
+               translate <3, 0.5, -3> }
 """
 
 
 @pytest.mark.slow  # two forward-mode programs
-@pytest.mark.skipif(ACCEL != "native", reason="the native hierarchy evaluates CSG objects; its JAX twin does not")
+@pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
 def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivatives(tmp_path, monkeypatch):
     """A CSG object is one item: the native query finds the first crossing of a member that the
     object's conditions count (bvh.cc's programs, in float64), the member's kernel computes the hit
@@ -373,7 +378,7 @@ def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivat
 
 
 @pytest.mark.povray
-@pytest.mark.skipif(ACCEL != "native", reason="the native hierarchy evaluates CSG objects; its JAX twin does not")
+@pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
 def test_a_csg_object_is_seen_only_within_povrays_box_of_it(tmp_path, monkeypatch):
     """POV-Ray bounds an intersection by the overlap of its bounded parts' boxes and shows nothing
     outside it: a disc's box is flat, so of an intersection with a disc only the face on the disc
