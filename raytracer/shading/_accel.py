@@ -261,7 +261,7 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     if csg is not None:
         n_csg = len(csg.units)
         lo, hi = (sg(b)[csg.units] for b in unit_boxes)
-        boxes.append(jnp.concatenate([lo, hi], axis=-1).astype(boxes[0].dtype if boxes else dtype))
+        boxes.append(jnp.concatenate([lo, hi], axis=-1))
         params.append(jnp.zeros((n_csg, ITEM_PARAMS), dtype).at[:, 0].set(csg.offsets.astype(dtype)))
         kinds.append(np.full(n_csg, KIND_CSG, np.int32))
         prims.append(np.zeros(n_csg, np.int32))  # (never named by a query: it names the member)

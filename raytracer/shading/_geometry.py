@@ -111,22 +111,19 @@ def accelerated_prims(plan: Plan, accelerate: bool | None = None) -> list[bool]:
     return hierarchy_choice(plan, accelerate)[0]
 
 
-def hierarchy_choice(plan: Plan, accelerate: bool | None = None) -> tuple[list[bool], tuple[int, ...]]:
+def hierarchy_choice(plan: Plan, accelerate: bool | None = None,
+                     bits: np.ndarray | None = None) -> tuple[list[bool], tuple[int, ...]]:
     """What the native hierarchy holds: which primitives are items of their own, and which bounding
     units are CSG objects it evaluates (``csg_units``); nothing when they make fewer than
-    ``_accel.MIN_ITEMS`` items."""
+    ``_accel.MIN_ITEMS`` items. ``bits``: ``prim_bits(plan)``, when the caller has them."""
     if accelerate is None:
         accelerate = _accel.mode() != "none"  # native, or its JAX twin (RAYTRACER_ACCEL=jax)
     twin = _accel.mode() == "jax"  # the pure-JAX twin: no all-crossings query, no torus kernel, no CSG
     kernels = _accel.JAX_TWIN_KERNELS if twin else None
     held = [accelerate and _accelerable(p, not twin, kernels) for p in plan.prims]
-    csg = csg_units(plan, prim_bits(plan)) if accelerate and not twin else ()
+    csg = csg_units(plan, prim_bits(plan) if bits is None else bits) if accelerate and not twin else ()
     items = sum(native_items(p.obj.shape) for p, ok in zip(plan.prims, held, strict=True) if ok) + len(csg)
     return (held, csg) if items >= _accel.MIN_ITEMS else ([False] * len(plan.prims), ())
-
-
-def _tree_prims(tree: InsideTree) -> set[int]:
-    return {tree.prim} if isinstance(tree, InPrim) else set().union(*map(_tree_prims, tree.terms))
 
 
 MAX_CSG_HEIGHT = 64  # deeper CSG trees stay candidates (bvh.cc evaluates a tree by recursion)
@@ -154,47 +151,38 @@ def prim_bits(plan: Plan) -> np.ndarray:
     return np.array([visibility_bits(p) for p in plan.prims], np.int32)
 
 
+def _unit_members(plan: Plan) -> dict[int, list[int]]:
+    """The primitives of every bounding unit (its CSG parts and clipping objects), in plan order."""
+    members: dict[int, list[int]] = {}
+    for i, u in enumerate(plan.prim_unit):
+        members.setdefault(u, []).append(i)
+    return members
+
+
 def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
     """The bounding units the native hierarchy holds as CSG objects (one item each, its box the
     unit's; bvh.cc evaluates which crossing of a member counts): CSG and clipped objects whose
     primitives all have a native kernel and one item (planes too: the object's box bounds them), a
     finite box, no transparent shadow caster (a filtered shadow needs every crossing) and a tree at
-    most ``MAX_CSG_HEIGHT`` deep. ``bits``: ``prim_bits(plan)``."""
-    members: dict[int, list[int]] = {}
-    for i, u in enumerate(plan.prim_unit):
-        members.setdefault(u, []).append(i)
-    prims_of: dict[int, set[int]] = {}  # by id(tree): a unit's conditions share their trees
+    most ``MAX_CSG_HEIGHT`` deep. ``bits``: ``prim_bits(plan)``. (A part's conditions only name parts
+    of its own unit: only a splittable union, which adds no condition, lies above a unit.)"""
+    members = _unit_members(plan)
 
-    def tree_prims(tree):
-        if id(tree) not in prims_of:
-            prims_of[id(tree)] = _tree_prims(tree)
-        return prims_of[id(tree)]
+    def member_ok(i):
+        shape = plan.prims[i].obj.shape
+        return (type(shape).native_kernel is not None and type(shape).n_native_items(shape) == 1
+                and not bits[i] & _accel.MASK_FILTER)
 
-    def member_ok(i, mine):
-        p = plan.prims[i]
-        shape_type = type(p.obj.shape)
-        return (shape_type.native_kernel is not None and shape_type.n_native_items(p.obj.shape) == 1
-                and not bits[i] & _accel.MASK_FILTER
-                and all(tree_prims(c.tree) <= mine for c in p.conditions))
-
-    chosen = []
-    for u, tree in enumerate(plan.units):
-        if isinstance(tree, InPrim) or not _bounded(tree, plan) or _height(tree) > MAX_CSG_HEIGHT:
-            continue
-        ids = members.get(u, [])
-        mine = set(ids)
-        if all(member_ok(i, mine) for i in ids):
-            chosen.append(u)
-    return tuple(chosen)
+    return tuple(u for u, tree in enumerate(plan.units)
+                 if not isinstance(tree, InPrim) and _bounded(tree, plan) and _height(tree) <= MAX_CSG_HEIGHT
+                 and all(member_ok(i) for i in members.get(u, [])))
 
 
 def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int],
                 bits: np.ndarray) -> _accel.CsgUnits:
     """The programs of the CSG objects ``units`` (bvh.cc's layout: CSG units), a member written as
     ``-1 - member_rank[prim]`` (``_accel.pack_accel`` numbers the members' items)."""
-    members: dict[int, list[int]] = {}
-    for i, u in enumerate(plan.prim_unit):
-        members.setdefault(u, []).append(i)
+    members = _unit_members(plan)
     ops = {InAll: 1, InAny: 2, InDiff: 3}
     prog: list[int] = []
     offsets, masks = [], []
@@ -233,10 +221,10 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
     """Every primitive of ``plan`` packed by group. ``accelerate``: let the native hierarchy choose
     among the primitives it can (None: when ``_accel.mode()`` is native and there are at least
     ``_accel.MIN_ITEMS`` items)."""
-    accel_ok, csg = hierarchy_choice(plan, accelerate)
-    in_csg = np.zeros(len(plan.prims), bool)
+    bits = prim_bits(plan)
+    accel_ok, csg = hierarchy_choice(plan, accelerate, bits)
     chosen = set(csg)
-    in_csg[[i for i, u in enumerate(plan.prim_unit) if u in chosen]] = True
+    in_csg = [u in chosen for u in plan.prim_unit]
     keyed: dict[tuple, list[int]] = {}
     for i, p in enumerate(plan.prims):
         role = "item" if accel_ok[i] else "csg" if in_csg[i] else "candidate"
@@ -264,7 +252,7 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
     accel_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.accelerated and not grp.csg_member]
     csg_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.csg_member]
     if accel_groups or csg_groups:
-        bits, programs = prim_bits(plan), None
+        programs = None
         if csg:
             rank = {int(i): r for r, i in enumerate(i for _, ids in csg_groups for i in ids)}
             programs = csg_program(plan, csg, rank, bits)
