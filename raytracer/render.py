@@ -130,17 +130,34 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
     cached = _PACKED.get(key)
     if cached is not None and cached[0] is scene:
         return cached[1]
-    scene_plan = make_plan(scene) if scene_plan is None else scene_plan
-    dtype = scene.camera.location.dtype
     leaves, treedef = jax.tree_util.tree_flatten(scene.objects)  # one walk of the objects
-    rest = with_field(scene, "objects", ())
-    packed = Packed(rest, skeleton(scene.objects, (leaves, treedef)),
-                    pack_geometry(scene_plan, dtype), pack_materials(scene_plan, dtype))
+    if any(isinstance(x, jax.core.Tracer) for x in leaves):
+        return _pack_traced(scene, _accel.mode())
+    packed = _pack(scene, make_plan(scene) if scene_plan is None else scene_plan, (leaves, treedef))
+    rest = packed.rest
     if not is_traced(rest) and all(isinstance(x, np.ndarray) and not x.flags.writeable for x in leaves):
         while len(_PACKED) >= 4:
             _PACKED.pop(next(iter(_PACKED)))
         _PACKED[key] = (scene, packed)
     return packed
+
+
+def _pack(scene: Scene, scene_plan: Plan, flat=None) -> Packed:
+    dtype = scene.camera.location.dtype
+    rest = with_field(scene, "objects", ())
+    return Packed(rest, skeleton(scene.objects, flat), pack_geometry(scene_plan, dtype),
+                  pack_materials(scene_plan, dtype))
+
+
+@eqx.filter_jit
+def _pack_traced(scene: Scene, mode: str) -> Packed:
+    """``pack`` of a scene whose objects are traced, as one compiled program. Under an eager
+    transformation (``jax.grad(loss)(scene)`` without ``jit``) packing op by op linearised and
+    compiled every small operation on its own (6 s of tiny programs for a ten-kind scene, each
+    new shape again); as one call the transformation sees one primitive. Inside the user's ``jit``
+    it is inlined. ``mode`` (``_accel.mode()``) keys the cache: it decides what is packed."""
+    del mode
+    return _pack(scene, make_plan(scene))
 
 
 def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: int, k: int, tile: int,
