@@ -647,14 +647,53 @@ class _Layers(NamedTuple):
     r_weight: jax.Array  # () weight of the mirror ray relative to this ray's
 
 
+class _Lights(NamedTuple):
+    """Lights of one structure: the one light (``count`` 1), or the lights stacked on a leading
+    axis."""
+
+    light: Light
+    count: int
+
+
+def _light_classes(lights, visibility, effects) -> list[tuple[tuple[int, ...], _Lights, object]]:
+    """The scene's lights grouped by structure (pytree, leaf shapes and dtypes, types, and whether
+    the batch computed their shadow): ``(indices, lights, visibility)``, the last two stacked when
+    a class has more than one light."""
+    keyed: dict[tuple, list[int]] = {}
+    for i, (light, v) in enumerate(zip(lights, visibility, strict=True)):
+        leaves, treedef = jax.tree_util.tree_flatten(light)
+        key = (treedef, tuple((np.shape(x), jnp.result_type(x)) for x in leaves),
+               tuple(t.name for t in light_types(light, effects)), v is None)
+        keyed.setdefault(key, []).append(i)
+    out = []
+    for ids in keyed.values():
+        if len(ids) == 1:
+            out.append((tuple(ids), _Lights(lights[ids[0]], 1), visibility[ids[0]]))
+            continue
+        stacked = jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *(lights[i] for i in ids))
+        vis = None if visibility[ids[0]] is None else jnp.stack([visibility[i] for i in ids])
+        out.append((tuple(ids), _Lights(stacked, len(ids)), vis))
+    return out
+
+
+def _batched(fn, lights: _Lights, extra):
+    """``fn(light, extra)`` for one light, or vmapped over a class's stacked lights."""
+    if lights.count == 1:
+        return fn(lights.light, extra)
+    return jax.vmap(fn)(lights.light, extra)
+
+
 def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibility) -> _Layers:
     """Texture layers, top first (semantics §2.3): each adds its local colour filtered by the layers above;
     the loop stops once the layers above let less than adc_bailout through. ``visibility``: per
     light, its shadow filter if the batch computed it, else None."""
     mats, fin = ctx.mats, ctx.mats.finish
     d, n, prim = ray.direction, s.n, s.prim
-    arrivals = [_light_arrival(ctx, light, s.p, s.p_out, n, v)
-                for light, v in zip(ctx.lights, visibility, strict=True)]
+    # lights of one structure are one vmapped computation (their shadow rays too), so the program
+    # holds each kind of light once, not once per light
+    classes = _light_classes(ctx.lights, visibility, ctx.plan.effects)
+    arrivals = [_batched(lambda lt, v: _light_arrival(ctx, lt, s.p, s.p_out, n, v), lights, vis)
+                for _, lights, vis in classes]
     fil = jnp.ones(3, ctx.dtype)
     trans = jnp.ones((), ctx.dtype)
     local = jnp.zeros(3, ctx.dtype)
@@ -671,8 +710,12 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
         rgb, f, t = pig[:3], pig[3], pig[4]
         att = 1.0 - f - t
         tmp = att * rgb * (fin["ambient"][row] * ctx.settings.ambient_light + fin["emission"][row])
-        for light, arrival in zip(ctx.lights, arrivals, strict=True):
-            tmp = tmp + _layer_light(ctx, light, arrival, row, rgb, att, d, n)
+        for (_, lights, _), arrival in zip(classes, arrivals, strict=True):
+            def term(lt, a, row=row, rgb=rgb, att=att):
+                return _layer_light(ctx, lt, a, row, rgb, att, d, n)
+
+            terms = _batched(term, lights, arrival)
+            tmp = tmp + (terms if lights.count == 1 else jnp.sum(terms, axis=0))
         local = local + jnp.where(active, fil * tmp, 0.0)
         layer_fil = f * rgb + t
         if ctx.plan.effects.reflection:
