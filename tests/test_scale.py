@@ -45,6 +45,20 @@ def test_program_has_the_same_operations_for_20_and_200_spheres(tmp_path, monkey
     assert args20 == args200 < 100
 
 
+def test_program_does_not_grow_with_lights_of_one_kind(tmp_path):
+    """Lights of one structure are one vmapped computation: five point lights make the program two
+    do, give or take the stacking (before, each light added its shadow rays and terms: 2,067 → 2,520
+    operations from two to five lights)."""
+    sizes = []
+    for n in (2, 5):
+        lights = "".join(f"\nlight_source {{ <{i}, 9, -9> color rgb 0.3 }}" for i in range(n - 1))
+        path = tmp_path / f"l{n}.pov"
+        path.write_text(_spheres(20) + lights)
+        scene = load_scene(path, width=16, height=12)
+        text = _render_part.lower(pack(scene), 16, 12, 1, 1, jnp.asarray(0), 4).as_text()
+        sizes.append(len(re.findall(r"= (\"?[a-z_]+\.[a-z_]+)", text)))
+    assert sizes[1] <= sizes[0] + 20, sizes
+
 
 def test_packing_a_traced_scene_is_the_same_operations_for_20_and_200_spheres(tmp_path):
     """Under ``jax.grad`` without ``jit`` (an optimisation loop's eager step) the packing is traced
