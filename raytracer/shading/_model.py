@@ -694,37 +694,49 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
     classes = _light_classes(ctx.lights, visibility, ctx.plan.effects)
     arrivals = [_batched(lambda lt, v: _light_arrival(ctx, lt, s.p, s.p_out, n, v), lights, vis)
                 for _, lights, vis in classes]
+    n_layers = mats.n_layers
+    reflection = ctx.plan.effects.reflection
+
+    def one_layer(k):
+        # what a layer contributes by itself: its local colour (before the layers above filter
+        # it), its filter, and its reflection colour and weight
+        row = prim * n_layers + k
+        pig = pigment_at(mats, row, s.p)
+        rgb, f, t = pig[:3], pig[3], pig[4]
+        att = 1.0 - f - t
+        tmp = att * rgb * (fin["ambient"][row] * ctx.settings.ambient_light + fin["emission"][row])
+        for (_, lights, _), arrival in zip(classes, arrivals, strict=True):
+            terms = _batched(lambda lt, a: _layer_light(ctx, lt, a, row, rgb, att, d, n), lights, arrival)
+            tmp = tmp + (terms if lights.count == 1 else jnp.sum(terms, axis=0))
+        layer_fil = f * rgb + t
+        if not reflection:
+            return tmp, layer_fil, None, None
+        reflec_k, w_k = _reflectivity(ctx, row, cos_i, eta_rel, rgb)
+        conserve = jnp.asarray(mats.conserve_energy)[row]
+        layer_fil = jnp.where(conserve, layer_fil * jnp.minimum(1.0, 1.0 - reflec_k), layer_fil)
+        return tmp, layer_fil, reflec_k, w_k
+
+    # every layer in one vmapped evaluation: the program holds a layer's pigments, lights and
+    # reflectivity once, not once per layer (noise patterns are large programs)
+    if n_layers == 1:
+        per_layer = jax.tree_util.tree_map(lambda x: x[None], one_layer(0))
+    else:
+        per_layer = jax.vmap(one_layer)(jnp.arange(n_layers))
+    tmps, layer_fils, reflecs, weights = per_layer
     fil = jnp.ones(3, ctx.dtype)
     trans = jnp.ones((), ctx.dtype)
     local = jnp.zeros(3, ctx.dtype)
     reflec = jnp.zeros(3, ctx.dtype)
     r_weight = jnp.zeros((), ctx.dtype)
-    n_layers = mats.n_layers
-    # every layer's pigment in one vmapped evaluation: each pattern is traced once, not once per
-    # layer (noise patterns are large programs)
-    pigments = jax.vmap(lambda k: pigment_at(mats, prim * n_layers + k, s.p))(jnp.arange(n_layers))
     for k in range(n_layers):
-        row = prim * n_layers + k
+        # top first: each layer is seen through the filters of those above it, and the loop
+        # stops once they let less than adc_bailout through
         active = jnp.asarray(mats.layer_present)[prim, k] & ((trans > ctx.settings.adc_bailout) | (k == 0))
-        pig = pigments[k]
-        rgb, f, t = pig[:3], pig[3], pig[4]
-        att = 1.0 - f - t
-        tmp = att * rgb * (fin["ambient"][row] * ctx.settings.ambient_light + fin["emission"][row])
-        for (_, lights, _), arrival in zip(classes, arrivals, strict=True):
-            def term(lt, a, row=row, rgb=rgb, att=att):
-                return _layer_light(ctx, lt, a, row, rgb, att, d, n)
-
-            terms = _batched(term, lights, arrival)
-            tmp = tmp + (terms if lights.count == 1 else jnp.sum(terms, axis=0))
-        local = local + jnp.where(active, fil * tmp, 0.0)
-        layer_fil = f * rgb + t
-        if ctx.plan.effects.reflection:
-            reflec_k, w_k = _reflectivity(ctx, row, cos_i, eta_rel, rgb)
-            reflec = reflec + jnp.where(active, reflec_k, 0.0)  # layers' reflections add up
-            r_weight = jnp.maximum(r_weight, jnp.where(active, trans * w_k, 0.0))
-            conserve = jnp.asarray(mats.conserve_energy)[row]
-            layer_fil = jnp.where(conserve, layer_fil * jnp.minimum(1.0, 1.0 - reflec_k), layer_fil)
-        fil = jnp.where(active, fil * layer_fil, fil)
+        local = local + jnp.where(active, fil * tmps[k], 0.0)
+        if reflection:
+            reflec = reflec + jnp.where(active, reflecs[k], 0.0)  # layers' reflections add up
+            r_weight = jnp.maximum(r_weight, jnp.where(active, trans * weights[k], 0.0))
+        fil = jnp.where(active, fil * layer_fils[k], fil)
         trans = jnp.minimum(1.0, jnp.abs(lighting.grey(fil)))
     return _Layers(local, fil, trans, reflec, r_weight)
 
