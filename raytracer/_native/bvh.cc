@@ -583,10 +583,40 @@ double csg_hit(const Scene<T>& s, int32_t item, const double* o, const double* d
   return member >= 0 ? best : INFINITY;
 }
 
+// Every counted crossing in (tmin, tmax) of the unit's members of mask `want`, as visit(member's
+// item, t), member by member (a filtered shadow: each crossing of a transparent member that the
+// object counts filters the light). Returns true when visit asked to stop.
+template <typename T, typename Visit>
+bool csg_each(const Scene<T>& s, int32_t item, const double* o, const double* d, double tmin, double tmax,
+              int32_t want, const Visit& visit) {
+  const int32_t* prog = s.program + static_cast<int64_t>(s.params[ITEM_PARAMS * static_cast<int64_t>(item)]);
+  for (int32_t m = 0; m < prog[0]; ++m) {
+    const int32_t* mem = prog + 1 + 3 * m;
+    const int32_t it = mem[0];
+    if ((s.mask[it] & want) == 0) continue;
+    const T* params = s.params + ITEM_PARAMS * static_cast<int64_t>(it);
+    double t = tmin;
+    for (int k = 0; k < MAX_CROSSINGS; ++k) {
+      t = item_hit(s.kind[it], params, o, d, t, tmax);
+      if (!(t < tmax)) break;
+      const double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+      bool counts = true;
+      for (int32_t c = 0; c < mem[2] && counts; ++c) {
+        const int32_t* cond = s.program + mem[1] + 2 * c;
+        counts = node_inside(s, cond[0], p) == (cond[1] != 0);
+      }
+      if (counts && visit(it, t)) return true;
+    }
+  }
+  return false;
+}
+
 // Visits, in near-to-far order of the hierarchy's nodes, every item of mask `want` that the segment
 // (tmin, limit) of one ray crosses: visit(item, t) with its first crossing t, returning true to
-// stop. `limit` may shrink as the walk goes (a closest-hit query narrows it to its best hit).
-template <typename T, typename Visit>
+// stop. `limit` may shrink as the walk goes (a closest-hit query narrows it to its best hit). A CSG
+// object is visited as the member of its first counted crossing, or with EVERY = true as the member
+// of each of its counted crossings (csg_each).
+template <typename T, typename Visit, bool EVERY = false>
 void walk(const Scene<T>& s, const double* o, const double* d, double tmin, double& limit, int32_t want,
           const Visit& visit) {
   double inv[3];
@@ -607,6 +637,10 @@ void walk(const Scene<T>& s, const double* o, const double* d, double tmin, doub
       for (int32_t j = info[0]; j < info[0] + info[1]; ++j) {
         const int32_t it = s.order[j];
         if ((s.mask[it] & want) == 0) continue;
+        if (EVERY && s.kind[it] == KIND_CSG) {
+          if (csg_each(s, it, o, d, tmin, limit, want, visit)) return;
+          continue;
+        }
         if (s.kind[it] == KIND_CSG) {
           int32_t member;
           const double t = csg_hit(s, it, o, d, tmin, limit, want, member);
@@ -704,14 +738,15 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
 
 // Every item with a crossing in (tmin, tmax) (a filtered shadow segment: each transparent item it
 // crosses filters it), keeping the k nearest by their first crossing in out[0..k) (ascending, -1
-// after the last); returns how many items were crossed, which may exceed k. No node is pruned by a
-// found hit: the whole segment is searched.
+// after the last) with that crossing in out_t; returns how many were crossed, which may exceed k.
+// A CSG object gives one entry per counted crossing, naming its member (csg_each). No node is
+// pruned by a found hit: the whole segment is searched.
 template <typename T>
 int32_t traverse_all(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
                      int32_t* out, double* out_t, int k) {
   int32_t found = 0;
   int kept = 0;
-  walk(s, o, d, tmin, tmax, want, [&](int32_t it, double t) {
+  auto visit = [&](int32_t it, double t) {
     ++found;
     if (kept == k && !(t < out_t[k - 1])) return false;
     int pos = kept < k ? kept++ : k - 1;  // insertion into the sorted list (drops the farthest)
@@ -723,8 +758,12 @@ int32_t traverse_all(const Scene<T>& s, const double* o, const double* d, double
     out[pos] = it;
     out_t[pos] = t;
     return false;
-  });
-  for (int j = kept; j < k; ++j) out[j] = -1;
+  };
+  walk<T, decltype(visit), true>(s, o, d, tmin, tmax, want, visit);
+  for (int j = kept; j < k; ++j) {
+    out[j] = -1;
+    out_t[j] = INFINITY;
+  }
   return found;
 }
 
@@ -860,33 +899,40 @@ ffi::Error query_impl(ffi::ThreadPool pool, RAY_OPERAND_PARAMS(DT),
                    });
 }
 
-// operands -> item (rays, k), count: the k nearest items a segment crosses, and how many it crosses
+// operands -> item (rays, k), count, t (rays, k): the k nearest items a segment crosses, how many it
+// crosses, and each one's crossing (its first; a CSG member's counted one)
 template <ffi::DataType DT>
 ffi::Error all_impl(ffi::ThreadPool pool, RAY_OPERAND_PARAMS(DT),
                     ffi::ResultBuffer<ffi::S32> item,
-                    ffi::ResultBuffer<ffi::S32> count) {
+                    ffi::ResultBuffer<ffi::S32> count,
+                    ffi::ResultBuffer<DT> t_out) {
   using T = ffi::NativeType<DT>;
   const int64_t rays = static_cast<int64_t>(tmin.element_count());
   if (rays == 0) return ffi::Error::Success();
   const int64_t k = static_cast<int64_t>(item->element_count()) / rays;
   if (k < 1 || k > 1024 || static_cast<int64_t>(item->element_count()) != k * rays ||
-      static_cast<int64_t>(count->element_count()) != rays)
+      static_cast<int64_t>(count->element_count()) != rays ||
+      static_cast<int64_t>(t_out->element_count()) != k * rays)
     return ffi::Error(ffi::ErrorCode::kInvalidArgument, "bvh all-crossings query: inconsistent result sizes");
   int32_t* out = item->typed_data();
   int32_t* cnt = count->typed_data();
+  T* tt = t_out->typed_data();
   RayOperands<DT> a{RAY_OPERAND_NAMES};
   return rays_impl(pool, a, "bvh all-crossings query",
                    [&](const Scene<T>& s, int64_t r, const double* o, const double* d, double lo, double hi,
                        int32_t w, bool valid) {
                      int32_t* row = out + k * r;
+                     T* trow = tt + k * r;
                      if (!valid) {
                        cnt[r] = 0;
                        std::fill(row, row + k, -1);
+                       std::fill(trow, trow + k, static_cast<T>(INFINITY));
                        return;
                      }
                      thread_local std::vector<double> ts;
                      ts.resize(k);
                      cnt[r] = traverse_all(s, o, d, lo, hi, w, row, ts.data(), static_cast<int>(k));
+                     for (int64_t j = 0; j < k; ++j) trow[j] = static_cast<T>(ts[j]);
                    });
 }
 
@@ -930,5 +976,7 @@ XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF32, (query_impl<ffi::F32, false>), QUER
 XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhClosestF64, (query_impl<ffi::F64, false>), QUERY_BINDING(ffi::F64, ffi::F64));
 XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF32, (query_impl<ffi::F32, true>), QUERY_BINDING(ffi::F32, ffi::F32));
 XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAnyF64, (query_impl<ffi::F64, true>), QUERY_BINDING(ffi::F64, ffi::F64));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF32, all_impl<ffi::F32>, QUERY_BINDING(ffi::F32, ffi::S32));
-XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF64, all_impl<ffi::F64>, QUERY_BINDING(ffi::F64, ffi::S32));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF32, all_impl<ffi::F32>,
+                              QUERY_BINDING(ffi::F32, ffi::S32).Ret<ffi::Buffer<ffi::F32>>());
+XLA_FFI_DEFINE_HANDLER_SYMBOL(BvhAllF64, all_impl<ffi::F64>,
+                              QUERY_BINDING(ffi::F64, ffi::S32).Ret<ffi::Buffer<ffi::F64>>());

@@ -14,7 +14,8 @@ condition — are instead *items* of a hierarchy built and traversed by native c
   query that stops at the first);
 * ``filtering``: the transparent shadow-casting items (``MASK_FILTER``) a shadow segment crosses,
   the nearest ``FILTER_ITEMS`` of them, each with all its crossings computed again by its kernel
-  (the shading model multiplies their pigments' filter). Transparent items with an interior fade
+  (the shading model multiplies their pigments' filter); a transparent CSG object gives one entry
+  per crossing of a member that it counts. Transparent items with an interior fade
   stay candidates (the fade needs the ordered crossings of all fading objects), and so do all
   transparent shadow casters with the pure-JAX twin, which has no such query.
 
@@ -140,7 +141,8 @@ def _native_query(name: str, outputs):
                                       "RAYTRACER_ACCEL=none")
         rays = [x if b else jnp.broadcast_to(x, (axis_size, *x.shape))
                 for x, b in zip((o, d, tmin, tmax, want), in_batched[1:], strict=True)]
-        return query(tables, *rays), (True, True)
+        out = query(tables, *rays)
+        return out, (True,) * len(out)
 
     return query
 
@@ -152,8 +154,10 @@ def _hit(shape, dtype):
 
 def _crossed(shape, dtype):
     """(the ``FILTER_ITEMS`` nearest items crossed, S + (k,) int32 ascending, -1 after the last; how
-    many were crossed, S int32, may exceed k)"""
-    return jax.ShapeDtypeStruct((*shape, FILTER_ITEMS), jnp.int32), jax.ShapeDtypeStruct(shape, jnp.int32)
+    many were crossed, S int32, may exceed k; each one's crossing, S + (k,): its first, or for a
+    CSG member the one its object counts, +inf after the last)"""
+    return (jax.ShapeDtypeStruct((*shape, FILTER_ITEMS), jnp.int32), jax.ShapeDtypeStruct(shape, jnp.int32),
+            jax.ShapeDtypeStruct((*shape, FILTER_ITEMS), dtype))
 
 
 _closest_query = _native_query("BvhClosest", _hit)
@@ -351,25 +355,27 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     segment are +inf)."""
     sg = jax.lax.stop_gradient
     want = jnp.asarray(MASK_FILTER, jnp.int32)
-    item, count = _all_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
+    item, count, t_native = _all_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
     chosen = jnp.maximum(item, 0)
     ts = []
     for ag in accel.groups:
-        if ag.csg:
-            continue  # (a CSG object with a transparent shadow caster is not an item)
         local = chosen - ag.first
         mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)
         local = jnp.where(mine, local, 0)
         member, sub = local // ag.per_member, local % ag.per_member
 
-        def one(member, sub, mine, ag=ag):
+        def one(member, sub, mine, t_counted, ag=ag):
             shape = jax.tree_util.tree_map(lambda a: a[member], shapes[ag.group])
             m = object_from_world[ag.group][member]
             t, n = shape.sub_hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d, sub)
             ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
-            return jnp.where(ok, t, jnp.inf), jax.vmap(lambda v: safe_normalize(v @ m[:3, :3]))(n)
+            n = jax.vmap(lambda v: safe_normalize(v @ m[:3, :3]))(n)
+            if ag.csg:  # an entry per crossing its object counts: the member's crossing nearest it
+                c = jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_counted), jnp.inf))
+                return jnp.where(ok[c], t[c], jnp.inf)[None], n[c][None]
+            return jnp.where(ok, t, jnp.inf), n
 
-        ts.append(jax.vmap(one)(member, sub, mine))
+        ts.append(jax.vmap(one)(member, sub, mine, t_native))
     width = max(t.shape[1] for t, _ in ts)
 
     def widen(x, fill):

@@ -163,15 +163,17 @@ def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
     """The bounding units the native hierarchy holds as CSG objects (one item each, its box the
     unit's; bvh.cc evaluates which crossing of a member counts): CSG and clipped objects whose
     primitives all have a native kernel and one item (planes too: the object's box bounds them), a
-    finite box, no transparent shadow caster (a filtered shadow needs every crossing) and a tree at
-    most ``MAX_CSG_HEIGHT`` deep. ``bits``: ``prim_bits(plan)``. (A part's conditions only name parts
+    finite box, no transparent shadow caster with a fading interior (the fade needs the ordered
+    crossings of every fading object; other transparent members filter shadows through the
+    all-crossings query, one entry per counted crossing) and a tree at most ``MAX_CSG_HEIGHT`` deep.
+    ``bits``: ``prim_bits(plan)``. (A part's conditions only name parts
     of its own unit: only a splittable union, which adds no condition, lies above a unit.)"""
     members = _unit_members(plan)
 
     def member_ok(i):
         shape = plan.prims[i].obj.shape
         return (type(shape).native_kernel is not None and type(shape).n_native_items(shape) == 1
-                and not bits[i] & _accel.MASK_FILTER)
+                and not (bits[i] & _accel.MASK_FILTER and plan.prims[i].fades))
 
     return tuple(u for u, tree in enumerate(plan.units)
                  if not isinstance(tree, InPrim) and _bounded(tree, plan) and _height(tree) <= MAX_CSG_HEIGHT

@@ -179,7 +179,7 @@ def test_auto_mode_picks_the_native_hierarchy_on_a_cpu_and_the_jax_one_elsewhere
 @pytest.mark.skipif(ACCEL != "native", reason="the all-crossings query is the native hierarchy's")
 def test_all_crossings_query_keeps_the_nearest_items_in_order(x64):
     """Filtered shadows ask for every item on a segment: the nearest ``FILTER_ITEMS`` by their first
-    crossing, ascending, and how many there were, against brute force (float64)."""
+    crossing, ascending, with that crossing, and how many there were, against brute force (float64)."""
     build, _, _ = _accel._hierarchy()
     rng = np.random.default_rng(5)
     n, rays = 1500, 300
@@ -195,7 +195,7 @@ def test_all_crossings_query_keeps_the_nearest_items_in_order(x64):
     d = rng.normal(size=(rays, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     tmin, tmax = rng.uniform(0, 1, rays), rng.uniform(1, 14, rays)
-    item, count = _accel._all_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.asarray(tmin),
+    item, count, t = _accel._all_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.asarray(tmin),
                                     jnp.asarray(tmax), jnp.full(rays, _accel.MASK_FILTER, jnp.int32))
     oc = o[:, None, :] - centres[None]
     b = np.einsum("ri,rni->rn", d, oc)
@@ -211,6 +211,7 @@ def test_all_crossings_query_keeps_the_nearest_items_in_order(x64):
     want = np.argsort(first, axis=1, kind="stable")[:, :k]
     want = np.where(np.isfinite(np.take_along_axis(first, want, axis=1)), want, -1)
     np.testing.assert_array_equal(np.asarray(item), want)
+    np.testing.assert_allclose(np.asarray(t), np.sort(first, axis=1)[:, :k], rtol=1e-12)
     assert 0.2 < (np.asarray(count) > k).mean() < 0.8  # segments with fewer and more than k items
 
 
@@ -322,7 +323,7 @@ plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
   #case (0) difference { box { -0.4, 0.4 } cylinder { -y, y, 0.25 } rotate <30 * rand(R), 60 * rand(R), 0>
                          translate P pigment { rgb <0.9, rand(R), 0.2> } } #break
   #case (1) intersection { sphere { 0, 0.5 } plane { <rand(R) - 0.5, 1, 0.2>, 0.1 } translate P
-                           pigment { rgb <0.2, 0.8, rand(R)> } } #break
+                           pigment { rgbf <0.2, 0.8, rand(R), 0.6> } } #break
   #case (2) merge { sphere { 0, 0.35 } cone { -0.5 * y, 0.3, 0.5 * y, 0 } rotate 40 * x translate P
                     pigment { rgb <rand(R), 0.5, 0.7> } finish { phong 0.6 } } #break
   #case (3) sphere { 0, 0.5 clipped_by { box { -1, <1, 0.2, 1> } } translate P
@@ -350,7 +351,7 @@ intersection { quadric { <1, 1, 1>, 0, 0, -0.25 } box { -0.4, 0.4 } pigment { rg
 def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivatives(tmp_path, monkeypatch):
     """A CSG object is one item: the native query finds the first crossing of a member that the
     object's conditions count (bvh.cc's programs, in float64), the member's kernel computes the hit
-    again. Pixels and derivatives are the candidate path's, shadows included."""
+    again. Pixels and derivatives are the candidate path's, shadows included, filtered ones too."""
     path = tmp_path / "csg.pov"
     path.write_text(CSG_SCENE)
     scene = load_scene(path, width=48, height=36)
@@ -358,11 +359,12 @@ def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivat
     plan = make_plan(scene)
     geo = pack_geometry(plan, jnp.float32)
     left = sorted(plan.prims[i].kind for g in geo.groups if not g.accelerated for i in g.prims)
-    # the floor; the transparent intersection, the quadric's (the inverse difference is held:
-    # its surface is the difference's, inside the difference's box)
-    assert left == sorted(["plane", "box", "sphere", "quadric", "box"])
+    # the floor and the quadric's intersection (the inverse difference is held: its surface is the
+    # difference's, inside the difference's box; the transparent ones filter shadows through the
+    # all-crossings query, one entry per counted crossing)
+    assert left == sorted(["plane", "quadric", "box"])
     csg_items = int(np.count_nonzero(np.asarray(geo.accel.tables[3]) == _accel.KIND_CSG))
-    assert csg_items == 10 + 4
+    assert csg_items == 10 + 5
     tangent = _tangent(scene, seed=1)
     out = {}
     for mode in ("native", "none"):
