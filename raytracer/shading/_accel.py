@@ -175,6 +175,7 @@ class AccelGroup:
     members: int  # primitives in the group
     per_member: int  # items per primitive (1, or a mesh's triangles)
     csg: bool = False  # members of CSG objects (``CsgUnits``): the query names the crossing it counts
+    filters: bool = True  # some item is a transparent shadow caster (``MASK_FILTER``): ``filtering`` asks it
 
 
 @dataclasses.dataclass
@@ -253,7 +254,8 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         params.append(p)
         kinds.append(np.full(n * k, type(shapes[g]).native_kernel, np.int32))
         prims.append(np.repeat(np.asarray(prim_ids, np.int32), k))
-        accel_groups.append(AccelGroup(g, first, n, k, is_csg))
+        filters = bool(np.any(np.asarray(prim_mask, np.int32)[np.asarray(prim_ids, np.int64)] & MASK_FILTER))
+        accel_groups.append(AccelGroup(g, first, n, k, is_csg, filters))
         first += n * k
 
     for g, prim_ids in groups:
@@ -359,6 +361,8 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     chosen = jnp.maximum(item, 0)
     ts = []
     for ag in accel.groups:
+        if not ag.filters:
+            continue  # (the query names only items of groups with transparent shadow casters)
         local = chosen - ag.first
         mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)
         local = jnp.where(mine, local, 0)
