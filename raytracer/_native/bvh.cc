@@ -550,45 +550,16 @@ bool node_inside(const Scene<T>& s, int32_t node, const double* p) {
   return v != (n[1] != 0);
 }
 
-// The first counted crossing in (tmin, tmax) of the unit's members of mask `want`; its member's item
-// in `member` (-1 when none). A member's crossings are taken in order, each from the last.
-template <typename T>
-double csg_hit(const Scene<T>& s, int32_t item, const double* o, const double* d, double tmin, double tmax,
-               int32_t want, int32_t& member) {
-  const int32_t* prog = s.program + static_cast<int64_t>(s.params[ITEM_PARAMS * static_cast<int64_t>(item)]);
-  double best = tmax;
-  member = -1;
-  for (int32_t m = 0; m < prog[0]; ++m) {
-    const int32_t* mem = prog + 1 + 3 * m;
-    const int32_t it = mem[0];
-    if ((s.mask[it] & want) == 0) continue;
-    const T* params = s.params + ITEM_PARAMS * static_cast<int64_t>(it);
-    double t = tmin;
-    for (int k = 0; k < MAX_CROSSINGS; ++k) {
-      t = item_hit(s.kind[it], params, o, d, t, best);
-      if (!(t < best)) break;
-      const double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
-      bool counts = true;
-      for (int32_t c = 0; c < mem[2] && counts; ++c) {
-        const int32_t* cond = s.program + mem[1] + 2 * c;
-        counts = node_inside(s, cond[0], p) == (cond[1] != 0);
-      }
-      if (counts) {
-        best = t;
-        member = it;
-        break;
-      }
-    }
-  }
-  return member >= 0 ? best : INFINITY;
-}
+// What a visitor of a CSG unit's counted crossings asks next (csg_crossings).
+enum class Next { crossing, member, stop };
 
-// Every counted crossing in (tmin, tmax) of the unit's members of mask `want`, as visit(member's
-// item, t), member by member (a filtered shadow: each crossing of a transparent member that the
-// object counts filters the light). Returns true when visit asked to stop.
+// The counted crossings in (tmin, limit) of the unit's members of mask `want`, member by member, each
+// member's in order (each from the last): visit(member's item, t) says whether to go on with the
+// member's next crossing, the next member, or stop (then returns true). `limit` may shrink as it
+// goes (the first counted crossing narrows it).
 template <typename T, typename Visit>
-bool csg_each(const Scene<T>& s, int32_t item, const double* o, const double* d, double tmin, double tmax,
-              int32_t want, const Visit& visit) {
+bool csg_crossings(const Scene<T>& s, int32_t item, const double* o, const double* d, double tmin, double& limit,
+                   int32_t want, const Visit& visit) {
   const int32_t* prog = s.program + static_cast<int64_t>(s.params[ITEM_PARAMS * static_cast<int64_t>(item)]);
   for (int32_t m = 0; m < prog[0]; ++m) {
     const int32_t* mem = prog + 1 + 3 * m;
@@ -597,25 +568,43 @@ bool csg_each(const Scene<T>& s, int32_t item, const double* o, const double* d,
     const T* params = s.params + ITEM_PARAMS * static_cast<int64_t>(it);
     double t = tmin;
     for (int k = 0; k < MAX_CROSSINGS; ++k) {
-      t = item_hit(s.kind[it], params, o, d, t, tmax);
-      if (!(t < tmax)) break;
+      t = item_hit(s.kind[it], params, o, d, t, limit);
+      if (!(t < limit)) break;
       const double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
       bool counts = true;
       for (int32_t c = 0; c < mem[2] && counts; ++c) {
         const int32_t* cond = s.program + mem[1] + 2 * c;
         counts = node_inside(s, cond[0], p) == (cond[1] != 0);
       }
-      if (counts && visit(it, t)) return true;
+      if (!counts) continue;
+      const Next next = visit(it, t);
+      if (next == Next::stop) return true;
+      if (next == Next::member) break;
     }
   }
   return false;
+}
+
+// The first counted crossing in (tmin, tmax) of the unit's members of mask `want`; its member's item
+// in `member` (-1 when none).
+template <typename T>
+double csg_hit(const Scene<T>& s, int32_t item, const double* o, const double* d, double tmin, double tmax,
+               int32_t want, int32_t& member) {
+  double best = tmax;
+  member = -1;
+  csg_crossings(s, item, o, d, tmin, best, want, [&](int32_t it, double t) {
+    best = t;
+    member = it;
+    return Next::member;
+  });
+  return member >= 0 ? best : INFINITY;
 }
 
 // Visits, in near-to-far order of the hierarchy's nodes, every item of mask `want` that the segment
 // (tmin, limit) of one ray crosses: visit(item, t) with its first crossing t, returning true to
 // stop. `limit` may shrink as the walk goes (a closest-hit query narrows it to its best hit). A CSG
 // object is visited as the member of its first counted crossing, or with EVERY = true as the member
-// of each of its counted crossings (csg_each).
+// of each of its counted crossings.
 template <typename T, typename Visit, bool EVERY = false>
 void walk(const Scene<T>& s, const double* o, const double* d, double tmin, double& limit, int32_t want,
           const Visit& visit) {
@@ -637,8 +626,11 @@ void walk(const Scene<T>& s, const double* o, const double* d, double tmin, doub
       for (int32_t j = info[0]; j < info[0] + info[1]; ++j) {
         const int32_t it = s.order[j];
         if ((s.mask[it] & want) == 0) continue;
-        if (EVERY && s.kind[it] == KIND_CSG) {
-          if (csg_each(s, it, o, d, tmin, limit, want, visit)) return;
+        if (EVERY && s.kind[it] == KIND_CSG) {  // each counted crossing (a filtered shadow's)
+          double lim = limit;
+          if (csg_crossings(s, it, o, d, tmin, lim, want,
+                            [&](int32_t m, double t) { return visit(m, t) ? Next::stop : Next::crossing; }))
+            return;
           continue;
         }
         if (s.kind[it] == KIND_CSG) {
@@ -739,7 +731,7 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
 // Every item with a crossing in (tmin, tmax) (a filtered shadow segment: each transparent item it
 // crosses filters it), keeping the k nearest by their first crossing in out[0..k) (ascending, -1
 // after the last) with that crossing in out_t; returns how many were crossed, which may exceed k.
-// A CSG object gives one entry per counted crossing, naming its member (csg_each). No node is
+// A CSG object gives one entry per counted crossing, naming its member. No node is
 // pruned by a found hit: the whole segment is searched.
 template <typename T>
 int32_t traverse_all(const Scene<T>& s, const double* o, const double* d, double tmin, double tmax, int32_t want,
