@@ -45,6 +45,7 @@ def test_program_has_the_same_operations_for_20_and_200_spheres(tmp_path, monkey
     assert args20 == args200 < 100
 
 
+@pytest.mark.slow  # two programs lowered
 def test_program_does_not_grow_with_lights_of_one_kind(tmp_path):
     """Lights of one structure are one vmapped computation: five point lights make the program two
     do, give or take the stacking (before, each light added its shadow rays and terms: 2,067 → 2,520
