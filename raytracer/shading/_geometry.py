@@ -76,15 +76,15 @@ def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
     """Whether the hierarchy may choose this primitive: a native kernel (one of ``kernels`` when
     given: the pure-JAX twin has fewer), bounded, rendered, no CSG or clipping condition. A
     transparent primitive that casts shadows also needs the hierarchy's all-crossings query
-    (``filter_query``: the native one) and no interior fade (whose attenuation needs the ordered
-    crossings of every fading object: those stay candidates)."""
+    (``filter_query``: the native one); its interior's fade on shadow rays is computed over the
+    query's crossings and the candidates' together (``_model._shadow_fade``)."""
     kernel = type(prim.obj.shape).native_kernel
     if kernel is None or kernel == NATIVE_PLANE or (kernels is not None and kernel not in kernels):
         return False
     if not prim.rendered or prim.conditions:
         return False
     if prim.transparent and "no_shadow" not in prim.flags:
-        return filter_query and not prim.fades
+        return filter_query
     return True
 
 
@@ -163,17 +163,15 @@ def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
     """The bounding units the native hierarchy holds as CSG objects (one item each, its box the
     unit's; bvh.cc evaluates which crossing of a member counts): CSG and clipped objects whose
     primitives all have a native kernel and one item (planes too: the object's box bounds them), a
-    finite box, no transparent shadow caster with a fading interior (the fade needs the ordered
-    crossings of every fading object; other transparent members filter shadows through the
-    all-crossings query, one entry per counted crossing) and a tree at most ``MAX_CSG_HEIGHT`` deep.
+    finite box (transparent members filter shadows through the all-crossings query, one entry per
+    counted crossing) and a tree at most ``MAX_CSG_HEIGHT`` deep.
     ``bits``: ``prim_bits(plan)``. (A part's conditions only name parts
     of its own unit: only a splittable union, which adds no condition, lies above a unit.)"""
     members = _unit_members(plan)
 
     def member_ok(i):
         shape = plan.prims[i].obj.shape
-        return (type(shape).native_kernel is not None and type(shape).n_native_items(shape) == 1
-                and not (bits[i] & _accel.MASK_FILTER and plan.prims[i].fades))
+        return type(shape).native_kernel is not None and type(shape).n_native_items(shape) == 1
 
     return tuple(u for u, tree in enumerate(plan.units)
                  if not isinstance(tree, InPrim) and _bounded(tree, plan) and _height(tree) <= MAX_CSG_HEIGHT

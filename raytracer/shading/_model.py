@@ -219,6 +219,7 @@ class TraceContext:
     fading_cands: np.ndarray  # shadow slots of transparent prims whose interior may fade
     medium: np.ndarray  # (P,) the medium of each prim: the first prim sharing its interior record
     accel_filters: bool  # the hierarchy holds transparent shadow-casting items (``MASK_FILTER``)
+    accel_fades: bool  # ... and some of them have an interior that fades
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
@@ -240,6 +241,9 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         medium=_medium_ids(prims),
         accel_filters=geo.accel is not None and any(
             bits[i] & _accel.MASK_FILTER for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
+        accel_fades=geo.accel is not None and any(
+            bits[i] & _accel.MASK_FILTER and prims[i].fades
+            for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
     )
 
 
@@ -262,11 +266,16 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     # opaque primitives the hierarchy holds: does any lie on the segment (an any-hit query)
     blocked = (jnp.zeros((), bool) if ctx.geo.accel is None
                else _accel.blocked(ctx.geo.accel, o, l, scale, dist - scale))
+    crossed = None
     if ctx.geo.accel is not None and ctx.accel_filters:
         # transparent items the hierarchy holds: each crossing filters by its layers' pigments
-        one = _accel_filter(ctx, o, l, scale, dist - scale)
+        one, crossed = _accel_filter(ctx, o, l, scale, dist - scale)
+    if not ctx.accel_fades:
+        crossed = None  # (no item of the hierarchy has an interior that fades)
     view = ctx.shadow
     if not view.cand_prim.size:
+        if crossed is not None and ctx.plan.effects.interior_fade:
+            one = one * _shadow_fade(ctx, l, None, crossed)
         return jnp.where(blocked, 0.0, 1.0) * one
     t, n = all_crossings(ctx.geo, o, l, view.members)
     ok = jnp.isfinite(t) & (t > scale) & (t < dist - scale)
@@ -295,28 +304,51 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
 
         f = jax.vmap(factor)(rows, points)  # (pairs, 3)
         filt = filt * jnp.prod(jnp.where(ok[where][:, None], f, 1.0), axis=0)
-    fading = ctx.fading_cands
-    if ctx.plan.effects.interior_fade and fading.size:
-        # interior fade at every exit crossing, over the depth since the previous crossing (or
-        # the shadow ray's start): the shadow ray continues from each hit (semantics §2.4; povray 3.7
-        # measured: a fading sphere attenuates a shadow by its chord, not by the air before it)
-        accepted = jnp.where(ok, t, -jnp.inf)
-        tc = accepted[fading]
-        prev = jnp.max(jnp.where(accepted[None, :] < tc[:, None], accepted[None, :], 0.0), axis=1)
-        prims = view.cand_prim[fading]
-        exiting = ok[fading] & (jnp.einsum("ri,i->r", n[fading], l)
-                                * jnp.asarray(ctx.inverse_sign[fading], n.dtype) > 0)
-        m = ctx.mats
-        att = lighting.interior_fade(jnp.where(exiting, tc - prev, 0.0)[:, None],
-                                     m.fade_distance[prims][:, None], m.fade_power[prims][:, None],
-                                     m.fade_color[prims], on=exiting[:, None])
-        filt = filt * jnp.prod(att, axis=0)
+    if ctx.plan.effects.interior_fade and (ctx.fading_cands.size or crossed is not None):
+        filt = filt * _shadow_fade(ctx, l, (t, n, ok), crossed)
     return jnp.where(jnp.any(opaque) | blocked, 0.0, 1.0) * filt
+
+
+def _shadow_fade(ctx: TraceContext, l, cand, crossed):
+    """Interior fade of a shadow segment: at every exit crossing of a fading object, over the depth
+    since the previous crossing (or the shadow ray's start), since the shadow ray continues from
+    each hit (semantics §2.4; povray 3.7 measured: a fading sphere attenuates a shadow by its chord,
+    not by the air before it). ``cand``: the candidates' crossings ``(t (S,), n (S, 3), ok (S,))``
+    on the segment, or None; ``crossed``: the hierarchy's transparent items on it (``Crossed``), or
+    None. The previous crossing is taken over both."""
+    m = ctx.mats
+    accepted, tc, normals, prims, signs, oks = [], [], [], [], [], []
+    if cand is not None:
+        t, n, ok = cand
+        fading = ctx.fading_cands
+        accepted.append(jnp.where(ok, t, -jnp.inf))
+        tc.append(accepted[-1][fading])
+        normals.append(n[fading])
+        prims.append(jnp.asarray(ctx.shadow.cand_prim[fading]))
+        signs.append(jnp.asarray(ctx.inverse_sign[fading], n.dtype))
+        oks.append(ok[fading])
+    if crossed is not None:
+        k, j = crossed.t.shape
+        ok = jnp.isfinite(crossed.t).reshape(-1)
+        accepted.append(jnp.where(ok, crossed.t.reshape(-1), -jnp.inf))
+        tc.append(accepted[-1])  # every crossing: an interior without fade attenuates by 1
+        normals.append(crossed.normal.reshape(k * j, 3))
+        prims.append(jnp.repeat(crossed.prim, j))
+        signs.append(jnp.asarray(ctx.geo.prim_sign, crossed.t.dtype)[prims[-1]])
+        oks.append(ok)
+    accepted, tc, n, prims, sign, ok = map(jnp.concatenate, (accepted, tc, normals, prims, signs, oks))
+    prev = jnp.max(jnp.where(accepted[None, :] < tc[:, None], accepted[None, :], 0.0), axis=1)
+    exiting = ok & (jnp.einsum("ri,i->r", n, l) * sign > 0)
+    att = lighting.interior_fade(jnp.where(exiting, tc - prev, 0.0)[:, None],
+                                 m.fade_distance[prims][:, None], m.fade_power[prims][:, None],
+                                 m.fade_color[prims], on=exiting[:, None])
+    return jnp.prod(att, axis=0)
 
 
 def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
     """RGB filter of the transparent shadow-casting items the hierarchy holds on the segment: the
-    product over their crossings of every present layer's ``f·P + t`` (as for candidates). More than
+    product over their crossings of every present layer's ``f·P + t`` (as for candidates), and the
+    items crossed (``_accel.Crossed``: their interiors' fade is ``_shadow_fade``'s). More than
     ``_accel.FILTER_ITEMS`` crossed items: the farthest are dropped and the segment counts as
     blocked (a shadow through that many transparent surfaces is dark already; documented in
     architecture.md)."""
@@ -337,7 +369,7 @@ def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
     f = jax.vmap(factor)(rows.reshape(-1), at.reshape(-1, 3)).reshape(rows.shape + (3,))
     use = ok[:, :, None] & present[:, None, :]  # (k, J, L)
     filt = jnp.prod(jnp.where(use[..., None], f, 1.0), axis=(0, 1, 2))
-    return jnp.where(crossed.overflow, 0.0, filt)
+    return jnp.where(crossed.overflow, 0.0, filt), crossed
 
 
 def _shadow_sampler(types):

@@ -407,3 +407,46 @@ intersection { cylinder { -x, x, 0.3 } disc { 0, y, 2 } box { -0.5, 0.5 } pigmen
     monkeypatch.setenv("RAYTRACER_ACCEL", "none")
     jax.clear_caches()
     assert psnr(np.asarray(render(load_scene(text), width=80, height=60)), pov) < 40.0
+
+
+FADING_SCENE = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 5, -9> look_at <0, 0.5, 0> angle 50 }
+light_source { <-3, 12, -4> color rgb 1 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.4 } }
+#declare Glass = material { texture { pigment { rgbf <0.9, 1, 0.8, 0.9> } finish { ambient 0.1 diffuse 0.2 } }
+                            interior { ior 1 fade_distance 0.4 fade_power 2 fade_color <0.2, 0.5, 0.9> } }
+#declare R = seed(11);
+#for (i, 0, 7)
+  sphere { <rand(R) * 6 - 3, 0.6 + rand(R), rand(R) * 4 - 1>, 0.3 + 0.3 * rand(R) material { Glass } }
+#end
+box { <-0.5, 0, -0.5>, <0.5, 1.4, 0.5> rotate 30 * y translate <2, 0, -2> material { Glass } }
+difference { sphere { 0, 0.8 } sphere { 0, 0.6 } translate <-2, 1.2, -2.5> material { Glass } }
+sphere { <0.5, 1.5, -1>, 0.5 pigment { rgbf <1, 0.6, 0.6, 0.8> } }
+sphere { <-0.5, 0.5, -3>, 0.4 pigment { rgb <0.2, 0.7, 0.3> } }
+"""
+
+
+@pytest.mark.slow  # two forward programs
+@pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
+def test_fading_transparent_objects_in_the_hierarchy_give_the_candidate_paths_shadows(tmp_path, monkeypatch):
+    """A fading interior attenuates a shadow at each exit over the depth since the previous crossing,
+    the hierarchy's crossings and the candidates' together: glass spheres, a box and a hollow CSG
+    sphere with fading interiors (and one without) cast the candidate path's shadows."""
+    path = tmp_path / "fading.pov"
+    path.write_text(FADING_SCENE)
+    scene = load_scene(path, width=48, height=36)
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    plan = make_plan(scene)
+    geo = pack_geometry(plan, jnp.float32)
+    held = {i for g in geo.groups if g.accelerated for i in g.prims}
+    fading = {i for i, p in enumerate(plan.prims) if p.transparent and p.fades}
+    assert len(fading) == 11 and fading <= held
+    images = {}
+    for mode in ("native", "none"):
+        monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+        jax.clear_caches()
+        images[mode] = np.asarray(render(scene, width=48, height=36))
+    diff = np.abs(images["native"] - images["none"]).max(axis=-1)
+    assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
