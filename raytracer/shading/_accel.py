@@ -15,14 +15,15 @@ condition — are instead *items* of a hierarchy built and traversed by native c
 * ``filtering``: the transparent shadow-casting items (``MASK_FILTER``) a shadow segment crosses,
   the nearest ``FILTER_ITEMS`` of them, each with all its crossings computed again by its kernel
   (the shading model multiplies their pigments' filter); a transparent CSG object gives one entry
-  per crossing of a member that it counts. Transparent items with an interior fade
-  stay candidates (the fade needs the ordered crossings of all fading objects), and so do all
-  transparent shadow casters with the pure-JAX twin, which has no such query.
+  per crossing of a member that it counts. A fading interior attenuates the shadow at each exit
+  crossing over the depth since the previous crossing, taken over these crossings and the
+  candidates' together (``_model._shadow_fade``). With the pure-JAX twin, which has no such
+  query, transparent shadow casters stay candidates.
 
 The hierarchy is rebuilt by every call of the compiled program from the scene's current values
 (binned SAH, native), so it is right under ``jit``, ``grad`` and ``vmap`` and for traced geometry.
-The other primitives (planes and other unbounded shapes, CSG members, fading transparent objects,
-shapes without a native kernel) keep the candidate path of ``_geometry``; a scene with fewer than
+The other primitives (planes and other unbounded shapes, CSG objects it cannot hold, shapes
+without a native kernel) keep the candidate path of ``_geometry``; a scene with fewer than
 ``MIN_ITEMS`` items is not accelerated at all. ``RAYTRACER_ACCEL=none`` turns the native path off
 (``native`` requires it); without the compiled library the renderer falls back to the candidate
 path, and ``raytracer info`` says which one a render uses.
@@ -55,6 +56,11 @@ JAX_TWIN_KERNELS = frozenset(range(5))  # the kernels ``_accel_jax`` has (sphere
 KIND_CSG = 7  # an item that is a CSG object (bvh.cc's CSG units: its members and program)
 MAX_PROGRAM = 1 << 24  # the program's offsets travel in the items' parameters: exact in float32
 FILTER_ITEMS = 16  # transparent items a filtered shadow segment keeps (the nearest; see ``filtering``)
+# transparent shadow casters of fewer items than this stay candidates (with the CSG objects they are
+# part of): ``filtering`` evaluates FILTER_ITEMS entries of every shadow ray whatever it crosses,
+# which costs more than testing a few candidates (advanced/diffract, 8 transparent primitives:
+# 0.31 -> 2.4 s warm through the hierarchy; incdemo/glasses/glass, 75: 6.4 -> 0.8 s)
+MIN_FILTER_ITEMS = FILTER_ITEMS + 1
 
 
 class AccelUnavailable(RuntimeError):

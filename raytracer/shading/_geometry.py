@@ -120,8 +120,16 @@ def hierarchy_choice(plan: Plan, accelerate: bool | None = None,
         accelerate = _accel.mode() != "none"  # native, or its JAX twin (RAYTRACER_ACCEL=jax)
     twin = _accel.mode() == "jax"  # the pure-JAX twin: no all-crossings query, no torus kernel, no CSG
     kernels = _accel.JAX_TWIN_KERNELS if twin else None
+    bits = prim_bits(plan) if bits is None else bits
     held = [accelerate and _accelerable(p, not twin, kernels) for p in plan.prims]
-    csg = csg_units(plan, prim_bits(plan) if bits is None else bits) if accelerate and not twin else ()
+    csg = csg_units(plan, bits) if accelerate and not twin else ()
+    filters = np.flatnonzero(bits & _accel.MASK_FILTER)
+    if 0 < sum(native_items(plan.prims[i].obj.shape) for i in filters) < _accel.MIN_FILTER_ITEMS:
+        # a few transparent shadow casters: cheaper as candidates than through the all-crossings query
+        for i in filters:
+            held[i] = False
+        dropped = {plan.prim_unit[i] for i in filters}
+        csg = tuple(u for u in csg if u not in dropped)
     items = sum(native_items(p.obj.shape) for p, ok in zip(plan.prims, held, strict=True) if ok) + len(csg)
     return (held, csg) if items >= _accel.MIN_ITEMS else ([False] * len(plan.prims), ())
 

@@ -88,6 +88,7 @@ def _tangent(scene, seed=0):
 
 def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
     monkeypatch.setenv("RAYTRACER_ACCEL", ACCEL)
+    monkeypatch.setattr(_accel, "MIN_FILTER_ITEMS", 1)  # the scene's 3 transparent items: held
     plan = make_plan(scene)
     geo = pack_geometry(plan, jnp.float32)
     held = {p for g in geo.groups if g.accelerated for p in g.prims}
@@ -111,6 +112,7 @@ def test_the_hierarchy_gives_the_candidate_paths_image_and_derivatives(scene, mo
     """Every pixel and its derivative along a random direction of every scene parameter (forward
     mode: one program per path, where reverse mode's pair of programs cost 2.5 minutes of the
     suite), with the hierarchy and with every primitive a candidate."""
+    monkeypatch.setattr(_accel, "MIN_FILTER_ITEMS", 1)  # its transparent sphere and mesh: held
     tangent = _tangent(scene)
     out = {}
     for mode in (ACCEL, "none"):
@@ -356,6 +358,7 @@ def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivat
     path.write_text(CSG_SCENE)
     scene = load_scene(path, width=48, height=36)
     monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    monkeypatch.setattr(_accel, "MIN_FILTER_ITEMS", 1)  # its few transparent objects through the hierarchy
     plan = make_plan(scene)
     geo = pack_geometry(plan, jnp.float32)
     left = sorted(plan.prims[i].kind for g in geo.groups if not g.accelerated for i in g.prims)
@@ -439,10 +442,14 @@ def test_fading_transparent_objects_in_the_hierarchy_give_the_candidate_paths_sh
     scene = load_scene(path, width=48, height=36)
     monkeypatch.setenv("RAYTRACER_ACCEL", "native")
     plan = make_plan(scene)
-    geo = pack_geometry(plan, jnp.float32)
-    held = {i for g in geo.groups if g.accelerated for i in g.prims}
     fading = {i for i, p in enumerate(plan.prims) if p.transparent and p.fades}
-    assert len(fading) == 11 and fading <= held
+    assert len(fading) == 11
+    # twelve transparent shadow casters are fewer than MIN_FILTER_ITEMS: cheaper as candidates
+    held = {i for g in pack_geometry(plan, jnp.float32).groups if g.accelerated for i in g.prims}
+    assert not fading & held
+    monkeypatch.setattr(_accel, "MIN_FILTER_ITEMS", 1)
+    held = {i for g in pack_geometry(plan, jnp.float32).groups if g.accelerated for i in g.prims}
+    assert fading <= held
     images = {}
     for mode in ("native", "none"):
         monkeypatch.setenv("RAYTRACER_ACCEL", mode)
