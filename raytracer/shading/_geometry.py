@@ -123,7 +123,8 @@ def hierarchy_choice(plan: Plan, accelerate: bool | None = None,
     bits = prim_bits(plan) if bits is None else bits
     held = [accelerate and _accelerable(p, not twin, kernels) for p in plan.prims]
     csg = csg_units(plan, bits) if accelerate and not twin else ()
-    filters = np.flatnonzero(bits & _accel.MASK_FILTER)
+    in_csg = set(csg)
+    filters = [i for i in np.flatnonzero(bits & _accel.MASK_FILTER) if held[i] or plan.prim_unit[i] in in_csg]
     if 0 < sum(native_items(plan.prims[i].obj.shape) for i in filters) < _accel.MIN_FILTER_ITEMS:
         # a few transparent shadow casters: cheaper as candidates than through the all-crossings query
         for i in filters:
