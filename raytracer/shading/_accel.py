@@ -18,7 +18,7 @@ condition — are instead *items* of a hierarchy built and traversed by native c
   per crossing of a member that it counts. A fading interior attenuates the shadow at each exit
   crossing over the depth since the previous crossing, taken over these crossings and the
   candidates' together (``_model._shadow_fade``). With the pure-JAX twin, which has no such
-  query, transparent shadow casters stay candidates.
+  query, transparent shadow casters stay candidates, and so do a few (``MIN_FILTER_ITEMS``).
 
 The hierarchy is rebuilt by every call of the compiled program from the scene's current values
 (binned SAH, native), so it is right under ``jit``, ``grad`` and ``vmap`` and for traced geometry.
