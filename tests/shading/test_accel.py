@@ -432,7 +432,8 @@ sphere { <-0.5, 0.5, -3>, 0.4 pigment { rgb <0.2, 0.7, 0.3> } }
 
 
 @pytest.mark.slow  # two forward programs
-@pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
+@pytest.mark.skipif(ACCEL != "native", reason="the JAX twin has no all-crossings query: transparent "
+                    "objects stay candidates")
 def test_fading_transparent_objects_in_the_hierarchy_give_the_candidate_paths_shadows(tmp_path, monkeypatch):
     """A fading interior attenuates a shadow at each exit over the depth since the previous crossing,
     the hierarchy's crossings and the candidates' together: glass spheres, a box and a hollow CSG
