@@ -246,6 +246,7 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     The items are the groups' (in the hierarchy), then one per CSG object (in the hierarchy, its box
     its unit's), then the CSG members' (not in the hierarchy: their objects' programs name them)."""
     sg = jax.lax.stop_gradient
+    prim_mask = np.asarray(prim_mask, np.int32)
     boxes, kinds, params, prims, accel_groups = [], [], [], [], []
     first = 0
 
@@ -260,14 +261,14 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         params.append(p)
         kinds.append(np.full(n * k, type(shapes[g]).native_kernel, np.int32))
         prims.append(np.repeat(np.asarray(prim_ids, np.int32), k))
-        filters = bool(np.any(np.asarray(prim_mask, np.int32)[np.asarray(prim_ids, np.int64)] & MASK_FILTER))
+        filters = bool(np.any(prim_mask[np.asarray(prim_ids, np.int64)] & MASK_FILTER))
         accel_groups.append(AccelGroup(g, first, n, k, is_csg, filters))
         first += n * k
 
     for g, prim_ids in groups:
         add(g, prim_ids, False)
     held = np.concatenate(prims) if prims else np.zeros(0, np.int32)
-    masks = np.asarray(prim_mask, np.int32)[held]
+    masks = prim_mask[held]
     units = np.asarray(prim_unit, np.int32)[held] if unit_boxes is not None else None
     program = np.zeros(1, np.int32)
     if csg is not None:
@@ -284,7 +285,7 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         for g, prim_ids in csg_groups:
             add(g, prim_ids, True)
         member_prims = np.concatenate([np.asarray(ids, np.int32) for _, ids in csg_groups])
-        masks = np.concatenate([masks, np.asarray(prim_mask, np.int32)[member_prims]])
+        masks = np.concatenate([masks, prim_mask[member_prims]])
         units = np.concatenate([units, np.asarray(prim_unit, np.int32)[member_prims]])
         program = _relocate(csg, member_base)
         if program.size >= MAX_PROGRAM:
