@@ -33,7 +33,7 @@ import numpy as np
 from jax.experimental import multihost_utils
 
 from .render import (
-    FORWARD_CAPACITY,
+    FIRST_CAPACITY,
     _assemble,
     _background_only,
     _check,
@@ -75,7 +75,7 @@ def _part(scene: Scene, width: int, height: int, k: int, capacity):
 
 def _capacity(capacity):
     if capacity == "auto":
-        return FORWARD_CAPACITY, True
+        return FIRST_CAPACITY, True
     if capacity is not None and (type(capacity) is not int or capacity < 1):
         raise ValueError(f"capacity must be a positive int, None or 'auto', got {capacity!r}")
     return capacity, False

@@ -37,7 +37,9 @@ CHUNKS_PER_TILE = 4  # secondary rays are shaded in chunks of tile/4 rays; chunk
 # chunks saves less than their branches cost (two ``lax.cond`` levels, linearized in reverse mode:
 # the chunked reverse program of an 8×6 glass scene took 56 s to trace and compile, unchunked 31 s)
 UNCHUNKED_POOL = 4096
-FORWARD_CAPACITY = 4  # live-ray slots per camera ray and level when rendering values (grown if short)
+# live-ray slots per camera ray and level of a tile's ray tree (``capacity="auto"``):
+FIRST_CAPACITY = 1  # where a drop is seen (values, eager grad): grown fourfold if short, and remembered
+FORWARD_CAPACITY = 4  # under jit/vmap, where a drop is only warned of at run time
 PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
 
 
@@ -353,12 +355,14 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
         width, height: image size in pixels.
         spp:    samples per pixel: 1 = one ray through each pixel centre (POV-Ray ``-A``);
                 k² = a deterministic k×k grid of sub-pixel centres, averaged (box filter).
-        capacity: ``"auto"``: ``FORWARD_CAPACITY``, grown fourfold (and compiled again) until no
-                ray is left out, so the image is exact; with values and under eager ``jax.grad``,
-                ``jvp`` and ``vjp``. Under ``jit`` or ``vmap`` the count is known only when the
-                program runs: it keeps ``FORWARD_CAPACITY`` and warns (``RuntimeWarning``) if a
-                tree level was wider. ``int``: that room (warns likewise). ``None``: the exact
-                full-width tree (``branch^(depth-1)`` slots per camera ray: only for shallow trees).
+        capacity: ``"auto"``: with values and under eager ``jax.grad``, ``jvp`` and ``vjp``,
+                ``FIRST_CAPACITY``, grown fourfold (and compiled again) until no ray is left out,
+                so the image is exact; the room that sufficed is kept for the next render of a
+                scene of the same structure. Under ``jit`` or ``vmap`` the count is known only
+                when the program runs: it keeps ``FORWARD_CAPACITY`` and warns
+                (``RuntimeWarning``) if a tree level was wider. ``int``: that room (warns
+                likewise). ``None``: the exact full-width tree (``branch^(depth-1)`` slots per
+                camera ray: only for shallow trees).
         adaptive: ``(threshold, depth)`` (``Adaptive``): POV-Ray's adaptive anti-aliasing, method 1
                 (``+A threshold +R depth -J``). A first pass traces pixel centres; the pixels on
                 either side of a colour difference of at least ``threshold`` get ``depth²`` more
@@ -375,14 +379,36 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
         if spp != 1:
             raise ValueError("adaptive anti-aliasing starts from one ray per pixel centre: leave spp at 1")
         return _render_adaptive(scene, width, height, Adaptive(*adaptive), capacity)
-    return _with_room(lambda room: _render(scene, width, height, k, room), capacity)
+    return _with_room(lambda room: _render(scene, width, height, k, room), capacity,
+                      _room_key(scene, width, height, k))
 
 
-def _with_room(fn, capacity):
-    """``fn(room)`` → (value, dropped rays), with ``capacity`` handled as ``render`` says."""
+# the room that rendered each scene structure (treedef, leaf shapes) and sampling without a drop,
+# so that a loop of eager renders (an optimisation) grows the room once, not on every call
+_ROOM: dict = {}
+
+
+def _room_key(scene: Scene, *rest):
+    """A key of ``scene``'s structure and ``rest`` for ``_ROOM``, or None when the room cannot grow
+    (under jit/vmap: the drop count exists only at run time)."""
+    leaves, treedef = jax.tree.flatten(scene)
+    arrays = [x for x in leaves if isinstance(x, (jax.Array, np.ndarray))]
+    if not all(jax.core.is_concrete(x) for x in arrays if isinstance(x, jax.Array)):
+        return None
+    key = treedef, tuple((np.shape(x), np.result_type(x).str) for x in arrays), rest
+    try:
+        hash(key)
+    except TypeError:  # a static field that cannot be hashed: nothing is remembered
+        return ("unhashable", object())
+    return key
+
+
+def _with_room(fn, capacity, key):
+    """``fn(room)`` → (value, dropped rays), with ``capacity`` handled as ``render`` says; ``key``
+    (``_room_key``): where the room that suffices is remembered (None: under jit/vmap)."""
     grow = capacity == "auto"
     if grow:
-        capacity = FORWARD_CAPACITY
+        capacity = FORWARD_CAPACITY if key is None else _ROOM.get(key, FIRST_CAPACITY)
     while True:
         value, dropped = fn(capacity)
         if capacity is None:
@@ -398,6 +424,8 @@ def _with_room(fn, capacity):
         # four times the room: the same image, exact
         if int(dropped) == 0 or not grow:
             _warn_dropped(dropped, capacity)
+            if grow and key is not None:
+                _ROOM[key] = capacity
             return value
         capacity *= 4
 
@@ -429,14 +457,17 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     if not any(prim.rendered for prim in scene_plan.prims):
         return _background_only(scene, width, height)
     packed = pack(scene, scene_plan)
-    centre = _with_room(lambda room: _render_packed(packed, width, height, 1, room, True), capacity)
+    key = _room_key(scene, width, height)
+    centre = _with_room(lambda room: _render_packed(packed, width, height, 1, room, True), capacity,
+                        key and key + ("centre",))
     image = _output_transfer(centre, scene.settings)
     flag = _edges(centre, aa.threshold)  # a boolean output: concrete under eager grad
     n = aa.depth
     if isinstance(flag, jax.core.Tracer):
         # under jit / vmap which pixels differ is known only when the program runs: refine every
         # pixel and keep the refined value where it is flagged (the same image, no time saved)
-        grid = _with_room(lambda room: _render_packed(packed, width, height, n, room, True), capacity)
+        grid = _with_room(lambda room: _render_packed(packed, width, height, n, room, True), capacity,
+                          None)
         refined = (centre + n * n * grid) / (n * n + 1)
         return _output_transfer(jnp.where(flag[..., None], refined, centre), scene.settings)
     index = np.flatnonzero(np.asarray(flag))
@@ -444,14 +475,15 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         return image
     m = _pixel_bucket(index.size, CHUNKS_PER_TILE)
     pixels = jnp.asarray(np.concatenate([index, np.full(m - index.size, index[0])]).astype(np.int32))
-    grid = _with_room(lambda room: _render_pixels(packed, width, height, n, pixels, room), capacity)
+    grid = _with_room(lambda room: _render_pixels(packed, width, height, n, pixels, room), capacity,
+                      key and key + (n, m))
     flat = centre.reshape(-1, 3)
     refined = (flat[index] + n * n * grid[:index.size]) / (n * n + 1)
     return _output_transfer(flat.at[index].set(refined).reshape(height, width, 3), scene.settings)
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,
-                   capacity: int | None = FORWARD_CAPACITY):
+                   capacity: int | None = FIRST_CAPACITY):
     """Compiles the render of ``scene``'s structure ahead of time (for the CLI and benchmarks).
 
     Returns ``f(scene) -> image`` that runs the compiled program for any scene of the same

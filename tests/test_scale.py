@@ -4,6 +4,7 @@ not ~16 per object; and the ray tree is held in pools of a bounded width, forwar
 
 import math
 import re
+import sys
 from collections import Counter
 
 import equinox as eqx
@@ -14,8 +15,17 @@ import pytest
 
 import raytracer as rt
 from raytracer import load_scene
-from raytracer.render import FORWARD_CAPACITY, PROGRESS_PARTS, _render_part, compile_render, pack
+from raytracer.render import (
+    FIRST_CAPACITY,
+    FORWARD_CAPACITY,
+    PROGRESS_PARTS,
+    _render_part,
+    compile_render,
+    pack,
+)
 from raytracer.shading import _accel
+
+render_module = sys.modules["raytracer.render"]  # the package's `render` is the function
 
 
 def _spheres(n: int) -> str:
@@ -160,6 +170,26 @@ def test_a_tree_wider_than_the_compiled_room_warns_at_run_time_and_auto_finds_th
     g_auto = jax.grad(lambda p: jnp.sum(rt.render(eqx.combine(p, rest), width=8, height=6)))(params)
     for a, b in zip(jax.tree_util.tree_leaves(g_auto), jax.tree_util.tree_leaves(g_exact), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+
+
+def test_auto_room_starts_at_one_slot_grows_once_and_is_remembered(tmp_path, monkeypatch):
+    # the glass sphere needs more than one slot per camera ray: the first eager render tries
+    # FIRST_CAPACITY, drops rays and renders again with four times the room; the next render of the
+    # scene starts there. Under jit nothing can grow, so it starts at FORWARD_CAPACITY
+    path = tmp_path / "glass.pov"
+    path.write_text(_FULL_GLASS)
+    scene = load_scene(path, width=8, height=6)
+    params, rest = eqx.partition(scene, eqx.is_inexact_array)
+    rooms = []
+    real = render_module._render
+    monkeypatch.setattr(render_module, "_render", lambda *a: (rooms.append(a[4]), real(*a))[1])
+    monkeypatch.setattr(render_module, "_ROOM", {})
+    rt.render(scene, width=8, height=6)
+    assert rooms == [FIRST_CAPACITY, 4 * FIRST_CAPACITY]
+    rt.render(scene, width=8, height=6)
+    assert rooms[2:] == [4 * FIRST_CAPACITY]
+    jax.jit(lambda p: rt.render(eqx.combine(p, rest), width=8, height=6))(params)
+    assert rooms[3:] == [FORWARD_CAPACITY]
 
 
 def test_compiled_render_in_parts_grows_the_room_for_the_part_that_overflowed(tmp_path):

@@ -37,6 +37,44 @@ def zeros_like_shapes(shapes, lead=()):
     return jax.tree.map(lambda x: jnp.zeros(lead + x.shape, x.dtype), shapes)
 
 
+def _blocked_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int, blocks: bool):
+    """``fn`` over the chunks of ``items`` (a tree of arrays with a leading axis ``n``) whose
+    ``live_chunk`` (n/chunk,) bool is set, zeros for the others, stacked back to ``n`` items.
+    With ``blocks``, chunks are grouped into about √(n/chunk) blocks that are skipped first."""
+    n_chunks = n // chunk
+    per_block = divisor_near(n_chunks, int(n_chunks ** 0.5)) if blocks else n_chunks
+    lead = (n_chunks // per_block, per_block)
+    blocked = jax.tree.map(lambda a: a.reshape(lead + (chunk,) + a.shape[1:]), items)
+    # fn behind a jit boundary: the two nested conds would otherwise linearise it four times in
+    # reverse mode (JAX linearises a cond's branches twice; a jaxpr's linearisation is cached)
+    fn_jit = jax.jit(fn)
+    shapes = jax.eval_shape(fn_jit, jax.tree.map(lambda a: a[0, 0], blocked))
+
+    def one_chunk(x):
+        it, live = x
+        return jax.lax.cond(live, lambda: fn_jit(it), lambda: zeros_like_shapes(shapes))
+
+    def one_block(x):
+        it, live = x
+        return jax.lax.cond(jnp.any(live), lambda: jax.lax.map(one_chunk, (it, live)),
+                            lambda: zeros_like_shapes(shapes, (per_block,)))
+
+    out = jax.lax.map(one_block, (blocked, live_chunk.reshape(lead)))
+    return jax.tree.map(lambda x: x.reshape((n,) + x.shape[3:]), out)
+
+
+def map_in_place(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = True):
+    """:func:`map_live` without moving anything: chunks of ``items`` in their order, those without a
+    live item skipped. For a batch whose live items are already together (a compacted pool's are
+    its first slots), where ``map_live``'s partition and its two gathers of every field would only
+    copy them."""
+    n = alive.shape[0]
+    if n % chunk:
+        raise ValueError(f"{n} items do not split into chunks of {chunk}")
+    live_chunk = jnp.any(alive.reshape(n // chunk, chunk), axis=1)
+    return _blocked_map(fn, items, live_chunk, n, chunk, blocks)
+
+
 def map_live(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = True):
     """``fn`` (batched: a leading axis of ``chunk``) over ``items`` (a tree of arrays with a leading
     axis ``n``, a multiple of ``chunk``), where ``alive`` (n,) says which items matter. The result is
@@ -49,23 +87,7 @@ def map_live(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = 
     if n % chunk:
         raise ValueError(f"{n} items do not split into chunks of {chunk}")
     order, inverse = partition(alive)
-    n_chunks = n // chunk
-    per_block = divisor_near(n_chunks, int(n_chunks ** 0.5)) if blocks else n_chunks
-    lead = (n_chunks // per_block, per_block, chunk)
-    sorted_items = jax.tree.map(lambda a: a[order].reshape(lead + a.shape[1:]), (items, alive))
-    # fn behind a jit boundary: the two nested conds would otherwise linearise it four times in
-    # reverse mode (JAX linearises a cond's branches twice; a jaxpr's linearisation is cached)
-    fn_jit = jax.jit(fn)
-    shapes = jax.eval_shape(fn_jit, jax.tree.map(lambda a: a[0, 0], sorted_items[0]))
-
-    def one_chunk(x):
-        it, live = x
-        return jax.lax.cond(jnp.any(live), lambda: fn_jit(it), lambda: zeros_like_shapes(shapes))
-
-    def one_block(x):
-        it, live = x
-        return jax.lax.cond(jnp.any(live), lambda: jax.lax.map(one_chunk, (it, live)),
-                            lambda: zeros_like_shapes(shapes, (per_block,)))
-
-    out = jax.lax.map(one_block, sorted_items)
-    return jax.tree.map(lambda x: x.reshape((n,) + x.shape[3:])[inverse], out)
+    sorted_items, sorted_alive = jax.tree.map(lambda a: a[order], (items, alive))
+    live_chunk = jnp.any(sorted_alive.reshape(n // chunk, chunk), axis=1)
+    out = _blocked_map(fn, sorted_items, live_chunk, n, chunk, blocks)
+    return jax.tree.map(lambda x: x[inverse], out)

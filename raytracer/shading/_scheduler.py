@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 
 from ..kernels import safe_pow
-from ._chunks import map_live, zeros_like_shapes
+from ._chunks import map_in_place, map_live, zeros_like_shapes
 from ._model import Rays, Shading, dead_rays
 
 
@@ -70,10 +70,11 @@ def slots_per_ray(branch: int, depth: int, capacity: int | None = None) -> int:
     return full if capacity is None else min(full, capacity)
 
 
-def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int) -> Shading:
+def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int, in_place: bool) -> Shading:
     """``shade_rays`` over a pool, in chunks of ``chunk`` rays with the live rays moved to the front;
     chunks with no live ray are skipped (``_chunks.map_live``), so the empty slots of the tree cost
-    almost nothing."""
+    almost nothing. With ``in_place`` nothing is moved (``_chunks.map_in_place``): a compacted
+    pool's live rays are already its first slots, and a renderer's camera rays are all live."""
     n = rays.origin.shape[0]
     if chunk >= n:  # one call over the pool, skipped when the pool is empty (deep levels)
         # a jit boundary: JAX linearises each branch of a cond twice (once to find which outputs
@@ -83,6 +84,9 @@ def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int) -
         shade = jax.jit(shade_rays)
         shapes = jax.eval_shape(shade, rays)
         return jax.lax.cond(jnp.any(rays.alive), lambda: shade(rays), lambda: zeros_like_shapes(shapes))
+    if in_place:
+        # one chunk per loop step: blocks would copy every block in and out once more
+        return map_in_place(shade_rays, rays, rays.alive, chunk, blocks=False)
     return map_live(shade_rays, rays, rays.alive, chunk)
 
 
@@ -175,10 +179,10 @@ def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     compact = capacity is not None and size < n * full
     pool = _pad(rays, size)
     if depth == 1:
-        return _shade_pool(shade_rays, pool, chunk).local[:n], jnp.zeros((), jnp.int32)
+        return _shade_pool(shade_rays, pool, chunk, True).local[:n], jnp.zeros((), jnp.int32)
 
     def level(pool: Rays, k):
-        shading = _shade_pool(shade_rays, pool, chunk)
+        shading = _shade_pool(shade_rays, pool, chunk, compact)
         children = shading.children
         has_next = k + 1 < depth
         live = [c.ray.alive & has_next for c in children]
