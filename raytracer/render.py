@@ -38,7 +38,7 @@ CHUNKS_PER_TILE = 4  # secondary rays are shaded in chunks of tile/4 rays; chunk
 # the chunked reverse program of an 8×6 glass scene took 56 s to trace and compile, unchunked 31 s)
 UNCHUNKED_POOL = 4096
 # live-ray slots per camera ray and level of a tile's ray tree (``capacity="auto"``):
-FIRST_CAPACITY = 1  # where a drop is seen (values, eager grad): grown fourfold if short, and remembered
+FIRST_CAPACITY = 2  # where a drop is seen (values, eager grad): grown fourfold if short, and remembered
 FORWARD_CAPACITY = 4  # under jit/vmap, where a drop is only warned of at run time
 PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
 

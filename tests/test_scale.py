@@ -16,7 +16,6 @@ import pytest
 import raytracer as rt
 from raytracer import load_scene
 from raytracer.render import (
-    FIRST_CAPACITY,
     FORWARD_CAPACITY,
     PROGRESS_PARTS,
     _render_part,
@@ -172,10 +171,10 @@ def test_a_tree_wider_than_the_compiled_room_warns_at_run_time_and_auto_finds_th
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
 
 
-def test_auto_room_starts_at_one_slot_grows_once_and_is_remembered(tmp_path, monkeypatch):
-    # the glass sphere needs more than one slot per camera ray: the first eager render tries
-    # FIRST_CAPACITY, drops rays and renders again with four times the room; the next render of the
-    # scene starts there. Under jit nothing can grow, so it starts at FORWARD_CAPACITY
+def test_auto_room_starts_small_grows_once_and_is_remembered(tmp_path, monkeypatch):
+    # the glass sphere needs more than one slot per camera ray: the first eager render tries the
+    # first room (FIRST_CAPACITY, here 1), drops rays and renders again with four times the room;
+    # the next render of the scene starts there. Under jit nothing can grow: FORWARD_CAPACITY
     path = tmp_path / "glass.pov"
     path.write_text(_FULL_GLASS)
     scene = load_scene(path, width=8, height=6)
@@ -184,10 +183,11 @@ def test_auto_room_starts_at_one_slot_grows_once_and_is_remembered(tmp_path, mon
     real = render_module._render
     monkeypatch.setattr(render_module, "_render", lambda *a: (rooms.append(a[4]), real(*a))[1])
     monkeypatch.setattr(render_module, "_ROOM", {})
+    monkeypatch.setattr(render_module, "FIRST_CAPACITY", 1)
     rt.render(scene, width=8, height=6)
-    assert rooms == [FIRST_CAPACITY, 4 * FIRST_CAPACITY]
+    assert rooms == [1, 4]
     rt.render(scene, width=8, height=6)
-    assert rooms[2:] == [4 * FIRST_CAPACITY]
+    assert rooms[2:] == [4]
     jax.jit(lambda p: rt.render(eqx.combine(p, rest), width=8, height=6))(params)
     assert rooms[3:] == [FORWARD_CAPACITY]
 
