@@ -8,9 +8,10 @@ nothing of lights, textures or surfaces. What it does:
   * levels: each level of the ray tree lives in a pool of ray slots; one ``lax.scan`` step shades
     the whole pool and writes the children into the next level's pool, so the shading body is
     traced once and compile time does not grow with the depth;
-  * chunks: a pool is shaded in chunks with the live rays moved to the front; blocks
-    of chunks and chunks with no live ray are skipped with ``lax.cond``, so the empty slots of the
-    tree cost almost nothing;
+  * chunks: a pool is shaded in chunks, and chunks with no live ray are skipped with
+    ``lax.cond``, so the empty slots of the tree cost almost nothing. A compacted pool's live rays
+    are its first slots, so it is shaded where it is; the exact layout's are first moved to the
+    front;
   * pools: either as wide as the tree's widest level (exact), or ``capacity`` slots per camera
     ray with the live children compacted into them (children that do not fit are counted);
   * the combine: a reverse scan computes ``colour = local + Σ coef · colour(child)^power`` from
