@@ -277,14 +277,6 @@ def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: in
     return _assemble(packed.rest.settings, [colours], width, height, k, linear), dropped
 
 
-def _render(scene: Scene, width: int, height: int, k: int, capacity: int | None = None):
-    """The image and the number of rays dropped for lack of ``capacity`` (0 when None)."""
-    scene_plan = make_plan(scene)
-    if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background
-        return _background_only(scene, width, height), jnp.zeros((), jnp.int32)
-    return _render_packed(pack(scene, scene_plan), width, height, k, capacity)
-
-
 @eqx.filter_jit
 def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None):
     """Linear colours (M, 3) of the pixels ``pixels`` (M,) int, each the mean of its k×k grid, and
@@ -379,19 +371,24 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
         if spp != 1:
             raise ValueError("adaptive anti-aliasing starts from one ray per pixel centre: leave spp at 1")
         return _render_adaptive(scene, width, height, Adaptive(*adaptive), capacity)
-    return _with_room(lambda room: _render(scene, width, height, k, room), capacity,
-                      _room_key(scene, width, height, k))
+    scene_plan = make_plan(scene)
+    if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background
+        return _background_only(scene, width, height)
+    packed = pack(scene, scene_plan)
+    return _with_room(lambda room: _render_packed(packed, width, height, k, room), capacity,
+                      _room_key(packed, width, height, k))
 
 
-# the room that rendered each scene structure (treedef, leaf shapes) and sampling without a drop,
-# so that a loop of eager renders (an optimisation) grows the room once, not on every call
+# the room that rendered each packed scene structure (treedef, leaf shapes) and sampling without a
+# drop, so that a loop of eager renders (an optimisation) grows the room once, not on every call
 _ROOM: dict = {}
 
 
-def _room_key(scene: Scene, *rest):
-    """A key of ``scene``'s structure and ``rest`` for ``_ROOM``, or None when the room cannot grow
-    (under jit/vmap: the drop count exists only at run time)."""
-    leaves, treedef = jax.tree.flatten(scene)
+def _room_key(packed: Packed, *rest):
+    """A key of the packed scene's structure and ``rest`` for ``_ROOM``, or None when the room
+    cannot grow (under jit/vmap: the drop count exists only at run time). The packed scene has a
+    handful of arrays whatever the number of objects (the scene itself: ~16 per object)."""
+    leaves, treedef = jax.tree.flatten(packed)
     arrays = [x for x in leaves if isinstance(x, (jax.Array, np.ndarray))]
     if not all(jax.core.is_concrete(x) for x in arrays if isinstance(x, jax.Array)):
         return None
@@ -457,7 +454,7 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     if not any(prim.rendered for prim in scene_plan.prims):
         return _background_only(scene, width, height)
     packed = pack(scene, scene_plan)
-    key = _room_key(scene, width, height)
+    key = _room_key(packed, width, height)
     centre = _with_room(lambda room: _render_packed(packed, width, height, 1, room, True), capacity,
                         key and key + ("centre",))
     image = _output_transfer(centre, scene.settings)

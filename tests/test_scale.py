@@ -180,8 +180,8 @@ def test_auto_room_starts_small_grows_once_and_is_remembered(tmp_path, monkeypat
     scene = load_scene(path, width=8, height=6)
     params, rest = eqx.partition(scene, eqx.is_inexact_array)
     rooms = []
-    real = render_module._render
-    monkeypatch.setattr(render_module, "_render", lambda *a: (rooms.append(a[4]), real(*a))[1])
+    real = render_module._render_packed
+    monkeypatch.setattr(render_module, "_render_packed", lambda *a: (rooms.append(a[4]), real(*a))[1])
     monkeypatch.setattr(render_module, "_ROOM", {})
     monkeypatch.setattr(render_module, "FIRST_CAPACITY", 1)
     rt.render(scene, width=8, height=6)
