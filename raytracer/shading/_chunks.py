@@ -63,16 +63,17 @@ def _blocked_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int
     return jax.tree.map(lambda x: x.reshape((n,) + x.shape[3:]), out)
 
 
-def map_in_place(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = True):
+def map_in_place(fn: Callable[[Any], Any], items, alive, chunk: int):
     """:func:`map_live` without moving anything: chunks of ``items`` in their order, those without a
-    live item skipped. For a batch whose live items are already together (a compacted pool's are
-    its first slots), where ``map_live``'s partition and its two gathers of every field would only
-    copy them."""
+    live item skipped, one chunk per loop step (blocks would copy every block in and out once
+    more). For a batch whose live items are already together (a compacted pool's are its first
+    slots), where ``map_live``'s partition and its two gathers of every field would only copy
+    them."""
     n = alive.shape[0]
     if n % chunk:
         raise ValueError(f"{n} items do not split into chunks of {chunk}")
     live_chunk = jnp.any(alive.reshape(n // chunk, chunk), axis=1)
-    return _blocked_map(fn, items, live_chunk, n, chunk, blocks)
+    return _blocked_map(fn, items, live_chunk, n, chunk, blocks=False)
 
 
 def map_live(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = True):

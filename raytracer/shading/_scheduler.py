@@ -86,8 +86,7 @@ def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int, i
         shapes = jax.eval_shape(shade, rays)
         return jax.lax.cond(jnp.any(rays.alive), lambda: shade(rays), lambda: zeros_like_shapes(shapes))
     if in_place:
-        # one chunk per loop step: blocks would copy every block in and out once more
-        return map_in_place(shade_rays, rays, rays.alive, chunk, blocks=False)
+        return map_in_place(shade_rays, rays, rays.alive, chunk)
     return map_live(shade_rays, rays, rays.alive, chunk)
 
 
