@@ -15,13 +15,7 @@ import pytest
 
 import raytracer as rt
 from raytracer import load_scene
-from raytracer.render import (
-    FORWARD_CAPACITY,
-    PROGRESS_PARTS,
-    _render_part,
-    compile_render,
-    pack,
-)
+from raytracer.render import FORWARD_CAPACITY, PROGRESS_PARTS, _render_part, compile_render, pack
 from raytracer.shading import _accel
 
 render_module = sys.modules["raytracer.render"]  # the package's `render` is the function
