@@ -46,14 +46,23 @@ def _blocked_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int
     lead = (n_chunks // per_block, per_block)
     blocked = jax.tree.map(lambda a: a.reshape(lead + (chunk,) + a.shape[1:]), items)
     # fn behind a jit boundary: the two nested conds would otherwise linearise it four times in
-    # reverse mode (JAX linearises a cond's branches twice; a jaxpr's linearisation is cached)
-    fn_jit = jax.jit(fn)
+    # reverse mode (JAX linearises a cond's branches twice; a jaxpr's linearisation is cached).
+    # Reverse mode runs each chunk (and block) again instead of storing what it computed
+    # (``jax.checkpoint``): a loop step's residuals are otherwise every intermediate of the shading,
+    # each written into a stacked buffer and read back one small copy at a time, and the scene's
+    # arrays with them (a cond's residuals are its outputs, stacked per step). The demo scene of
+    # examples/fit_material.py, 40×30: forward + backward 9.7 → 3.0× its forward (float32),
+    # 18.5 → 3.7× (float64); at 320×240, 17 → 4.8×, its compile 32 → 18 s. Forward renders are
+    # unchanged (a checkpoint only acts under differentiation).
+    fn_jit = jax.jit(jax.checkpoint(fn))
     shapes = jax.eval_shape(fn_jit, jax.tree.map(lambda a: a[0, 0], blocked))
 
+    @jax.checkpoint
     def one_chunk(x):
         it, live = x
         return jax.lax.cond(live, lambda: fn_jit(it), lambda: zeros_like_shapes(shapes))
 
+    @jax.checkpoint
     def one_block(x):
         it, live = x
         return jax.lax.cond(jnp.any(live), lambda: jax.lax.map(one_chunk, (it, live)),

@@ -101,3 +101,29 @@ def test_partition_puts_live_rays_first_in_order_and_returns_the_inverse():
         expected = np.concatenate([np.flatnonzero(alive), np.flatnonzero(~alive)])
         np.testing.assert_array_equal(order, expected)
         np.testing.assert_array_equal(pos[order], np.arange(n))
+
+
+@pytest.mark.parametrize("in_place", [True, False])
+def test_reverse_mode_of_a_chunked_map_keeps_the_chunks_inputs_not_every_intermediate(in_place):
+    """A chunk loop's reverse mode stores, per chunk, what the shading needs to run again (its
+    inputs), not every intermediate of it: ten intermediates per item stored per chunk made the
+    demo scene's forward + backward 10-18 times its forward (one small copy per intermediate
+    and chunk), against 3-4 times with the chunk recomputed. The gradient is the closed form's."""
+    from raytracer.shading._chunks import map_in_place, map_live
+
+    def fn(x):  # ten nonlinear stages, each of whose outputs reverse mode would otherwise keep
+        for k in range(10):
+            x = jnp.sin(x) * (1.0 + 0.1 * k) + jnp.exp(-x * x)
+        return x
+
+    n, chunk = 64, 8
+    x = jnp.linspace(-1.0, 1.0, n)
+    alive = jnp.arange(n) < 40  # five live chunks of eight
+    run = map_in_place if in_place else map_live
+    out, vjp = jax.vjp(lambda v: run(fn, v, alive, chunk), x)
+    kept = sum(np.size(leaf) for leaf in jax.tree_util.tree_leaves(vjp))
+    assert kept <= 4 * n, kept  # the inputs, the live flags, a permutation: not 10·n
+    (grad,) = vjp(jnp.ones(n))
+    want = np.where(np.asarray(alive), np.asarray(jax.vmap(jax.grad(fn))(x)), 0.0)
+    np.testing.assert_allclose(np.asarray(out)[:40], np.asarray(fn(x))[:40], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(grad), want, rtol=1e-5, atol=1e-6)
