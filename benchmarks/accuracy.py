@@ -636,6 +636,7 @@ def main(argv=None) -> int:
                 default_area=s.default_area,
                 deep_area=3 if s.area else None,
                 pov_aa=[2],
+                adaptive=s.adaptive[:1],  # one setting each: the rows and the plot, not the curve
                 mitsuba_spp=[1] if s.mitsuba_spp else [],
                 mitsuba_ref_spp=16 if s.mitsuba_spp else None,
                 ref_area=2 if s.area else None,
