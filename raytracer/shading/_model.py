@@ -848,6 +848,24 @@ def _relative_ior(ctx: TraceContext, ray: Rays, s: _Surface):
     return eta, jnp.where(quirk, 1.0, eta)
 
 
+def _materialised(ctx: TraceContext, tree):
+    """``tree``, computed once into buffers that its consumers read.
+
+    XLA's CPU fusion copies a cheap producer into each consumer, so the texture layers' chain
+    (pigments, lights, Fresnel, reflectivity: ~200 instructions a ray) was computed again in
+    each of the four fusions that read it (the local colour, each child's coefficient and
+    liveness, its interior list). ``lax.optimization_barrier`` does not stop this (XLA's CPU
+    pipeline removes barriers before fusion); a conditional's operands are buffers, and fusion
+    does not cross it. The predicate is a run-time value of the scene (unbatched under the
+    shading's ``vmap``, so the conditional stays one) and either branch returns ``tree``.
+    whitted.pov 1024×768, one device: 1.42–1.52 → 1.24–1.33 s a render; glass.pov 640×480:
+    1.12 → 0.99 s; the images are the same to the bit."""
+    keep = ctx.settings.adc_bailout < 2.0
+    # both branches give ``tree``; the second copies it, so that JAX does not forward the values
+    # around the conditional as it does for an identity branch
+    return jax.lax.cond(keep, lambda x: x, lambda x: jax.tree.map(jnp.copy, x), tree)
+
+
 def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=None) -> Shading:
     """Shades one ray (no leading axis): its local colour and the children its hit spawns.
 
@@ -864,6 +882,8 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
     cos_i = -jnp.dot(ray.direction, s.n)
     eta_rel, eta_fresnel = _relative_ior(ctx, ray, s)
     layers = _layers(ctx, ray, s, cos_i, eta_fresnel, visibility)
+    if eff.reflection or eff.transmission:
+        layers = _materialised(ctx, layers)
     children = []
     transmitted, tir = None, jnp.asarray(False)
     if eff.transmission:

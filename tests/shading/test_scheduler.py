@@ -127,3 +127,4 @@ def test_reverse_mode_of_a_chunked_map_keeps_the_chunks_inputs_not_every_interme
     want = np.where(np.asarray(alive), np.asarray(jax.vmap(jax.grad(fn))(x)), 0.0)
     np.testing.assert_allclose(np.asarray(out)[:40], np.asarray(fn(x))[:40], rtol=1e-6)
     np.testing.assert_allclose(np.asarray(grad), want, rtol=1e-5, atol=1e-6)
+
