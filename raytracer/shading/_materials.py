@@ -206,5 +206,11 @@ def _list_entry(v, colors):
     return colors[i] * (1 - f) + colors[jnp.minimum(i + 1, last)] * f
 
 
+def solid_rows(mats: PackedMaterials, rows: np.ndarray) -> np.ndarray:
+    """Which of the material rows ``rows`` (static ints) are solid colours (static bools): their
+    pigment is ``colors[row, 0]`` at every point."""
+    return np.asarray(mats.pattern_id)[rows] == _solid_index(mats)
+
+
 def _solid_index(mats: PackedMaterials) -> int:
     return mats.pattern_names.index("solid") if "solid" in mats.pattern_names else -1

@@ -65,7 +65,7 @@ from ._geometry import (
     evaluate_inside,
     visibility_bits,
 )
-from ._materials import PackedMaterials, pigment_at
+from ._materials import PackedMaterials, pigment_at, solid_rows
 
 
 class Rays(NamedTuple):
@@ -294,16 +294,26 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
     if cands.size:
         prims = view.cand_prim[cands]
         slot, layer = np.nonzero(ctx.mats.layer_present[prims])  # (pairs,) static
-        rows = jnp.asarray(prims[slot] * n_layers + layer, jnp.int32)
+        rows = prims[slot] * n_layers + layer
         where = cands[slot]
-        points = o[None, :] + safe_t[where][:, None] * l[None, :]
+        # a solid pigment's filter is its colour's, wherever the crossing is: no point, no pattern
+        # (interior/iortest.pov: 40 crossings of 7 lights' shadow rays, most of them clear glass,
+        # each took its point into pattern space and evaluated the scene's checker)
+        solid = solid_rows(ctx.mats, rows)
+        if solid.any():
+            pig = ctx.mats.colors[jnp.asarray(rows[solid], jnp.int32), 0]  # (solid pairs, 5)
+            f = pig[:, 3:4] * pig[:, :3] + pig[:, 4:5]
+            filt = filt * jnp.prod(jnp.where(ok[where[solid]][:, None], f, 1.0), axis=0)
+        if not solid.all():
+            patterned = ~solid
+            points = o[None, :] + safe_t[where[patterned]][:, None] * l[None, :]
 
-        def factor(row, p):
-            pig = pigment_at(ctx.mats, row, p)
-            return pig[3] * pig[:3] + pig[4]
+            def factor(row, p):
+                pig = pigment_at(ctx.mats, row, p)
+                return pig[3] * pig[:3] + pig[4]
 
-        f = jax.vmap(factor)(rows, points)  # (pairs, 3)
-        filt = filt * jnp.prod(jnp.where(ok[where][:, None], f, 1.0), axis=0)
+            f = jax.vmap(factor)(jnp.asarray(rows[patterned], jnp.int32), points)  # (pairs, 3)
+            filt = filt * jnp.prod(jnp.where(ok[where[patterned]][:, None], f, 1.0), axis=0)
     if ctx.plan.effects.interior_fade and (ctx.fading_cands.size or crossed is not None):
         filt = filt * _shadow_fade(ctx, l, (t, n, ok), crossed)
     return jnp.where(jnp.any(opaque) | blocked, 0.0, 1.0) * filt
