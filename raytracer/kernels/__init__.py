@@ -2,6 +2,8 @@
 ``raytracer.shapes``): stable quadratic and quartic, safe sqrt/div/normalize/arccos/pow, and the
 implicit-function-theorem root. Every function is finite, with finite gradients, for finite input."""
 
+from ._common import matvec as matvec
+from ._common import vecmat as vecmat
 from ._numerics import differentiable_root as differentiable_root
 from ._numerics import offset_sq_minus as offset_sq_minus
 from ._numerics import safe_arccos as safe_arccos

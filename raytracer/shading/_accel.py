@@ -44,7 +44,7 @@ import numpy as np
 from jax.custom_batching import custom_vmap
 
 from .._packing import register_packed
-from ..kernels import safe_normalize
+from ..kernels import matvec, safe_normalize, vecmat
 
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
 MIN_ITEMS = 8  # fewer items: every primitive is a candidate (measured: no faster either way at 10)
@@ -330,13 +330,13 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
         member, sub = local // ag.per_member, local % ag.per_member
         shape = jax.tree_util.tree_map(lambda a, member=member: a[member], shapes[ag.group])
         m = object_from_world[ag.group][member]
-        t, n = shape.sub_hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d, sub)
+        t, n = shape.sub_hits(matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
         ok = mine & (t > t_min) & jnp.isfinite(t) & (t < T_MAX)
         tt = jnp.where(ok, t, jnp.inf)
         c = jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_chosen), jnp.inf)) if ag.csg else jnp.argmin(tt)
         closer = tt[c] < best_t
         best_t = jnp.where(closer, tt[c], best_t)
-        best_n = jnp.where(closer, safe_normalize(n[c] @ m[:3, :3]), best_n)
+        best_n = jnp.where(closer, safe_normalize(vecmat(n[c], m[:3, :3])), best_n)
     return jnp.isfinite(best_t), best_t, accel.item_prim[chosen], best_n
 
 
@@ -378,9 +378,9 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
         def one(member, sub, mine, t_counted, ag=ag):
             shape = jax.tree_util.tree_map(lambda a: a[member], shapes[ag.group])
             m = object_from_world[ag.group][member]
-            t, n = shape.sub_hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d, sub)
+            t, n = shape.sub_hits(matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
             ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
-            n = jax.vmap(lambda v: safe_normalize(v @ m[:3, :3]))(n)
+            n = jax.vmap(lambda v: safe_normalize(vecmat(v, m[:3, :3])))(n)
             if ag.csg:  # an entry per crossing its object counts: the member's crossing nearest it
                 c = jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_counted), jnp.inf))
                 return jnp.where(ok[c], t[c], jnp.inf)[None], n[c][None]

@@ -21,7 +21,7 @@ import numpy as np
 
 from .._packing import inverse_affines, register_packed, stack
 from .._plan import InAll, InAny, InDiff, InPrim, InsideTree, Plan
-from ..kernels import safe_normalize
+from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes import AbstractShape, world_bounds
 from ..shapes._base import NATIVE_PLANE
 from . import _accel
@@ -365,7 +365,7 @@ def box_entry(lo, hi, o, d):
 
 
 def _to_object(m, o, d):
-    return m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d
+    return matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d)
 
 
 def all_crossings(geo: PackedGeometry, o, d, members=None):
@@ -390,7 +390,7 @@ def all_crossings(geo: PackedGeometry, o, d, members=None):
             oo, dd = _to_object(ofw_i, o, d)
             t, n = shape.hits(oo, dd)
             # normals transform with the inverse transpose
-            return t, safe_normalize(n @ ofw_i[:3, :3])
+            return t, safe_normalize(vecmat(n, ofw_i[:3, :3]))
 
         t, n = jax.vmap(one)(shapes, ofw)
         ts.append(t.reshape(-1))

@@ -13,6 +13,7 @@ import numpy as np
 from .. import patterns
 from .._packing import any_traced, inverse_affines, register_packed, stack, traced_op
 from .._plan import Plan
+from ..kernels import matvec
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
 
 
@@ -164,7 +165,7 @@ def pigment_at(mats: PackedMaterials, prim, p):
     if len(mats.pattern_names) == 1 and mats.pattern_names[0] == "solid":
         return mats.colors[prim, 0]
     m = mats.pattern_from_world[prim]
-    q = m[:3, :3] @ p + m[:3, 3]
+    q = matvec(m[:3, :3], p) + m[:3, 3]
     pid = jnp.asarray(mats.pattern_id)[prim]
     v = jnp.zeros((), p.dtype)
     for k, name in enumerate(mats.pattern_names):

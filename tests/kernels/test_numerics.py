@@ -151,3 +151,17 @@ def test_differentiable_root_has_the_implicit_derivative():
 def test_differentiable_root_at_a_double_root_stays_finite():
     g = jax.grad(lambda theta: differentiable_root(lambda t: (t - theta) ** 2, theta))(1.0)
     assert np.isfinite(g)
+
+
+def test_matvec_and_vecmat_are_the_matrix_products_for_any_leading_axes():
+    """The fused 3×3 products the renderer transforms rays, points and normals with, against numpy's
+    float64 products (one vector, and a batch)."""
+    from raytracer.kernels import matvec, vecmat
+
+    rng = np.random.default_rng(7)
+    a = rng.normal(size=(3, 3))
+    for v in (rng.normal(size=3), rng.normal(size=(5, 3))):
+        np.testing.assert_allclose(np.asarray(matvec(jnp.asarray(a), jnp.asarray(v))), v @ a.T, rtol=1e-5,
+                                   atol=1e-6)
+        np.testing.assert_allclose(np.asarray(vecmat(jnp.asarray(v), jnp.asarray(a))), v @ a, rtol=1e-5,
+                                   atol=1e-6)
