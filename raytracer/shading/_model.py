@@ -892,7 +892,8 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
     cos_i = -jnp.dot(ray.direction, s.n)
     eta_rel, eta_fresnel = _relative_ior(ctx, ray, s)
     layers = _layers(ctx, ray, s, cos_i, eta_fresnel, visibility)
-    if eff.reflection or eff.transmission:
+    if (eff.reflection or eff.transmission) and jax.default_backend() == "cpu":
+        # (a CPU fusion workaround: elsewhere a conditional may cost a device-to-host sync)
         layers = _materialised(ctx, layers)
     children = []
     transmitted, tir = None, jnp.asarray(False)
