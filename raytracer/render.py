@@ -395,9 +395,12 @@ def _room_key(packed: Packed, *rest):
     key = treedef, tuple((np.shape(x), np.result_type(x).str) for x in arrays), rest
     try:
         hash(key)
-    except TypeError:  # a static field that cannot be hashed: nothing is remembered
-        return ("unhashable", object())
+    except TypeError:  # a static field that cannot be hashed: the room grows, nothing is remembered
+        return (_UNKEPT,) + rest
     return key
+
+
+_UNKEPT = "not remembered"  # first entry of a key whose room is not kept (a new entry each call)
 
 
 def _with_room(fn, capacity, key):
@@ -406,6 +409,7 @@ def _with_room(fn, capacity, key):
     grow = capacity == "auto"
     if grow:
         capacity = FORWARD_CAPACITY if key is None else _ROOM.get(key, FIRST_CAPACITY)
+    keep = grow and key is not None and key[0] is not _UNKEPT
     while True:
         value, dropped = fn(capacity)
         if capacity is None:
@@ -421,7 +425,7 @@ def _with_room(fn, capacity, key):
         # four times the room: the same image, exact
         if int(dropped) == 0 or not grow:
             _warn_dropped(dropped, capacity)
-            if grow and key is not None:
+            if keep:
                 _ROOM[key] = capacity
             return value
         capacity *= 4

@@ -51,9 +51,11 @@ def _blocked_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int
     # (``jax.checkpoint``): a loop step's residuals are otherwise every intermediate of the shading,
     # each written into a stacked buffer and read back one small copy at a time, and the scene's
     # arrays with them (a cond's residuals are its outputs, stacked per step). The demo scene of
-    # examples/fit_material.py, 40×30: forward + backward 9.7 → 3.0× its forward (float32),
-    # 18.5 → 3.7× (float64); at 320×240, 17 → 4.8×, its compile 32 → 18 s. Forward renders are
-    # unchanged (a checkpoint only acts under differentiation).
+    # examples/fit_material.py, 40×30: forward + backward 17.3 → 3.0× its forward (float32),
+    # 21.3 → 3.4× (float64); at 320×240, 17 → 4.8×, its compile 32 → 18 s (docs/gradients.md).
+    # The checkpoint inside the cond keeps the backward pass's own cond from carrying the
+    # shading's residuals. Forward renders are unchanged (a checkpoint acts only under
+    # differentiation).
     fn_jit = jax.jit(jax.checkpoint(fn))
     shapes = jax.eval_shape(fn_jit, jax.tree.map(lambda a: a[0, 0], blocked))
 

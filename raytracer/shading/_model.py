@@ -258,6 +258,12 @@ def _medium_ids(prims) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- shadows
+def _filter_of(mats: PackedMaterials, row, p):
+    """RGB filter ``f·P + t`` of material row ``row``'s pigment at world point ``p`` (semantics §2.5)."""
+    pig = pigment_at(mats, row, p)
+    return pig[3] * pig[:3] + pig[4]
+
+
 def _shadow_filter(ctx: TraceContext, o, l, dist):
     """RGB transmittance of the segment ``o → o + dist·l`` (semantics §2.5): opaque crossings block,
     transparent ones multiply by ``f·P + t`` at each crossing; refraction is ignored."""
@@ -300,20 +306,18 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
         # (interior/iortest.pov: 40 crossings of 7 lights' shadow rays, most of them clear glass,
         # each took its point into pattern space and evaluated the scene's checker)
         solid = solid_rows(ctx.mats, rows)
+        fs, at = [], []
         if solid.any():
             pig = ctx.mats.colors[jnp.asarray(rows[solid], jnp.int32), 0]  # (solid pairs, 5)
-            f = pig[:, 3:4] * pig[:, :3] + pig[:, 4:5]
-            filt = filt * jnp.prod(jnp.where(ok[where[solid]][:, None], f, 1.0), axis=0)
+            fs.append(pig[:, 3:4] * pig[:, :3] + pig[:, 4:5])
+            at.append(where[solid])
         if not solid.all():
-            patterned = ~solid
-            points = o[None, :] + safe_t[where[patterned]][:, None] * l[None, :]
-
-            def factor(row, p):
-                pig = pigment_at(ctx.mats, row, p)
-                return pig[3] * pig[:3] + pig[4]
-
-            f = jax.vmap(factor)(jnp.asarray(rows[patterned], jnp.int32), points)  # (pairs, 3)
-            filt = filt * jnp.prod(jnp.where(ok[where[patterned]][:, None], f, 1.0), axis=0)
+            points = o[None, :] + safe_t[where[~solid]][:, None] * l[None, :]
+            fs.append(jax.vmap(lambda row, p: _filter_of(ctx.mats, row, p))(
+                jnp.asarray(rows[~solid], jnp.int32), points))
+            at.append(where[~solid])
+        f, at = jnp.concatenate(fs), np.concatenate(at)  # (pairs, 3), (pairs,)
+        filt = filt * jnp.prod(jnp.where(ok[at][:, None], f, 1.0), axis=0)
     if ctx.plan.effects.interior_fade and (ctx.fading_cands.size or crossed is not None):
         filt = filt * _shadow_fade(ctx, l, (t, n, ok), crossed)
     return jnp.where(jnp.any(opaque) | blocked, 0.0, 1.0) * filt
@@ -372,11 +376,8 @@ def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
     rows = jnp.broadcast_to(rows[:, None, :], ok.shape + (m.n_layers,))  # (k, J, L)
     at = jnp.broadcast_to(points[:, :, None, :], rows.shape + (3,))
 
-    def factor(row, p):
-        pig = pigment_at(m, row, p)
-        return pig[3] * pig[:3] + pig[4]
-
-    f = jax.vmap(factor)(rows.reshape(-1), at.reshape(-1, 3)).reshape(rows.shape + (3,))
+    f = jax.vmap(lambda row, p: _filter_of(m, row, p))(rows.reshape(-1), at.reshape(-1, 3))
+    f = f.reshape(rows.shape + (3,))
     use = ok[:, :, None] & present[:, None, :]  # (k, J, L)
     filt = jnp.prod(jnp.where(use[..., None], f, 1.0), axis=(0, 1, 2))
     return jnp.where(crossed.overflow, 0.0, filt), crossed
