@@ -123,6 +123,11 @@ def hierarchy_choice(plan: Plan, accelerate: bool | None = None,
     bits = prim_bits(plan) if bits is None else bits
     held = [accelerate and _accelerable(p, not twin, kernels) for p in plan.prims]
     csg = csg_units(plan, bits) if accelerate and not twin else ()
+    if csg:
+        # a CSG object left with one part and no condition (``difference { A B }`` whose B is
+        # left out) is a plain primitive: an item of its own, not a CSG object
+        members = _unit_members(plan)
+        csg = tuple(u for u in csg if not any(held[i] for i in members[u]))
     in_csg = set(csg)
     filters = [i for i in np.flatnonzero(bits & _accel.MASK_FILTER) if held[i] or plan.prim_unit[i] in in_csg]
     if 0 < sum(native_items(plan.prims[i].obj.shape) for i in filters) < _accel.MIN_FILTER_ITEMS:

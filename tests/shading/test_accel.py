@@ -458,3 +458,30 @@ def test_fading_transparent_objects_in_the_hierarchy_give_the_candidate_paths_sh
         images[mode] = np.asarray(render(scene, width=48, height=36))
     diff = np.abs(images["native"] - images["none"]).max(axis=-1)
     assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
+
+
+@pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
+def test_a_csg_object_of_one_part_is_an_item_of_its_own(monkeypatch):
+    """A CSG object whose other parts are left out (``difference { A B }`` with B a shape we do not
+    render: POV-Ray's ``advanced/pawns``) is its one part: its unit is not a CSG object of the
+    hierarchy, whose programs would name a member that is an item of its own (a KeyError when
+    packing). The image is the candidate path's."""
+    text = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 2, -6> look_at <0, 0.5, 0> }
+light_source { <-8, 14, -9> color rgb 1 }
+#for (i, 0, 9) sphere { <-2.7 + 0.6 * i, 1.8, 1>, 0.25 pigment { rgb <1, 0.5, 0.2> } } #end
+difference { cylinder { 0, y, 0.6 } pigment { rgb 0.8 } }
+"""
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    scene = load_scene(text)
+    geo = pack_geometry(make_plan(scene), jnp.float32)
+    assert all(g.accelerated and not g.csg_member for g in geo.groups)
+    assert not np.any(np.asarray(geo.accel.tables[3]) == _accel.KIND_CSG)
+    ours = np.asarray(render(scene, width=32, height=24))
+    monkeypatch.setenv("RAYTRACER_ACCEL", "none")
+    jax.clear_caches()
+    reference = np.asarray(render(load_scene(text), width=32, height=24))
+    assert reference[12, 16].max() > 0.1  # the cylinder is seen
+    np.testing.assert_allclose(ours, reference, atol=1e-5)
