@@ -55,10 +55,12 @@ def _lattice(p):
     cell = jnp.floor(p)
     f = p - cell  # in [0, 1)
     cell_i = jnp.mod(cell, _LATTICE_PERIOD).astype(jnp.int32)
-    ijk = (cell_i[None, :] + _CORNERS).astype(jnp.uint32)  # (8, 3)
-    h = _lowbias32(ijk[:, 2] ^ jnp.uint32(0x9E3779B9))
-    h = _lowbias32(h ^ ijk[:, 1])
-    h = _lowbias32(h ^ ijk[:, 0])
+    # corner (i, j, k)'s hash is lowbias(lowbias(lowbias(z_k ^ C) ^ y_j) ^ x_i): the first round
+    # has 2 distinct inputs and the second 4, so 14 rounds give the 8 corners' hashes, not 24
+    x, y, z = ((cell_i[a] + jnp.arange(2, dtype=jnp.int32)).astype(jnp.uint32) for a in range(3))
+    h_z = _lowbias32(z ^ jnp.uint32(0x9E3779B9))  # (2,) over k
+    h_yz = _lowbias32(h_z[None, :] ^ y[:, None])  # (2, 2) over j, k
+    h = _lowbias32(h_yz[None, :, :] ^ x[:, None, None]).reshape(8)  # over i, j, k: _CORNERS' order
     index = (h & jnp.uint32(_TABLE_MASK)).astype(jnp.int32)
     offset = f[None, :] - _CORNERS.astype(p.dtype)  # (8, 3)
     s = f * f * (3.0 - 2.0 * f)  # s-curve, C1 across cell faces
