@@ -161,22 +161,47 @@ def _color_map(v, values, colors):
 
 def pigment_at(mats: PackedMaterials, prim, p):
     """RGBFT (5,) pigment of material row ``prim`` (traced int; see ``PackedMaterials``) at world
-    point ``p`` (3,)."""
-    if len(mats.pattern_names) == 1 and mats.pattern_names[0] == "solid":
+    point ``p`` (3,). Every pattern of the scene is evaluated and the row's selected (one ray's
+    code cannot branch under ``vmap``); :func:`pigments_at` evaluates only the row's pattern."""
+    if _all_solid(mats):
         return mats.colors[prim, 0]
-    m = mats.pattern_from_world[prim]
-    q = matvec(m[:3, :3], p) + m[:3, 3]
+    q = _pattern_point(mats, prim, p)
     pid = jnp.asarray(mats.pattern_id)[prim]
     v = jnp.zeros((), p.dtype)
-    for k, name in enumerate(mats.pattern_names):
-        # a solid colour is its map's only entry; a pattern we do not render (the plan warned)
-        # shows its first colour
-        if name == "solid" or not patterns.REGISTRY[name].rendered:
-            continue
-        turb = mats.turbulence[prim] if mats.turbulent[k] else None
-        vk = patterns.pattern_value(name, q, mats.vector[prim], turb, mats.octaves[name],
-                                    mats.omega[prim], mats.lambda_[prim])
-        v = jnp.where(pid == k, vk, v)
+    for k in _evaluated_patterns(mats):
+        v = jnp.where(pid == k, _raw_value(mats, k, prim, q), v)
+    return _pigment_of_value(mats, prim, v)
+
+
+def _all_solid(mats: PackedMaterials) -> bool:
+    return len(mats.pattern_names) == 1 and mats.pattern_names[0] == "solid"
+
+
+def _evaluated_patterns(mats: PackedMaterials) -> list[int]:
+    """Indices of the scene's patterns that have a value to compute: a solid colour is its map's
+    only entry, and a pattern we do not render (the plan warned) shows its first colour."""
+    return [k for k, name in enumerate(mats.pattern_names)
+            if name != "solid" and patterns.REGISTRY[name].rendered]
+
+
+def _pattern_point(mats: PackedMaterials, row, p):
+    m = mats.pattern_from_world[row]
+    return matvec(m[:3, :3], p) + m[:3, 3]
+
+
+def _raw_value(mats: PackedMaterials, k: int, row, q):
+    """The raw value of the scene's pattern ``k`` (static) with row ``row``'s parameters at
+    pattern-space point ``q``."""
+    name = mats.pattern_names[k]
+    turb = mats.turbulence[row] if mats.turbulent[k] else None
+    return patterns.pattern_value(name, q, mats.vector[row], turb, mats.octaves[name], mats.omega[row],
+                                  mats.lambda_[row])
+
+
+def _pigment_of_value(mats: PackedMaterials, prim, v):
+    """RGBFT (5,) of row ``prim`` whose pattern has raw value ``v``: frequency, phase, wave and
+    colour map (or list entry); a solid row's colour whatever ``v``."""
+    pid = jnp.asarray(mats.pattern_id)[prim]
     # frequency / phase with POV's 1.00001 wrap (semantics §5.2 step 3); a discrete pattern's value is the
     # index of its colour and is never wrapped
     freq, phase = mats.frequency[prim], mats.phase[prim]
@@ -192,6 +217,69 @@ def pigment_at(mats: PackedMaterials, prim, p):
     if any(patterns.REGISTRY[name].discrete for name in mats.pattern_names):
         c = jnp.where(discrete, _list_entry(v, mats.colors[prim]), c)
     return jnp.where(pid == _solid_index(mats), mats.colors[prim, 0], c)
+
+
+# noise patterns: a value costs tens of lattice evaluations (turbulence: one per octave)
+_COSTLY_MODULE = "raytracer.patterns._noisy"
+PIGMENT_BLOCK = 512  # pigments_at: entries computed together (16,384 entries of two noise
+#                      patterns, 69 % needed: 9.5 ms for every pattern everywhere, 5.8 ms in blocks
+#                      of 512; blocks of 128 lost to their per-block cost)
+
+
+def costly_patterns(mats: PackedMaterials) -> bool:
+    """Whether the scene's pigments are worth computing by pattern (:func:`pigments_at`): it has
+    turbulence or a noise pattern, whose values dominate a render where they filter shadows
+    (``advanced/pawns``, ``incdemo/stones/stones1``: 65–70 % of the render's time)."""
+    return any(mats.turbulent[k]
+               or patterns.REGISTRY[mats.pattern_names[k]].evaluate.__module__ == _COSTLY_MODULE
+               for k in _evaluated_patterns(mats))
+
+
+def pigments_at(mats: PackedMaterials, rows, points, needed):
+    """RGBFT (M, 5) pigments of material rows ``rows`` (M,) at world points ``points`` (M, 3), each
+    entry computing only its own row's pattern, and nothing where not ``needed`` (M,) bool (the
+    value there is the row's first colour). ``pigment_at`` computes every pattern of the scene for
+    every entry; here the needed entries are grouped by pattern (a stable partition: counts, then
+    each entry's rank in its group) and taken in blocks of ``PIGMENT_BLOCK``. A block computes the
+    patterns it holds (``lax.cond``: one, except where two patterns' groups meet) and a block of
+    entries not needed computes nothing. Values and derivatives are ``pigment_at``'s."""
+    m = rows.shape[0]
+    if _all_solid(mats) or m == 0:
+        return mats.colors[rows, 0]
+    pid = jnp.asarray(mats.pattern_id)[rows]
+    kinds = _evaluated_patterns(mats)
+    nothing = len(kinds)  # the group of entries not needed, solid rows, unrendered patterns: last
+    key = jnp.full((m,), nothing, jnp.int32)
+    for j, k in enumerate(kinds):
+        key = jnp.where(needed & (pid == k), j, key)
+    member = key[:, None] == jnp.arange(nothing + 1)[None, :]  # (M, groups)
+    counts = jnp.sum(member, axis=0, dtype=jnp.int32)
+    rank = jnp.cumsum(member, axis=0, dtype=jnp.int32) - 1
+    pos = (jnp.cumsum(counts) - counts)[key] + jnp.take_along_axis(rank, key[:, None], axis=1)[:, 0]
+    n_blocks = -(-m // PIGMENT_BLOCK)
+    size = n_blocks * PIGMENT_BLOCK  # positions past M: entry 0, in the group of nothing
+    order = jnp.zeros((size,), jnp.int32).at[pos].set(jnp.arange(m, dtype=jnp.int32), unique_indices=True)
+    keys = jnp.full((size,), nothing, jnp.int32).at[pos].set(key, unique_indices=True)
+    order, keys = order.reshape(n_blocks, PIGMENT_BLOCK), keys.reshape(n_blocks, PIGMENT_BLOCK)
+
+    def block(args):
+        idx, key_b = args
+        r, p = rows[idx], points[idx]
+        q = jax.vmap(lambda r_, p_: _pattern_point(mats, r_, p_))(r, p)
+        v = jnp.zeros(idx.shape, points.dtype)
+        for j, k in enumerate(kinds):
+            v = jax.lax.cond(jnp.any(key_b == j),
+                             lambda v, j=j, k=k: jnp.where(key_b == j, jax.vmap(
+                                 lambda r_, q_: _raw_value(mats, k, r_, q_))(r, q), v),
+                             lambda v: v, v)
+        return jax.vmap(lambda r_, v_: _pigment_of_value(mats, r_, v_))(r, v)
+
+    def block_or_first_colours(args):
+        idx, key_b = args
+        return jax.lax.cond(jnp.any(key_b < nothing), block, lambda a: mats.colors[rows[a[0]], 0], args)
+
+    grouped = jax.lax.map(block_or_first_colours, (order, keys)).reshape(size, 5)
+    return grouped[pos]  # entry e's pigment is at its position
 
 
 def _list_entry(v, colors):

@@ -65,7 +65,7 @@ from ._geometry import (
     evaluate_inside,
     visibility_bits,
 )
-from ._materials import PackedMaterials, pigment_at, solid_rows
+from ._materials import PackedMaterials, costly_patterns, pigment_at, pigments_at, solid_rows
 
 
 class Rays(NamedTuple):
@@ -264,32 +264,71 @@ def _filter_of(mats: PackedMaterials, row, p):
     return pig[3] * pig[:3] + pig[4]
 
 
+class _Filters(NamedTuple):
+    """A shadow segment's transmittance: ``base`` (its opaque crossings, solid pigments, interior
+    fade) times the filter ``f·P + t`` of the patterned pigment of material row ``rows[e]`` at
+    ``points[e]`` for every ``e`` where ``use[e]``. Kept apart so that a batch can compute the
+    patterned pigments of all its shadow rays together (``shade_batch``)."""
+
+    base: jax.Array  # (3,)
+    rows: jax.Array  # (E,) int32
+    points: jax.Array  # (E, 3)
+    use: jax.Array  # (E,) bool
+
+
+def _filters(base, requests, dtype) -> _Filters:
+    if not requests:
+        return _Filters(base, jnp.zeros((0,), jnp.int32), jnp.zeros((0, 3), dtype), jnp.zeros((0,), bool))
+    rows, points, use = (jnp.concatenate(x) for x in zip(*requests, strict=True))
+    return _Filters(base, rows, points, use)
+
+
+def _filtered(fl: _Filters, f):
+    """The transmittance ``fl`` stands for, given the RGB filters ``f`` (E, 3) of its pigments."""
+    if fl.rows.shape[0] == 0:
+        return fl.base
+    return fl.base * jnp.prod(jnp.where(fl.use[:, None], f, 1.0), axis=0)
+
+
+def _filters_value(ctx: TraceContext, fl: _Filters):
+    """``_filtered`` with the pigments computed here (every pattern of the scene, one ray's code)."""
+    f = jax.vmap(lambda row, p: _filter_of(ctx.mats, row, p))(fl.rows, fl.points)
+    return _filtered(fl, f)
+
+
 def _shadow_filter(ctx: TraceContext, o, l, dist):
     """RGB transmittance of the segment ``o → o + dist·l`` (semantics §2.5): opaque crossings block,
     transparent ones multiply by ``f·P + t`` at each crossing; refraction is ignored."""
+    return _filters_value(ctx, _shadow_filters(ctx, o, l, dist))
+
+
+def _shadow_filters(ctx: TraceContext, o, l, dist) -> _Filters:
+    """:func:`_shadow_filter`'s transmittance with its patterned pigments still to compute."""
     scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
-    one = jnp.ones(3, ctx.dtype)
+    base = jnp.ones(3, ctx.dtype)
+    requests = []
     # opaque primitives the hierarchy holds: does any lie on the segment (an any-hit query)
     blocked = (jnp.zeros((), bool) if ctx.geo.accel is None
                else _accel.blocked(ctx.geo.accel, o, l, scale, dist - scale))
     crossed = None
     if ctx.geo.accel is not None and ctx.accel_filters:
         # transparent items the hierarchy holds: each crossing filters by its layers' pigments
-        one, crossed = _accel_filter(ctx, o, l, scale, dist - scale)
+        overflow, request, crossed = _accel_filter(ctx, o, l, scale, dist - scale)
+        base = jnp.where(overflow, 0.0, base)
+        requests.append(request)
     if not ctx.accel_fades:
         crossed = None  # (no item of the hierarchy has an interior that fades)
     view = ctx.shadow
     if not view.cand_prim.size:
         if crossed is not None and ctx.plan.effects.interior_fade:
-            one = one * _shadow_fade(ctx, l, None, crossed)
-        return jnp.where(blocked, 0.0, 1.0) * one
+            base = base * _shadow_fade(ctx, l, None, crossed)
+        return _filters(jnp.where(blocked, 0.0, 1.0) * base, requests, ctx.dtype)
     t, n = all_crossings(ctx.geo, o, l, view.members)
     ok = jnp.isfinite(t) & (t > scale) & (t < dist - scale)
     ok = ok & csg_mask(ctx.geo, view.conditions, o, l, t)
     if not ctx.plan.effects.filtered_shadows:
-        return jnp.where(jnp.any(ok) | blocked, 0.0, 1.0) * one
+        return _filters(jnp.where(jnp.any(ok) | blocked, 0.0, 1.0) * base, requests, ctx.dtype)
     opaque = ok & ~jnp.asarray(ctx.transparent_cands)
-    filt = one
     safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
     n_layers = ctx.mats.n_layers
     # every present layer of every transparent crossing filters (semantics §2.5): the (crossing,
@@ -306,21 +345,16 @@ def _shadow_filter(ctx: TraceContext, o, l, dist):
         # (interior/iortest.pov: 40 crossings of 7 lights' shadow rays, most of them clear glass,
         # each took its point into pattern space and evaluated the scene's checker)
         solid = solid_rows(ctx.mats, rows)
-        fs, at = [], []
         if solid.any():
             pig = ctx.mats.colors[jnp.asarray(rows[solid], jnp.int32), 0]  # (solid pairs, 5)
-            fs.append(pig[:, 3:4] * pig[:, :3] + pig[:, 4:5])
-            at.append(where[solid])
+            f = pig[:, 3:4] * pig[:, :3] + pig[:, 4:5]
+            base = base * jnp.prod(jnp.where(ok[where[solid]][:, None], f, 1.0), axis=0)
         if not solid.all():
             points = o[None, :] + safe_t[where[~solid]][:, None] * l[None, :]
-            fs.append(jax.vmap(lambda row, p: _filter_of(ctx.mats, row, p))(
-                jnp.asarray(rows[~solid], jnp.int32), points))
-            at.append(where[~solid])
-        f, at = jnp.concatenate(fs), np.concatenate(at)  # (pairs, 3), (pairs,)
-        filt = filt * jnp.prod(jnp.where(ok[at][:, None], f, 1.0), axis=0)
+            requests.append((jnp.asarray(rows[~solid], jnp.int32), points, ok[where[~solid]]))
     if ctx.plan.effects.interior_fade and (ctx.fading_cands.size or crossed is not None):
-        filt = filt * _shadow_fade(ctx, l, (t, n, ok), crossed)
-    return jnp.where(jnp.any(opaque) | blocked, 0.0, 1.0) * filt
+        base = base * _shadow_fade(ctx, l, (t, n, ok), crossed)
+    return _filters(jnp.where(jnp.any(opaque) | blocked, 0.0, 1.0) * base, requests, ctx.dtype)
 
 
 def _shadow_fade(ctx: TraceContext, l, cand, crossed):
@@ -360,27 +394,22 @@ def _shadow_fade(ctx: TraceContext, l, cand, crossed):
 
 
 def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
-    """RGB filter of the transparent shadow-casting items the hierarchy holds on the segment: the
-    product over their crossings of every present layer's ``f·P + t`` (as for candidates), and the
-    items crossed (``_accel.Crossed``: their interiors' fade is ``_shadow_fade``'s). More than
-    ``_accel.FILTER_ITEMS`` crossed items: the farthest are dropped and the segment counts as
-    blocked (a shadow through that many transparent surfaces is dark already; documented in
-    architecture.md)."""
+    """The transparent shadow-casting items the hierarchy holds on the segment: whether there are
+    more than ``_accel.FILTER_ITEMS`` of them (the farthest are dropped and the segment counts as
+    blocked: a shadow through that many transparent surfaces is dark already; documented in
+    architecture.md), the pigments that filter the light (every present layer of every crossing,
+    as for candidates: ``(rows, points, use)`` of a ``_Filters``), and the items crossed
+    (``_accel.Crossed``: their interiors' fade is ``_shadow_fade``'s)."""
     crossed = _accel.filtering(ctx.geo.accel, ctx.geo.shapes, ctx.geo.object_from_world, o, l, t_min, t_max)
     m = ctx.mats
     present = jnp.asarray(m.layer_present)[crossed.prim]  # (k, n_layers)
     ok = jnp.isfinite(crossed.t)  # (k, J)
     points = o[None, None, :] + jnp.where(ok, crossed.t, 0.0)[..., None] * l[None, None, :]  # (k, J, 3)
-    # every (item, crossing, layer) in one vmapped pigment evaluation (each pattern traced once)
     rows = crossed.prim[:, None] * m.n_layers + jnp.arange(m.n_layers)[None, :]  # (k, L)
     rows = jnp.broadcast_to(rows[:, None, :], ok.shape + (m.n_layers,))  # (k, J, L)
     at = jnp.broadcast_to(points[:, :, None, :], rows.shape + (3,))
-
-    f = jax.vmap(lambda row, p: _filter_of(m, row, p))(rows.reshape(-1), at.reshape(-1, 3))
-    f = f.reshape(rows.shape + (3,))
     use = ok[:, :, None] & present[:, None, :]  # (k, J, L)
-    filt = jnp.prod(jnp.where(use[..., None], f, 1.0), axis=(0, 1, 2))
-    return jnp.where(crossed.overflow, 0.0, filt), crossed
+    return crossed.overflow, (rows.reshape(-1).astype(jnp.int32), at.reshape(-1, 3), use.reshape(-1)), crossed
 
 
 def _shadow_sampler(types):
@@ -393,11 +422,19 @@ def _light_visibility(ctx: TraceContext, light: Light, types, p_spawn, l, shadow
     its type (area lights; vmapped, so compile time does not grow with the grid)."""
     if not _casts_shadows(ctx, types):
         return jnp.ones(3, ctx.dtype)
+    weights, fl = _light_filters(ctx, light, types, p_spawn, l, shadow_len)
+    return jnp.sum(weights[:, None] * jax.vmap(lambda f: _filters_value(ctx, f))(fl), axis=0)
+
+
+def _light_filters(ctx: TraceContext, light: Light, types, p_spawn, l, shadow_len):
+    """A shadow-casting light's shadow rays as ``_Filters`` with a leading axis over its samples
+    (one for a point light), and their weights (S,)."""
     sampler = _shadow_sampler(types)
     if sampler is None:
-        return _shadow_filter(ctx, p_spawn, l, shadow_len)
+        fl = _shadow_filters(ctx, p_spawn, l, shadow_len)
+        return jnp.ones((1,), ctx.dtype), jax.tree_util.tree_map(lambda x: x[None], fl)
     positions, weights = sampler(light, ctx.dtype)
-    return jnp.sum(weights[:, None] * jax.vmap(lambda q: _sample_filter(ctx, p_spawn, q))(positions), axis=0)
+    return weights, jax.vmap(lambda q: _sample_filters(ctx, p_spawn, q))(positions)
 
 
 def _casts_shadows(ctx: TraceContext, types) -> bool:
@@ -406,9 +443,13 @@ def _casts_shadows(ctx: TraceContext, types) -> bool:
 
 def _sample_filter(ctx: TraceContext, p, q):
     """The shadow filter of the segment from ``p`` to the light sample at ``q``."""
+    return _filters_value(ctx, _sample_filters(ctx, p, q))
+
+
+def _sample_filters(ctx: TraceContext, p, q) -> _Filters:
     v = q - p
     dist = jnp.sqrt(jnp.maximum(jnp.dot(v, v), 1e-30))
-    return _shadow_filter(ctx, p, v / dist, dist)
+    return _shadow_filters(ctx, p, v / dist, dist)
 
 
 def _adaptive(ctx: TraceContext, light: Light) -> bool:
@@ -909,20 +950,72 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
 
 
 def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
-    """:func:`shade` for a batch of rays (a leading axis). The shadows of lights with adaptive area
-    sampling are computed for the batch at once (:func:`_adaptive_visibility`: the full grid only
-    for points in a penumbra; lights of one grid together); everything else is one ray's
-    computation, vmapped."""
+    """:func:`shade` for a batch of rays (a leading axis). Computed for the batch at once: the
+    shadows of lights with adaptive area sampling (:func:`_adaptive_visibility`: the full grid only
+    for points in a penumbra; lights of one grid together), and, where transparent shadow casters
+    have noise patterns or turbulence, the other lights' shadows (:func:`_batch_shadows`: the
+    patterned pigments of all the batch's shadow crossings together, each computing its own
+    pattern and only where a crossing is). Everything else is one ray's computation, vmapped."""
     adaptive = [_adaptive(ctx, light) for light in ctx.lights]
-    if not any(adaptive):
+    by_pattern = costly_patterns(ctx.mats) and ctx.plan.effects.filtered_shadows
+    if not any(adaptive) and not by_pattern:
         return jax.vmap(lambda r: shade(ctx, r))(rays)
     s = jax.vmap(lambda r: _surface(ctx, r))(rays)
+    visibility: list = [None] * len(ctx.lights)
+    if any(adaptive):
+        visibility = _batch_visibility(ctx, s, adaptive)
+    if by_pattern:
+        visibility = _batch_shadows(ctx, s, visibility)
+    return jax.vmap(lambda r, s_, v: shade(ctx, r, s_, v))(rays, s, tuple(visibility))
+
+
+def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list) -> list:
+    """``visibility`` with the shadow filter of every other shadow-casting light computed for the
+    batch: the shadow rays' geometry ray by ray (lights of one structure vmapped together, as in
+    ``_layers``), then the patterned pigments of all their transparent crossings together
+    (``pigments_at``: each computes its own pattern, and the many slots of crossings a ray does not
+    have compute nothing), then each ray's product."""
+    b_size = s.p.shape[0]
+    todo = [v is None and _casts_shadows(ctx, light_types(light, ctx.plan.effects))
+            for light, v in zip(ctx.lights, visibility, strict=True)]
+    out = list(visibility)
+    for ids, lights, _ in _light_classes(ctx.lights, visibility, ctx.plan.effects):
+        if not todo[ids[0]]:
+            continue
+        types = light_types(ctx.lights[ids[0]], ctx.plan.effects)
+
+        def shadow_rays(light, p, p_spawn, n, types=types):
+            l, c, cos_nl, shadow_len = _unshadowed(ctx, light, p, n)
+            weights, fl = _light_filters(ctx, light, types, p_spawn, l, shadow_len)
+            lit = (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0)
+            return weights, fl, lit
+
+        def per_ray(p, p_spawn, n, lights=lights):
+            return _batched(lambda lt, _: shadow_rays(lt, p, p_spawn, n), lights, None)
+
+        weights, fl, lit = jax.vmap(per_ray)(s.p, s.p_out, s.n)  # (B, [lights,] S, …)
+        wanted = s.found.reshape((b_size,) + (1,) * (lit.ndim - 1)) & lit
+        use = fl.use & wanted[..., None, None]
+        pig = pigments_at(ctx.mats, fl.rows.reshape(-1), fl.points.reshape(-1, 3), use.reshape(-1))
+        f = (pig[:, 3:4] * pig[:, :3] + pig[:, 4:5]).reshape(fl.rows.shape + (3,))
+        shape = fl.base.shape[:-1]  # (B, [lights,] S)
+        flat = _Filters(fl.base.reshape(-1, 3), fl.rows.reshape(-1, fl.rows.shape[-1]),
+                        fl.points.reshape(-1, fl.rows.shape[-1], 3), use.reshape(-1, fl.rows.shape[-1]))
+        seen = jax.vmap(_filtered)(flat, f.reshape(-1, fl.rows.shape[-1], 3)).reshape(shape + (3,))
+        vis = jnp.sum(weights[..., None] * seen, axis=-2)  # (B, [lights,] 3)
+        for j, i in enumerate(ids):
+            out[i] = vis if lights.count == 1 else vis[:, j]
+    return out
+
+
+def _batch_visibility(ctx: TraceContext, s: _Surface, adaptive: list[bool]) -> list:
+    """Per light, the batch's shadow filters where the light has adaptive area sampling, else None."""
     grids: dict[tuple, list[int]] = {}  # lights with one plan share their traced shadow test
     for i, (light, batched) in enumerate(zip(ctx.lights, adaptive, strict=True)):
         if batched:
             grids.setdefault((light.area.size1, light.area.size2, light.area.adaptive), []).append(i)
     visibility: list = [None] * len(ctx.lights)
-    b_size = rays.origin.shape[0]
+    b_size = s.p.shape[0]
     for key, ids in grids.items():
         lives, colours, positions = [], [], []
         for i in ids:
@@ -940,4 +1033,4 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
                                     jnp.concatenate(colours))
         for j, i in enumerate(ids):
             visibility[i] = seen[j * b_size:(j + 1) * b_size]
-    return jax.vmap(lambda r, s_, v: shade(ctx, r, s_, v))(rays, s, tuple(visibility))
+    return visibility

@@ -27,3 +27,113 @@ def test_materialised_layers_are_the_layers_whichever_branch_runs(adc_bailout):
         np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
     grad = jax.grad(lambda x: jnp.sum(_materialised(ctx, (x,))[0] ** 2))(tree[0])
     np.testing.assert_allclose(np.asarray(grad), 2 * np.asarray(tree[0]), rtol=1e-6)
+
+
+def test_pigments_by_pattern_are_every_patterns_pigments_with_their_derivatives(x64):
+    """``pigments_at`` groups the needed entries by pattern and computes each group's pattern only;
+    each needed entry's RGBFT and its derivatives with respect to the points and the pigments'
+    parameters are those of ``pigment_at`` (which computes every pattern of the scene), whatever
+    the order and mix of patterns, solid rows and entries not needed (float64: the same sums in
+    another order)."""
+    from raytracer import load_scene
+    from raytracer._plan import make_plan
+    from raytracer.shading import _materials
+    from raytracer.shading._materials import pack_materials, pigment_at, pigments_at
+
+    text = """
+camera { location <0, 0, -5> look_at 0 }
+sphere { 0, 1 pigment { granite turbulence 0.3 color_map { [0 rgbf <1, 0.2, 0.1, 0.6>] [1 rgbt 0.9] } } }
+sphere { 1, 1 pigment { marble turbulence 0.8 } }
+sphere { 2, 1 texture { pigment { bozo scale 0.3 } } texture { pigment { checker rgbf 1 rgb 0 } } }
+sphere { 3, 1 pigment { rgbf <0.2, 0.4, 0.6, 0.5> } }
+"""
+    plan = make_plan(load_scene(text))
+    mats = jax.tree_util.tree_map(jnp.asarray, pack_materials(plan, jnp.float64))
+    assert _materials.costly_patterns(mats)
+    rng = np.random.default_rng(3)
+    m = 3 * _materials.PIGMENT_BLOCK + 77  # blocks that mix patterns, and a partial last block
+    rows = jnp.asarray(rng.integers(0, len(plan.prims) * mats.n_layers, m), jnp.int32)
+    points = jnp.asarray(rng.normal(size=(m, 3)) * 2, jnp.float64)
+    needed = jnp.asarray(rng.random(m) < 0.6)
+
+    @jax.jit
+    def every_pattern(pts, ms):
+        return jax.vmap(lambda r, p: pigment_at(ms, r, p))(rows, pts)
+
+    def by_pattern(pts, ms):
+        return pigments_at(ms, rows, pts, needed)
+
+    want, got = every_pattern(points, mats), jax.jit(by_pattern)(points, mats)
+    keep = np.asarray(needed)
+    np.testing.assert_allclose(np.asarray(got)[keep], np.asarray(want)[keep], rtol=1e-12, atol=1e-12)
+    tangents = (jnp.asarray(rng.normal(size=(m, 3)), jnp.float64),
+                jax.tree_util.tree_map(lambda x: jnp.asarray(rng.normal(size=x.shape), x.dtype)
+                                       if jnp.issubdtype(x.dtype, jnp.floating) else x, mats))
+    _, d_want = jax.jvp(every_pattern, (points, mats), tangents)
+    _, d_got = jax.jvp(by_pattern, (points, mats), tangents)
+    assert np.abs(np.asarray(d_want)[keep]).max() > 0.1
+    np.testing.assert_allclose(np.asarray(d_got)[keep], np.asarray(d_want)[keep], rtol=1e-9, atol=1e-9)
+    g_want = jax.grad(lambda p: jnp.sum(jnp.where(needed[:, None], every_pattern(p, mats), 0.0) ** 2))(points)
+    g_got = jax.grad(lambda p: jnp.sum(jnp.where(needed[:, None], by_pattern(p, mats), 0.0) ** 2))(points)
+    np.testing.assert_allclose(np.asarray(g_got), np.asarray(g_want), rtol=1e-9, atol=1e-9)
+
+
+# transparent shadow casters with noise patterns: in the hierarchy (more than MIN_FILTER_ITEMS) and
+# candidates (an intersection), lit by two point lights of one structure and an area light
+SHADOWS = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 5, -8> look_at <0, 0.5, 0> angle 55 }
+light_source { <-6, 10, -5> color rgb 0.7 }
+light_source { <5, 8, -3> color rgb 0.5 }
+light_source { <0, 9, 4> color rgb 0.4 area_light x, z, 3, 3 }
+plane { y, 0 pigment { rgb 0.8 } }
+#declare R = seed(5);
+#for (i, 0, 19)
+  sphere { <rand(R) * 6 - 3, 0.4 + rand(R), rand(R) * 5 - 2>, 0.3 + 0.2 * rand(R)
+           pigment { #if (mod(i, 2)) granite turbulence 0.4 #else bozo scale 0.4 #end
+                     color_map { [0 rgbf <1, 0.4, 0.2, 0.8>] [1 rgbt <0.3, 0.8, 1, 0.7>] } } }
+#end
+intersection { sphere { 0, 1 } box { -0.7, 0.7 } translate <1.5, 1.2, -1>
+               pigment { marble turbulence 0.6 color_map { [0 rgbf 0.9] [1 rgb <0.5, 0.2, 0.1>] } } }
+"""
+
+
+@pytest.mark.slow  # four programs
+def test_batch_shadows_through_noise_patterns_are_the_per_ray_shadows(monkeypatch):
+    """Where transparent shadow casters have noise patterns, ``shade_batch`` computes the shadows of
+    a chunk's rays together, each crossing's pattern only where the crossing is
+    (``_batch_shadows``). The image is that of the per-ray shadows, which compute every pattern at
+    every slot of crossings; so are its derivatives (one light, hierarchy only: a smaller program)."""
+    from raytracer import load_scene, render
+    from raytracer.shading import _model
+
+    def both(scene, derivatives):
+        leaves, treedef = jax.tree_util.tree_flatten(scene)
+        rng = np.random.default_rng(0)
+        tangent = treedef.unflatten([rng.normal(size=np.shape(x)).astype(np.asarray(x).dtype)
+                                     if np.issubdtype(np.asarray(x).dtype, np.floating)
+                                     else np.zeros(np.shape(x), jax.dtypes.float0) for x in leaves])
+        out = []
+        for batch in (True, False):
+            with monkeypatch.context() as patch:
+                if not batch:
+                    patch.setattr(_model, "costly_patterns", lambda mats: False)
+                jax.clear_caches()
+                if derivatives:
+                    image, d_image = jax.jvp(lambda s: render(s, width=24, height=18), (scene,), (tangent,))
+                else:
+                    image, d_image = render(scene, width=32, height=24), jnp.zeros(())
+                out.append((np.asarray(image), np.asarray(d_image)))
+        return out
+
+    (ours, _), (reference, _) = both(load_scene(SHADOWS), False)
+    assert np.isfinite(ours).all()
+    np.testing.assert_allclose(ours, reference, atol=2e-5)
+    one_light = "\n".join(line for line in SHADOWS.splitlines()
+                          if not line.startswith(("light_source { <5", "light_source { <0", "intersection",
+                                                  "               pigment { marble")))
+    (ours, d_ours), (reference, d_reference) = both(load_scene(one_light), True)
+    np.testing.assert_allclose(ours, reference, atol=2e-5)
+    assert np.isfinite(d_ours).all() and np.abs(d_reference).max() > 0.5
+    np.testing.assert_allclose(d_ours, d_reference, rtol=1e-3, atol=1e-3)
