@@ -994,6 +994,11 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list) -> list:
             return _batched(lambda lt, _: shadow_rays(lt, p, p_spawn, n), lights, None)
 
         weights, fl, lit = jax.vmap(per_ray)(s.p, s.p_out, s.n)  # (B, [lights,] S, …)
+        if fl.rows.shape[-1] == 0:  # its shadow rays cross no patterned pigment (solid ones only)
+            vis = jnp.sum(weights[..., None] * fl.base, axis=-2)
+            for j, i in enumerate(ids):
+                out[i] = vis if lights.count == 1 else vis[:, j]
+            continue
         wanted = s.found.reshape((b_size,) + (1,) * (lit.ndim - 1)) & lit
         use = fl.use & wanted[..., None, None]
         pig = pigments_at(ctx.mats, fl.rows.reshape(-1), fl.points.reshape(-1, 3), use.reshape(-1))
