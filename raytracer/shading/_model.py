@@ -292,6 +292,8 @@ def _filtered(fl: _Filters, f):
 
 def _filters_value(ctx: TraceContext, fl: _Filters):
     """``_filtered`` with the pigments computed here (every pattern of the scene, one ray's code)."""
+    if fl.rows.shape[-1] == 0:
+        return fl.base  # (no pigment to trace: a vmap over no entries traces every pattern all the same)
     f = jax.vmap(lambda row, p: _filter_of(ctx.mats, row, p))(fl.rows, fl.points)
     return _filtered(fl, f)
 
@@ -422,8 +424,11 @@ def _light_visibility(ctx: TraceContext, light: Light, types, p_spawn, l, shadow
     its type (area lights; vmapped, so compile time does not grow with the grid)."""
     if not _casts_shadows(ctx, types):
         return jnp.ones(3, ctx.dtype)
-    weights, fl = _light_filters(ctx, light, types, p_spawn, l, shadow_len)
-    return jnp.sum(weights[:, None] * jax.vmap(lambda f: _filters_value(ctx, f))(fl), axis=0)
+    sampler = _shadow_sampler(types)
+    if sampler is None:
+        return _shadow_filter(ctx, p_spawn, l, shadow_len)
+    positions, weights = sampler(light, ctx.dtype)
+    return jnp.sum(weights[:, None] * jax.vmap(lambda q: _sample_filter(ctx, p_spawn, q))(positions), axis=0)
 
 
 def _light_filters(ctx: TraceContext, light: Light, types, p_spawn, l, shadow_len):
