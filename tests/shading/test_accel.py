@@ -460,6 +460,7 @@ def test_fading_transparent_objects_in_the_hierarchy_give_the_candidate_paths_sh
     assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
 
 
+@pytest.mark.slow  # two programs
 @pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
 def test_a_csg_object_of_one_part_is_an_item_of_its_own(monkeypatch):
     """A CSG object whose other parts are left out (``difference { A B }`` with B a shape we do not
