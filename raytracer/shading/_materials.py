@@ -237,8 +237,8 @@ def costly_patterns(mats: PackedMaterials) -> bool:
 
 def pigments_at(mats: PackedMaterials, rows, points, needed):
     """RGBFT (M, 5) pigments of material rows ``rows`` (M,) at world points ``points`` (M, 3), each
-    entry computing only its own row's pattern, and nothing where not ``needed`` (M,) bool (the
-    value there is the row's first colour). ``pigment_at`` computes every pattern of the scene for
+    entry computing only its own row's pattern, and nothing where not ``needed`` (M,) bool (any
+    value there). ``pigment_at`` computes every pattern of the scene for
     every entry; here the needed entries are grouped by pattern (a stable partition: counts, then
     each entry's rank in its group) and taken in blocks of ``PIGMENT_BLOCK``. A block computes the
     patterns it holds (``lax.cond``: one, except where two patterns' groups meet) and a block of
@@ -248,8 +248,11 @@ def pigments_at(mats: PackedMaterials, rows, points, needed):
         return mats.colors[rows, 0]
     pid = jnp.asarray(mats.pattern_id)[rows]
     kinds = _evaluated_patterns(mats)
-    nothing = len(kinds)  # the group of entries not needed, solid rows, unrendered patterns: last
-    key = jnp.full((m,), nothing, jnp.int32)
+    # groups: the patterns computed, then patterns we do not render (value 0, then the row's
+    # frequency, phase, wave and map, as ``pigment_at``), then entries not needed and solid rows
+    unrendered, nothing = len(kinds), len(kinds) + 1
+    solid = pid == _solid_index(mats)
+    key = jnp.where(needed & ~solid, unrendered, nothing).astype(jnp.int32)
     for j, k in enumerate(kinds):
         key = jnp.where(needed & (pid == k), j, key)
     member = key[:, None] == jnp.arange(nothing + 1)[None, :]  # (M, groups)

@@ -1010,7 +1010,8 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list) -> list:
         def shadow_rays(light, p, p_spawn, n, types=types):
             l, c, cos_nl, shadow_len = _unshadowed(ctx, light, p, n)
             weights, fl = _light_filters(ctx, light, types, p_spawn, l, shadow_len)
-            lit = (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0)
+            # (not masked where the light's colour is 0: its derivative still sees the shadow)
+            lit = cos_nl > lighting.NL_EPSILON
             return weights, fl, lit
 
         def per_ray(p, p_spawn, n, lights=lights):

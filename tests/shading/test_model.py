@@ -34,9 +34,10 @@ def test_pigments_by_pattern_are_every_patterns_pigments_with_their_derivatives(
     """``pigments_at`` groups the needed entries by pattern and computes each group's pattern only;
     each needed entry's RGBFT and its derivatives with respect to the points and the pigments'
     parameters are those of ``pigment_at`` (which computes every pattern of the scene), whatever
-    the order and mix of patterns, solid rows and entries not needed (float64: the same sums in
-    another order)."""
+    the order and mix of patterns, solid rows, a pattern we do not render (its value 0 still
+    takes the row's phase) and entries not needed (float64: the same sums in another order)."""
     from raytracer import load_scene
+    from raytracer._packing import with_field
     from raytracer._plan import make_plan
     from raytracer.shading import _materials
     from raytracer.shading._materials import pack_materials, pigment_at, pigments_at
@@ -47,8 +48,18 @@ sphere { 0, 1 pigment { granite turbulence 0.3 color_map { [0 rgbf <1, 0.2, 0.1,
 sphere { 1, 1 pigment { marble turbulence 0.8 } }
 sphere { 2, 1 texture { pigment { bozo scale 0.3 } } texture { pigment { checker rgbf 1 rgb 0 } } }
 sphere { 3, 1 pigment { rgbf <0.2, 0.4, 0.6, 0.5> } }
+sphere { 4, 1 pigment { bozo phase 0.5 color_map { [0 rgb 1] [1 rgb <0, 0.5, 1>] } } }
 """
-    plan = make_plan(load_scene(text))
+    scene = load_scene(text)
+    # the last pigment's pattern one we parse but do not render (possible only through the API:
+    # the plan warns, and its value is 0)
+    obj = scene.objects[4]
+    layer = obj.texture.layers[0]
+    layer = with_field(layer, "pigment", with_field(layer.pigment, "pattern", "crackle"))
+    obj = with_field(obj, "texture", with_field(obj.texture, "layers", (layer,)))
+    scene = with_field(scene, "objects", (*scene.objects[:4], obj))
+    plan = make_plan(scene)
+    assert "crackle" in [w.feature for w in plan.warnings]
     mats = jax.tree_util.tree_map(jnp.asarray, pack_materials(plan, jnp.float64))
     assert _materials.costly_patterns(mats)
     rng = np.random.default_rng(3)
@@ -68,6 +79,10 @@ sphere { 3, 1 pigment { rgbf <0.2, 0.4, 0.6, 0.5> } }
     want, got = every_pattern(points, mats), by_pattern(points, mats)
     keep = np.asarray(needed)
     np.testing.assert_allclose(np.asarray(got)[keep], np.asarray(want)[keep], rtol=1e-12, atol=1e-12)
+    # only the unrendered pattern's entries needed: blocks of nothing else are computed too
+    crackle = np.asarray(rows) // mats.n_layers == 4
+    alone = np.asarray(pigments_at(mats, rows, points, jnp.asarray(crackle)))
+    np.testing.assert_allclose(alone[crackle], np.asarray(want)[crackle], rtol=1e-12, atol=1e-12)
     tangents = (jnp.asarray(rng.normal(size=(m, 3)), jnp.float64),
                 jax.tree_util.tree_map(lambda x: jnp.asarray(rng.normal(size=x.shape), x.dtype)
                                        if jnp.issubdtype(x.dtype, jnp.floating) else x, mats))
@@ -84,7 +99,8 @@ sphere { 3, 1 pigment { rgbf <0.2, 0.4, 0.6, 0.5> } }
 
 
 # transparent shadow casters with noise patterns: in the hierarchy (more than MIN_FILTER_ITEMS) and
-# candidates (an intersection), lit by two point lights of one structure and an area light
+# candidates (an intersection), lit by two point lights of one structure, an area light and a
+# spotlight
 SHADOWS = """
 #version 3.7;
 global_settings { assumed_gamma 1.0 }
@@ -92,6 +108,7 @@ camera { location <0, 5, -8> look_at <0, 0.5, 0> angle 55 }
 light_source { <-6, 10, -5> color rgb 0.7 }
 light_source { <5, 8, -3> color rgb 0.5 }
 light_source { <0, 9, 4> color rgb 0.4 area_light x, z, 3, 3 }
+light_source { <2, 7, -6> color rgb 0.6 spotlight point_at <0, 0.5, 0> radius 12 falloff 20 }
 plane { y, 0 pigment { rgb 0.8 } }
 #declare R = seed(5);
 #for (i, 0, 19)
