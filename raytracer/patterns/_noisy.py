@@ -101,15 +101,15 @@ _BOZO_MAP = ((0.0, WHITE), (0.4, WHITE), (0.4, GREEN), (0.6, GREEN), (0.6, BLUE)
              (0.8, RED), (1.0, RED))
 
 PATTERNS = (
-    Pattern("bozo", bozo, default_map=_BOZO_MAP),
-    Pattern("spotted", bozo),
-    Pattern("bumps", bozo),
-    Pattern("dents", dents),
-    Pattern("granite", granite),
-    Pattern("wrinkles", wrinkles),
+    Pattern("bozo", bozo, default_map=_BOZO_MAP, noise=True),
+    Pattern("spotted", bozo, noise=True),
+    Pattern("bumps", bozo, noise=True),
+    Pattern("dents", dents, noise=True),
+    Pattern("granite", granite, noise=True),
+    Pattern("wrinkles", wrinkles, noise=True),
     Pattern("ripples", ripples),
     Pattern("waves", waves),
     Pattern("marble", marble, default_wave="triangle", turbulence="internal"),
     Pattern("wood", wood, default_wave="triangle", turbulence="internal"),
-    Pattern("agate", agate, turbulence="internal", modifiers={"agate_turb": 1.0}),
+    Pattern("agate", agate, turbulence="internal", modifiers={"agate_turb": 1.0}, noise=True),
 )

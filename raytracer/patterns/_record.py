@@ -62,6 +62,9 @@ class Pattern:
         default_map:  the colour map when the pigment gives none: ``((value, rgbft), …)``.
         keyword:      whether the name is an SDL pattern keyword (False only for ``solid``, which
                       is written as a plain colour).
+        noise:        its value costs lattice noise evaluations (tens of them with turbulence):
+                      the shader then computes shadow filters pattern by pattern
+                      (``shading/_materials.costly_patterns``).
     """
 
     name: str
@@ -73,6 +76,7 @@ class Pattern:
     modifiers: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     default_map: tuple[tuple[float, tuple[float, ...]], ...] = BLACK_TO_WHITE
     keyword: bool = True
+    noise: bool = False
 
     def __post_init__(self):
         if self.colours and len(self.default_map) != self.colours:

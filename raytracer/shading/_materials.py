@@ -219,8 +219,6 @@ def _pigment_of_value(mats: PackedMaterials, prim, v):
     return jnp.where(pid == _solid_index(mats), mats.colors[prim, 0], c)
 
 
-# noise patterns: a value costs tens of lattice evaluations (turbulence: one per octave)
-_COSTLY_MODULE = "raytracer.patterns._noisy"
 PIGMENT_BLOCK = 512  # pigments_at: entries computed together (16,384 entries of two noise
 #                      patterns, 69 % needed: 9.5 ms for every pattern everywhere, 5.8 ms in blocks
 #                      of 512; blocks of 128 lost to their per-block cost)
@@ -230,8 +228,7 @@ def costly_patterns(mats: PackedMaterials) -> bool:
     """Whether the scene's pigments are worth computing by pattern (:func:`pigments_at`): it has
     turbulence or a noise pattern, whose values dominate a render where they filter shadows
     (``advanced/pawns``, ``incdemo/stones/stones1``: 65–70 % of the render's time)."""
-    return any(mats.turbulent[k]
-               or patterns.REGISTRY[mats.pattern_names[k]].evaluate.__module__ == _COSTLY_MODULE
+    return any(mats.turbulent[k] or patterns.REGISTRY[mats.pattern_names[k]].noise
                for k in _evaluated_patterns(mats))
 
 
@@ -244,7 +241,7 @@ def pigments_at(mats: PackedMaterials, rows, points, needed):
     patterns it holds (``lax.cond``: one, except where two patterns' groups meet) and a block of
     entries not needed computes nothing. Values and derivatives are ``pigment_at``'s."""
     m = rows.shape[0]
-    if _all_solid(mats) or m == 0:
+    if _all_solid(mats):
         return mats.colors[rows, 0]
     pid = jnp.asarray(mats.pattern_id)[rows]
     kinds = _evaluated_patterns(mats)

@@ -260,8 +260,22 @@ def _medium_ids(prims) -> np.ndarray:
 # ---------------------------------------------------------------- shadows
 def _filter_of(mats: PackedMaterials, row, p):
     """RGB filter ``f·P + t`` of material row ``row``'s pigment at world point ``p`` (semantics §2.5)."""
-    pig = pigment_at(mats, row, p)
-    return pig[3] * pig[:3] + pig[4]
+    return _rgb_filter(pigment_at(mats, row, p))
+
+
+def _rgb_filter(pig):
+    """RGB filter ``f·P + t`` of RGBFT pigments ``pig`` (…, 5)."""
+    return pig[..., 3:4] * pig[..., :3] + pig[..., 4:5]
+
+
+def _transparent_pairs(ctx: TraceContext):
+    """The (transparent shadow candidate, present layer) pairs, static: each pair's material row and
+    its candidate slot of ``ctx.shadow``, and whether the row's pigment is a solid colour."""
+    cands = np.flatnonzero(ctx.transparent_cands)
+    prims = ctx.shadow.cand_prim[cands]
+    slot, layer = np.nonzero(ctx.mats.layer_present[prims])
+    rows = prims[slot] * ctx.mats.n_layers + layer
+    return rows, cands[slot], solid_rows(ctx.mats, rows)
 
 
 class _Filters(NamedTuple):
@@ -285,8 +299,6 @@ def _filters(base, requests, dtype) -> _Filters:
 
 def _filtered(fl: _Filters, f):
     """The transmittance ``fl`` stands for, given the RGB filters ``f`` (E, 3) of its pigments."""
-    if fl.rows.shape[0] == 0:
-        return fl.base
     return fl.base * jnp.prod(jnp.where(fl.use[:, None], f, 1.0), axis=0)
 
 
@@ -332,24 +344,17 @@ def _shadow_filters(ctx: TraceContext, o, l, dist) -> _Filters:
         return _filters(jnp.where(jnp.any(ok) | blocked, 0.0, 1.0) * base, requests, ctx.dtype)
     opaque = ok & ~jnp.asarray(ctx.transparent_cands)
     safe_t = jnp.where(jnp.isfinite(t), t, 0.0)
-    n_layers = ctx.mats.n_layers
     # every present layer of every transparent crossing filters (semantics §2.5): the (crossing,
     # layer) pairs are static, and one vmapped pigment evaluation serves them all. (A Python loop
     # over them traced a pattern per pair: advanced/pawns.pov's noise patterns made a program of
     # 316,000 operations that took 4 minutes to compile.)
-    cands = np.flatnonzero(ctx.transparent_cands)
-    if cands.size:
-        prims = view.cand_prim[cands]
-        slot, layer = np.nonzero(ctx.mats.layer_present[prims])  # (pairs,) static
-        rows = prims[slot] * n_layers + layer
-        where = cands[slot]
+    rows, where, solid = _transparent_pairs(ctx)  # (pairs,) static
+    if rows.size:
         # a solid pigment's filter is its colour's, wherever the crossing is: no point, no pattern
         # (interior/iortest.pov: 40 crossings of 7 lights' shadow rays, most of them clear glass,
         # each took its point into pattern space and evaluated the scene's checker)
-        solid = solid_rows(ctx.mats, rows)
         if solid.any():
-            pig = ctx.mats.colors[jnp.asarray(rows[solid], jnp.int32), 0]  # (solid pairs, 5)
-            f = pig[:, 3:4] * pig[:, :3] + pig[:, 4:5]
+            f = _rgb_filter(ctx.mats.colors[jnp.asarray(rows[solid], jnp.int32), 0])  # (solid pairs, 3)
             base = base * jnp.prod(jnp.where(ok[where[solid]][:, None], f, 1.0), axis=0)
         if not solid.all():
             points = o[None, :] + safe_t[where[~solid]][:, None] * l[None, :]
@@ -984,12 +989,7 @@ def _many_filter_slots(ctx: TraceContext) -> bool:
     """Whether a shadow ray has at least ``MIN_FILTER_SLOTS`` slots of patterned pigments: the
     hierarchy's transparent items, or that many (transparent candidate, layer) pairs. (So
     ``_batch_shadows`` never sees a light without such slots.)"""
-    if ctx.accel_filters:
-        return True
-    cands = ctx.shadow.cand_prim[np.flatnonzero(ctx.transparent_cands)]
-    slot, layer = np.nonzero(ctx.mats.layer_present[cands])
-    rows = cands[slot] * ctx.mats.n_layers + layer
-    return int(np.count_nonzero(~solid_rows(ctx.mats, rows))) >= MIN_FILTER_SLOTS
+    return ctx.accel_filters or int(np.count_nonzero(~_transparent_pairs(ctx)[2])) >= MIN_FILTER_SLOTS
 
 
 def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list) -> list:
@@ -1021,7 +1021,7 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list) -> list:
         wanted = s.found.reshape((b_size,) + (1,) * (lit.ndim - 1)) & lit
         use = fl.use & wanted[..., None, None]
         pig = pigments_at(ctx.mats, fl.rows.reshape(-1), fl.points.reshape(-1, 3), use.reshape(-1))
-        f = (pig[:, 3:4] * pig[:, :3] + pig[:, 4:5]).reshape(fl.rows.shape + (3,))
+        f = _rgb_filter(pig).reshape(fl.rows.shape + (3,))
         shape = fl.base.shape[:-1]  # (B, [lights,] S)
         flat = _Filters(fl.base.reshape(-1, 3), fl.rows.reshape(-1, fl.rows.shape[-1]),
                         fl.points.reshape(-1, fl.rows.shape[-1], 3), use.reshape(-1, fl.rows.shape[-1]))
