@@ -103,3 +103,30 @@ def map_live(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = 
     live_chunk = jnp.any(sorted_alive.reshape(n // chunk, chunk), axis=1)
     out = _blocked_map(fn, sorted_items, live_chunk, n, chunk, blocks)
     return jax.tree.map(lambda x: x[inverse], out)
+
+
+def intermediate_bytes(jaxpr) -> int:
+    """Bytes of every value a (closed) jaxpr computes, nested jaxprs included (a scan's body once per
+    step, the larger branch of a cond), without what runs inside a ``jax.checkpoint`` (its residuals
+    are its inputs). An upper bound of what reverse mode would keep of it: a linearisation keeps a
+    subset of these values as residuals."""
+    from jax.extend import core
+
+    inner = jaxpr.jaxpr if isinstance(jaxpr, core.ClosedJaxpr) else jaxpr
+    total = 0
+    for eqn in inner.eqns:
+        total += sum(v.aval.size * v.aval.dtype.itemsize for v in eqn.outvars
+                     if hasattr(v.aval, "dtype") and hasattr(v.aval, "size"))
+        name = eqn.primitive.name
+        if name in ("checkpoint", "remat", "remat2"):
+            continue
+        subs = [intermediate_bytes(j) for j in core.jaxprs_in_params(eqn.params)]
+        if not subs:
+            continue
+        if name == "cond":
+            total += max(subs)
+        elif name == "scan":
+            total += eqn.params["length"] * sum(subs)
+        else:
+            total += sum(subs)
+    return total

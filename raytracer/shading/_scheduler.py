@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 
 from ..kernels import safe_pow
-from ._chunks import map_in_place, map_live, zeros_like_shapes
+from ._chunks import intermediate_bytes, map_in_place, map_live, zeros_like_shapes
 from ._model import Rays, Shading, dead_rays
 
 
@@ -71,19 +71,37 @@ def slots_per_ray(branch: int, depth: int, capacity: int | None = None) -> int:
     return full if capacity is None else min(full, capacity)
 
 
-def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int, in_place: bool) -> Shading:
+# Reverse mode keeps, for every level of the scan, what the pool's shading computed (its residuals),
+# unless the shading is rematerialised. Above this many bytes over the levels (an upper bound,
+# ``_chunks.intermediate_bytes``), a pool shaded in one call runs again in the backward pass instead.
+# The filtered-shadow scene of tests/shading/test_model.py at 16×12 (49 levels through 20 noise-
+# textured glass spheres, ~1 GB a level by that bound) kept 9.8 GB of XLA temporaries; an 8×6
+# glass scene (10 levels of ~3 MB) stays below it and keeps its faster program.
+LEVEL_RESIDUAL_BUDGET = 1 << 30
+
+
+def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int, in_place: bool,
+                levels: int = 1) -> Shading:
     """``shade_rays`` over a pool, in chunks of ``chunk`` rays with the live rays moved to the front;
     chunks with no live ray are skipped (``_chunks.map_live``), so the empty slots of the tree cost
     almost nothing. With ``in_place`` nothing is moved (``_chunks.map_in_place``): a compacted
-    pool's live rays are already its first slots, and a renderer's camera rays are all live."""
+    pool's live rays are already its first slots, and a renderer's camera rays are all live.
+    ``levels``: how many pools like this one reverse mode keeps at once (the scan's levels)."""
     n = rays.origin.shape[0]
     if chunk >= n:  # one call over the pool, skipped when the pool is empty (deep levels)
         # a jit boundary: JAX linearises each branch of a cond twice (once to find which outputs
         # have tangents), and the inner jaxpr's linearisation is cached, so reverse mode traces the
-        # shading once, not twice (glass.pov's reverse-mode trace: 8.7 → 5.4 s); eval_shape's trace
-        # is reused by the branch
+        # shading once, not twice (glass.pov's reverse-mode trace: 8.7 → 5.4 s); this trace is
+        # reused by the branch
         shade = jax.jit(shade_rays)
-        shapes = jax.eval_shape(shade, rays)
+        traced = shade.trace(rays)
+        shapes = traced.out_info
+        if levels > 1 and levels * intermediate_bytes(traced.jaxpr) > LEVEL_RESIDUAL_BUDGET:
+            # rematerialised as the chunks are (``_chunks._blocked_map``): the level's residuals are
+            # its rays; the checkpoint outside the cond keeps the backward cond from carrying them
+            shade = jax.jit(jax.checkpoint(shade_rays))
+            return jax.checkpoint(lambda r: jax.lax.cond(jnp.any(r.alive), lambda: shade(r),
+                                                         lambda: zeros_like_shapes(shapes)))(rays)
         return jax.lax.cond(jnp.any(rays.alive), lambda: shade(rays), lambda: zeros_like_shapes(shapes))
     if in_place:
         return map_in_place(shade_rays, rays, rays.alive, chunk)
@@ -182,7 +200,7 @@ def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
         return _shade_pool(shade_rays, pool, chunk, True).local[:n], jnp.zeros((), jnp.int32)
 
     def level(pool: Rays, k):
-        shading = _shade_pool(shade_rays, pool, chunk, compact)
+        shading = _shade_pool(shade_rays, pool, chunk, compact, levels=depth)
         children = shading.children
         has_next = k + 1 < depth
         live = [c.ray.alive & has_next for c in children]
