@@ -28,7 +28,7 @@ setup(
             "raytracer._native._bvh",
             ["raytracer/_native/bvh.cc"],
             language="c++",
-            extra_compile_args=["-std=c++17", "-O3"],
+            extra_compile_args=["-std=c++17", "-O3", "-fno-math-errno"],
             optional=True,
         )
     ],

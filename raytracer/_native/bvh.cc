@@ -218,6 +218,11 @@ int64_t build(const T* boxes, int64_t n, T* node_box, int32_t* node_info, int32_
 }
 
 // ------------------------------------------------------------------------------------------ items
+// fmin and fmax (a NaN operand gives the other), written out: the library's are calls (through
+// the PLT) that the compiler does not inline without -ffinite-math-only, 12 per box test
+inline double min_num(double a, double b) { return (b < a || a != a) ? b : a; }
+inline double max_num(double a, double b) { return (b > a || a != a) ? b : a; }
+
 struct RayD {
   double o[3], d[3];
 };
@@ -299,7 +304,7 @@ inline int cubic_roots(double p, double q, double* out) {
   }
   // three real roots (p < 0): trigonometric form
   const double m = 2.0 * std::sqrt(-p / 3.0);
-  const double c = std::fmax(-1.0, std::fmin(1.0, 3.0 * q / (p * m)));
+  const double c = max_num(-1.0, min_num(1.0, 3.0 * q / (p * m)));
   const double phi = std::acos(c) / 3.0;
   for (int k = 0; k < 3; ++k) out[k] = m * std::cos(phi - 2.0 * M_PI * k / 3.0);
   std::sort(out, out + 3);
@@ -507,9 +512,9 @@ inline bool slab(const double* box_lo, const double* box_hi, const double* o, co
                  double tmax) {
   for (int k = 0; k < 3; ++k) {
     double a = (box_lo[k] - o[k]) * inv[k], b = (box_hi[k] - o[k]) * inv[k];
-    // fmin/fmax drop the NaN of 0·inf (origin on a slab, direction parallel): no restriction
-    tmin = std::fmax(tmin, std::fmin(a, b));
-    tmax = std::fmin(tmax, std::fmax(a, b));
+    // min_num/max_num drop the NaN of 0·inf (origin on a slab, direction parallel): no restriction
+    tmin = max_num(tmin, min_num(a, b));
+    tmax = min_num(tmax, max_num(a, b));
   }
   return tmin <= tmax;
 }
@@ -663,8 +668,8 @@ inline double box_entry(const double* lo, const double* hi, const double* o, con
   for (int k = 0; k < 3; ++k) {
     if (d[k] != 0.0) {
       double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
-      t_near = std::fmax(t_near, std::fmin(a, b));
-      t_far = std::fmin(t_far, std::fmax(a, b));
+      t_near = max_num(t_near, min_num(a, b));
+      t_far = min_num(t_far, max_num(a, b));
     } else if (o[k] < lo[k] || o[k] > hi[k]) {
       return INFINITY;
     }
@@ -704,7 +709,7 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
       best_t = nearest = t;
       best_entry = NAN;
     } else {  // tied with the nearest
-      nearest = std::fmin(nearest, t);
+      nearest = min_num(nearest, t);
       const int32_t u = s.unit[it], ub = s.unit[best];
       if (u == ub) {  // the same object: its nearer crossing
         if (t < best_t) {
@@ -721,7 +726,7 @@ int32_t traverse(const Scene<T>& s, const double* o, const double* d, double tmi
         }
       }
     }
-    limit = std::fmin(tmax, nearest + TIE * std::fabs(nearest));  // narrows the walk's segment
+    limit = min_num(tmax, nearest + TIE * std::fabs(nearest));  // narrows the walk's segment
     return false;
   });
   *t_out = best >= 0 ? best_t : tmax;
