@@ -99,8 +99,9 @@ def _shade_pool(shade_rays: Callable[[Rays], Shading], rays: Rays, chunk: int, i
         if levels > 1 and levels * intermediate_bytes(traced.jaxpr) > LEVEL_RESIDUAL_BUDGET:
             # rematerialised as the chunks are (``_chunks._blocked_map``): the level's residuals are
             # its rays; the checkpoint outside the cond keeps the backward cond from carrying them
-            shade = jax.jit(jax.checkpoint(shade_rays))
-            return jax.checkpoint(lambda r: jax.lax.cond(jnp.any(r.alive), lambda: shade(r),
+            # (the jit's trace above is reused inside the checkpoint: nothing is traced again)
+            remat = jax.checkpoint(shade)
+            return jax.checkpoint(lambda r: jax.lax.cond(jnp.any(r.alive), lambda: remat(r),
                                                          lambda: zeros_like_shapes(shapes)))(rays)
         return jax.lax.cond(jnp.any(rays.alive), lambda: shade(rays), lambda: zeros_like_shapes(shapes))
     if in_place:
