@@ -31,12 +31,13 @@ import numpy as np
 class Frozen:
     """A static value compared and hashed by content: its pickled bytes (numpy arrays included), or
     ``key`` when given. The hash is computed once, so a jit cache lookup does not walk the value.
-    With ``make`` (and ``key``), the value is made on first use: a jit cache hit never needs it."""
+    With ``make`` (and ``key``), the value is made on first use: a jit cache hit never needs it.
+    ``memo``: what a user of this value derived from it, kept as long as it lives (not compared)."""
 
-    __slots__ = ("_value", "_make", "_key", "_hash")
+    __slots__ = ("_value", "_make", "_key", "_hash", "memo")
 
     def __init__(self, value=None, key=None, make=None):
-        self._value, self._make = value, make
+        self._value, self._make, self.memo = value, make, None
         self._key = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL) if key is None else key
         self._hash = hash(self._key)
 

@@ -149,17 +149,11 @@ def _pack(scene: Scene, scene_plan: Plan, flat=None) -> Packed:
     rest = with_field(scene, "objects", ())
     packed = Packed(rest, skeleton(scene.objects, flat), pack_geometry(scene_plan, dtype),
                     pack_materials(scene_plan, dtype))
-    while len(_PLANS) >= 8:
-        _PLANS.pop(next(iter(_PLANS)))
-    _PLANS[packed.objects] = (_rest_signature(rest), scene_plan)
+    # the compiled program's trace takes its plan from here (``_plan_of``) instead of making it
+    # again from the skeleton: for 100,000 spheres that was 3 s of ``make_plan`` and 1.3 s of
+    # building the skeleton's objects
+    packed.objects.memo = (_rest_signature(rest), scene_plan)
     return packed
-
-
-# the plans of the last few packed scenes, by their objects' skeleton (a ``Frozen``: hashed and
-# compared by content), with the signature of the rest of the scene they were made with. The
-# compiled program's trace takes its plan from here instead of making it again from the skeleton:
-# for 100,000 spheres that was 3 s of ``make_plan`` and 1.3 s of building the skeleton's objects.
-_PLANS: dict = {}
 
 
 def _rest_signature(rest: Scene):
@@ -171,8 +165,9 @@ def _rest_signature(rest: Scene):
 
 
 def _plan_of(packed: Packed) -> Plan:
-    """``make_plan(packed.scene)``, from ``_PLANS`` when this skeleton was packed with that plan."""
-    known = _PLANS.get(packed.objects)
+    """``make_plan(packed.scene)``: the plan its objects' skeleton was packed with, for the same
+    rest of the scene, or a new one."""
+    known = packed.objects.memo
     try:
         if known is not None and known[0] == _rest_signature(packed.rest):
             return known[1]
