@@ -2,17 +2,70 @@
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import re
 
 
-@dataclasses.dataclass(frozen=True)
 class SourceLoc:
-    """A position in a scene file: 1-based line and column."""
+    """A position in a scene file: 1-based line and column. Immutable, compared and hashed by
+    ``(file, line, col)``.
 
-    file: str
-    line: int
-    col: int
+    A token's location is made from its offset in a lexed file (``at_offset``), and its line and
+    column are looked up in the file's line table when first read: the interpreter takes a token's
+    location for every operator and call in case of an error, and rarely reads one.
+    """
+
+    __slots__ = ("_file", "_line", "_col", "_table", "_pos")
+
+    def __init__(self, file: str, line: int, col: int):
+        self._file, self._line, self._col, self._table = file, line, col, None
+
+    @classmethod
+    def at_offset(cls, file: str, table: bytes, pos: int) -> SourceLoc:
+        """The location of offset ``pos`` in ``file``, whose lines start at the offsets ``table``
+        (int64 bytes, the first 0)."""
+        loc = object.__new__(cls)
+        loc._file, loc._table, loc._pos = file, table, pos
+        return loc
+
+    def _resolve(self) -> None:
+        starts = memoryview(self._table).cast("q")
+        line = bisect.bisect_right(starts, self._pos)
+        self._line, self._col, self._table = line, self._pos - starts[line - 1] + 1, None
+
+    @property
+    def file(self) -> str:
+        return self._file
+
+    @property
+    def line(self) -> int:
+        if self._table is not None:
+            self._resolve()
+        return self._line
+
+    @property
+    def col(self) -> int:
+        if self._table is not None:
+            self._resolve()
+        return self._col
+
+    def _key(self) -> tuple[str, int, int]:
+        return self.file, self.line, self.col
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, SourceLoc):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def __reduce__(self):
+        return SourceLoc, self._key()
+
+    def __repr__(self) -> str:
+        return f"SourceLoc(file={self.file!r}, line={self.line!r}, col={self.col!r})"
 
     def __str__(self) -> str:
         return f"{self.file}:{self.line}:{self.col}"

@@ -75,14 +75,14 @@ def _fop(p, op, x, y, loc) -> float:
 # ---- grammar ---------------------------------------------------------------------------------
 def parse_expr(p):
     """A full expression (ternary level)."""
-    loc = p.peek().loc
+    first = p.peek()  # (its loc is found only when needed: a token's line is looked up)
     c = _logic(p)
     if p.in_parens and _is(p, "?"):
         p.next()
         a = parse_expr(p)
         p.expect_op(":")
         b = parse_expr(p)
-        return a if truthy(p, c, loc) else b
+        return a if truthy(p, c, first.loc) else b
     return c
 
 
@@ -138,7 +138,7 @@ def _unary(p):
         p.next()
         v = _unary(p)
         if t.value == "-":
-            return binop(p, "*", v, -1.0, t.loc)
+            return -v if type(v) is float else binop(p, "*", v, -1.0, t.loc)
         if t.value == "!":
             return float(not truthy(p, v, t.loc))
         return _num(p, v, t.loc)
@@ -229,13 +229,16 @@ def parse_expr_paren(p):
 
 def parse_vector_literal(p):
     start = p.expect_op("<")
+    comps = p.literal_components()
+    if comps is not None:
+        return Vec.of_floats(comps)
     saved, p.in_parens = p.in_parens, False
     try:
-        comps = [as_float(p, parse_expr(p), start.loc)]
+        comps = [_component(p, parse_expr(p), start)]
         while not p.is_op(">"):  # commas between components are optional
             if p.accept_op(",") and p.is_op(">"):
                 break  # a trailing comma
-            comps.append(as_float(p, parse_expr(p), start.loc))
+            comps.append(_component(p, parse_expr(p), start))
             if len(comps) > 5:
                 break
     finally:
@@ -244,6 +247,10 @@ def parse_vector_literal(p):
     if not 2 <= len(comps) <= 5:
         raise p.error(f"expected a vector of 2 to 5 components, found {len(comps)}", start.loc)
     return Vec(comps)
+
+
+def _component(p, v, start) -> float:
+    return v if type(v) is float else as_float(p, v, start.loc)
 
 
 def _primary(p):

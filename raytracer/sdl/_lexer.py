@@ -1,4 +1,4 @@
-"""Tokenizer for POV-Ray SDL: every token carries its ``SourceLoc``.
+"""Tokenizer for POV-Ray SDL: every token carries its offset in its file, and so its ``SourceLoc``.
 
 Comments (``//`` and nested ``/* */``) and whitespace are dropped. Keywords are not special at this
 level: they are identifiers, and the interpreter decides what they mean in context.
@@ -6,8 +6,11 @@ level: they are identifiers, and the interpreter decides what they mean in conte
 
 from __future__ import annotations
 
+import gc
 import re
 from typing import NamedTuple
+
+import numpy as np
 
 from ..errors import SceneError, SourceLoc
 
@@ -17,12 +20,48 @@ _ESCAPES = {"n": "\n", "t": "\t", "r": "\r", "\\": "\\", '"': '"', "'": "'", "a"
             "f": "\f", "v": "\v"}
 
 
+# A lexed file, for a token's line and column: ``(file, starts)``, ``starts`` the offsets where its
+# lines begin (int64 bytes). A token keeps its offset: tokens are made by the million in a large
+# scene (a ``mesh2`` of 100,000 triangles is 1.3 M), building a ``SourceLoc`` for each was half of
+# the lexer's time, and few are ever read; a ``SourceLoc`` made from an offset finds its line when
+# it is read.
+Source = tuple
+
+
+def _source(file: str, text: str) -> Source:
+    if text.isascii():  # offsets in the text are offsets in its bytes
+        starts = np.flatnonzero(np.frombuffer(text.encode("ascii"), np.uint8) == 10) + 1
+    else:
+        starts = np.fromiter((m.end() for m in _NEWLINE.finditer(text)), np.int64)
+    return file, np.concatenate([[0], starts]).astype(np.int64).tobytes()
+
+
+def _line_col(src: Source, pos: int) -> SourceLoc:
+    return SourceLoc.at_offset(src[0], src[1], pos)
+
+
+_NEWLINE = re.compile("\n")
+
+
 class Token(NamedTuple):
-    """One token: ``kind`` is num/str/id/op/eof; ``value`` a float, str or operator text."""
+    """One token: ``kind`` is num/str/id/op/eof; ``value`` a float, str or operator text; ``pos``
+    its offset in the file ``src``, which gives its ``loc`` (or ``src`` is the ``SourceLoc`` of a
+    token the interpreter made)."""
 
     kind: str
     value: object
-    loc: SourceLoc
+    pos: int
+    src: Source | SourceLoc
+
+    @property
+    def loc(self) -> SourceLoc:
+        src = self.src
+        return SourceLoc.at_offset(src[0], src[1], self.pos) if type(src) is tuple else src
+
+    @classmethod
+    def at(cls, kind: str, value: object, loc: SourceLoc) -> Token:
+        """A token the interpreter makes, located at ``loc``."""
+        return cls(kind, value, 0, loc)
 
     def describe(self) -> str:
         if self.kind == EOF:
@@ -47,47 +86,27 @@ def _number(text: str, loc: SourceLoc) -> float:
     return v
 
 
-class _Cursor:
-    def __init__(self, text: str, file: str):
-        self.text, self.file = text, file
-        self.i, self.line, self.line_start = 0, 1, 0
-
-    def loc(self, i: int | None = None) -> SourceLoc:
-        i = self.i if i is None else i
-        return SourceLoc(self.file, self.line, i - self.line_start + 1)
-
-    def advance_to(self, j: int) -> None:
-        """Moves to index ``j``, counting the newlines passed."""
-        k = self.text.find("\n", self.i, j)
-        while k != -1:
-            self.line += 1
-            self.line_start = k + 1
-            k = self.text.find("\n", k + 1, j)
-        self.i = j
-
-
-def _skip_block_comment(c: _Cursor) -> None:
-    start = c.loc()
-    depth, j, text = 0, c.i, c.text
+def _block_comment_end(text: str, i: int, src: Source) -> int:
+    """The offset just past the (nested) block comment that starts at ``i``."""
+    depth, j = 0, i
     while True:
         a, b = text.find("/*", j), text.find("*/", j)
         if b == -1:
-            raise SceneError("expected '*/' to close the comment, found end of file", start)
+            raise SceneError("expected '*/' to close the comment, found end of file", _line_col(src, i))
         if a != -1 and a < b:
             depth, j = depth + 1, a + 2
         else:
             depth, j = depth - 1, b + 2
             if depth == 0:
-                c.advance_to(j)
-                return
+                return j
 
 
-def _read_string(c: _Cursor) -> Token:
-    start = c.loc()
-    text, j, out = c.text, c.i + 1, []
+def _read_string(text: str, i: int, src: Source) -> tuple[Token, int]:
+    """The string token that starts at ``i``, and the offset just past it."""
+    j, out = i + 1, []
     while True:
         if j >= len(text) or text[j] == "\n":
-            raise SceneError("expected '\"' to close the string, found end of line", start)
+            raise SceneError("expected '\"' to close the string, found end of line", _line_col(src, i))
         ch = text[j]
         if ch == '"':
             break
@@ -102,22 +121,25 @@ def _read_string(c: _Cursor) -> Token:
             continue
         out.append(ch)
         j += 1
-    c.advance_to(j + 1)
-    return Token(STR, "".join(out), start)
+    return Token(STR, "".join(out), i, src), j + 1
 
 
-# one scan step: blanks and line comments, or the start of a token. Identifiers and numbers are ASCII,
-# as in POV-Ray (str.isdigit and str.isalpha would accept "٣" and "Ø").
-# Numbers come before operators (".5" is a number, "." alone an operator); "/*" and '"' are read by
-# hand (nesting, escapes).
-_STEP = re.compile(r"""
-    (?P<blank>(?:[ \t\r\n\f\v\ufeff\x1a]+|//[^\n]*)+)
-  | (?P<num>(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)
-  | (?P<id>[A-Za-z_][A-Za-z0-9_]*)
-  | (?P<comment>/\*)
-  | (?P<op><=|>=|!=|[{}()\[\]<>,;=+\-*/?:.!&|\#^])
-  | (?P<str>")
-""", re.VERBOSE)
+# One match per token: the token, then the blanks after it (whitespace, line comments and block
+# comments without a nested one), so the loop below runs once per token, not also once per gap.
+# Identifiers and numbers are ASCII, as in POV-Ray (str.isdigit and str.isalpha would accept "٣"
+# and "Ø"). Numbers come before operators (".5" is a number, "." alone an operator). A "/*" left
+# at a token's place opens a nested or unterminated comment, and a '"' left there an unterminated
+# string: both are read by hand, as is a string with escapes. ``other`` is any other character.
+_BLANKS = r"""(?:[ \t\r\n\f\v\ufeff\x1a]+|//[^\n]*|/\*(?:[^*/]|\*(?!/)|/(?!\*))*\*/)*"""
+_TOKEN = re.compile(r"""
+    (?: (?P<num>(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)
+      | (?P<id>[A-Za-z_][A-Za-z0-9_]*)
+      | (?P<str>"[^"\\\n]*")
+      | (?P<hand>/\*|")
+      | (?P<op><=|>=|!=|[{}()\[\]<>,;=+\-*/?:.!&|\#^])
+      | (?P<other>[\s\S])
+    )""" + _BLANKS, re.VERBOSE)
+_SKIP = re.compile(_BLANKS)
 
 
 def tokenize(text: str, file: str = "<string>") -> list[Token]:
@@ -126,36 +148,52 @@ def tokenize(text: str, file: str = "<string>") -> list[Token]:
     Raises:
         SceneError: on an unterminated comment or string or a character that is not SDL.
     """
-    c, toks, n = _Cursor(text, file), [], len(text)
-    match, append, count, rfind = _STEP.match, toks.append, text.count, text.rfind
-    i, line, line_start = 0, 1, 0
+    collecting = gc.isenabled()
+    # Tokens make no reference cycles, and the collections that a million new tracked objects set
+    # off (the full ones walk every token made so far) were ~40 % of lexing a large mesh.
+    gc.disable()
+    try:
+        return _tokens(text, file)
+    finally:
+        if collecting:
+            gc.enable()
+
+
+def _tokens(text: str, file: str) -> list[Token]:
+    src, toks, n = _source(file, text), [], len(text)
+    append, new = toks.append, tuple.__new__
+    i = _SKIP.match(text).end()
     while i < n:
-        m = match(text, i)
-        if m is None:
+        for m in _TOKEN.finditer(text, i):
+            kind = m.lastgroup
+            if kind == "num":
+                v = float(m.group(1))
+                if v == _INF:
+                    _number(m.group(1), _line_col(src, m.start()))
+                append(new(Token, (NUM, v, m.start(), src)))
+            elif kind == "id":
+                append(new(Token, (ID, m.group(2), m.start(), src)))
+            elif kind == "op":
+                append(new(Token, (OP, m.group(5), m.start(), src)))
+            elif kind == "str":
+                append(new(Token, (STR, m.group(3)[1:-1], m.start(), src)))
+            else:
+                i = m.start()
+                break
+        else:
+            break
+        if kind == "other":
             ch = text[i]
             why = " (identifiers and numbers are ASCII: A-Z, a-z, 0-9, _)" if ch.isalnum() else ""
-            raise SceneError(f"expected a token, found character {ch!r}{why}",
-                             SourceLoc(file, line, i - line_start + 1))
-        kind, j = m.lastgroup, m.end()
-        if kind == "blank":
-            k = count("\n", i, j)
-            if k:
-                line += k
-                line_start = rfind("\n", i, j) + 1
-        elif kind == "id":
-            append(Token(ID, m.group(), SourceLoc(file, line, i - line_start + 1)))
-        elif kind == "op":
-            append(Token(OP, m.group(), SourceLoc(file, line, i - line_start + 1)))
-        elif kind == "num":
-            loc = SourceLoc(file, line, i - line_start + 1)
-            append(Token(NUM, _number(m.group(), loc), loc))
-        else:  # a block comment or a string: the cursor counts their lines
-            c.i, c.line, c.line_start = i, line, line_start
-            if kind == "comment":
-                _skip_block_comment(c)
-            else:
-                append(_read_string(c))
-            j, line, line_start = c.i, c.line, c.line_start
-        i = j
-    append(Token(EOF, None, SourceLoc(file, line, i - line_start + 1)))
+            raise SceneError(f"expected a token, found character {ch!r}{why}", _line_col(src, i))
+        if text[i] == '"':
+            tok, i = _read_string(text, i, src)
+            append(tok)
+        else:
+            i = _block_comment_end(text, i, src)
+        i = _SKIP.match(text, i).end()
+    append(Token(EOF, None, n, src))
     return toks
+
+
+_INF = float("inf")

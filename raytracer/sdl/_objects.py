@@ -264,11 +264,17 @@ class _ShapeArgs:
 
     def vector(self, size: int = 3, *, allow_2d: bool = False) -> tuple:
         p = self._p
-        loc = p.peek().loc
+        first = p.peek()
+        if first.kind == OP and first.value == "<" and not allow_2d:
+            comps = p.literal_vector()
+            if comps is not None:
+                return (comps + (0.0,) * size)[:size]
         v = parse_expr(p)
         if allow_2d and not (isinstance(v, Vec) and len(v) >= 3):
-            return as_vector(p, v, 2, loc) + (0.0,)
-        return as_vector(p, v, size, loc)
+            return as_vector(p, v, 2, first.loc) + (0.0,)
+        if isinstance(v, Vec):
+            return v.padded(size)
+        return as_vector(p, v, size, first.loc)
 
     def count(self, what: str) -> int:
         p = self._p

@@ -32,6 +32,13 @@ class Vec:
         self.c = tuple(float(v) for v in comps)
         self.ft = ft
 
+    @classmethod
+    def of_floats(cls, floats: tuple[float, ...]) -> Vec:
+        """A vector of a tuple of floats (no conversion: the parser's fast path)."""
+        v = object.__new__(cls)
+        v.c, v.ft = floats, False
+        return v
+
     def __len__(self) -> int:
         return len(self.c)
 

@@ -100,7 +100,7 @@ def _parse_mesh(args) -> dict:
             smooth = True
             norms.append((s["n1"], s["n2"], s["n3"]))
         else:
-            norms.append(None)
+            norms.append(_NO_NORMALS)
         while not args.accept("}"):
             if args.keyword("texture") is not None:
                 args.texture()
@@ -111,7 +111,11 @@ def _parse_mesh(args) -> dict:
                     args.expr()
             else:
                 raise args.error(f"expected '}}' after the mesh triangle, found {args.describe_next()}")
-    return _mesh_fields(args, tris, norms, smooth)
+    return _mesh_fields(args, np.asarray(tris, np.float64).reshape(-1, 3, 3),
+                        np.asarray(norms, np.float64).reshape(-1, 3, 3), smooth)
+
+
+_NO_NORMALS = ((np.nan,) * 3,) * 3
 
 
 def _count_list(args, name: str, size: int | None) -> list:
@@ -133,7 +137,7 @@ def _face_list(args) -> list:
     faces = []
     for _ in range(n):
         args.comma()
-        faces.append(tuple(int(c) for c in args.vector(3)))
+        faces.append(args.vector(3))
         while args.number_after_comma():  # optional texture indices after a face
             args.comma()
             args.float()
@@ -158,26 +162,31 @@ def _parse_mesh2(args) -> dict:
         elif kw == "normal_vectors":
             normals = _count_list(args, kw, 3)
         else:  # normal_indices
-            nidx = [tuple(int(c) for c in v) for v in _count_list(args, kw, 3)]
+            nidx = _count_list(args, kw, 3)
     if verts is None or faces is None:
         raise args.error("expected vertex_vectors and face_indices in mesh2", loc)
-    _check_indices(args, faces, len(verts), "face_indices", "vertex_vectors", loc)
-    tris = [tuple(verts[i] for i in f) for f in faces]
+    corners = _indices(args, faces, len(verts), "face_indices", "vertex_vectors", loc)
     norms = None
     if normals is not None:
-        idx = nidx if nidx is not None else faces
-        _check_indices(args, idx, len(normals), "normal_indices" if nidx is not None else "face_indices",
-                       "normal_vectors", loc)
-        norms = [tuple(normals[i] for i in f) for f in idx]
-    return _mesh_fields(args, tris, norms or [None] * len(tris), norms is not None)
+        idx = (_indices(args, faces, len(normals), "face_indices", "normal_vectors", loc) if nidx is None
+               else _indices(args, nidx, len(normals), "normal_indices", "normal_vectors", loc))
+        norms = _vectors(normals)[idx]
+    return _mesh_fields(args, _vectors(verts)[corners], norms, norms is not None)
 
 
-def _check_indices(args, faces, n: int, what: str, into: str, loc) -> None:
-    """Every index within ``into`` (a negative one would silently pick from the end)."""
-    for face in faces:
-        for i in face:
-            if not 0 <= i < n:
-                raise args.error(f"expected {what} from 0 to {n - 1} (the {into} entries), found {i}", loc)
+def _vectors(items: list) -> np.ndarray:
+    return np.asarray(items, np.float64).reshape(-1, 3)
+
+
+def _indices(args, items: list, n: int, what: str, into: str, loc) -> np.ndarray:
+    """Indices read as floats, truncated toward zero as POV-Ray's (int); every one within
+    ``into`` (a negative one would silently pick from the end)."""
+    idx = np.trunc(np.asarray(items, np.float64).reshape(-1, 3))
+    bad = ~((idx >= 0) & (idx < n))
+    if bad.any():
+        raise args.error(f"expected {what} from 0 to {n - 1} (the {into} entries), found {int(idx[bad][0])}",
+                         loc)
+    return idx.astype(np.int64)
 
 
 # POV-Ray 3.7 (measured): a mesh face whose unit normals agree within this, component by
@@ -185,35 +194,27 @@ def _check_indices(args, faces, n: int, what: str, into: str, loc) -> None:
 _SAME_NORMAL = 1e-5
 
 
-def _mesh_normals(args, nn) -> tuple | None:
-    """A smooth face's normals as POV-Ray 3.7 keeps them in a mesh (semantics §4.1): a zero
-    normal becomes <1,0,0> (its warning "Normal vector in mesh cannot be zero"); None when the
-    three then agree (the face is flat)."""
-    nn = [np.asarray(v, np.float64) for v in nn]
-    zero = [not np.any(v) for v in nn]
-    if any(zero):
-        args.warn("mesh normal", "a zero normal in a mesh is changed to <1,0,0>, as POV-Ray does")
-        nn = [np.array([1.0, 0.0, 0.0]) if z else v for v, z in zip(nn, zero, strict=True)]
-    units = [v / np.linalg.norm(v) for v in nn]
-    if all(np.all(np.abs(u - units[0]) <= _SAME_NORMAL) for u in units[1:]):
-        return None
-    return tuple(nn)
-
-
-def _mesh_fields(args, tris, norms, smooth) -> dict:
-    if not tris:
+def _mesh_fields(args, tris: np.ndarray, norms: np.ndarray | None, smooth: bool) -> dict:
+    """The mesh's fields from its faces (F, 3, 3) and, for a smooth mesh, their vertex normals
+    (F, 3, 3; NaN for a flat triangle of a ``mesh``). As POV-Ray 3.7 keeps them (semantics §4.1):
+    a zero normal becomes <1,0,0> (its warning "Normal vector in mesh cannot be zero"), and a face
+    whose three unit normals then agree is flat: its face normal at every vertex, which
+    interpolates to the same flat normal. No normals at all when every face is flat."""
+    if not len(tris):
         args.leave_out("empty mesh; left out")
         return {}
-    n = None
-    if smooth:
-        norms = [None if nn is None else _mesh_normals(args, nn) for nn in norms]
-    if any(nn is not None for nn in norms):
-        n = []
-        for tri, nn in zip(tris, norms, strict=True):
-            if nn is None:  # a flat face of a smooth mesh: its face normal at every vertex
-                a, b, c = (np.asarray(v) for v in tri)
-                fn = np.cross(b - a, c - a)
-                nn = (fn, fn, fn)
-            n.append(nn)
-        n = np.asarray(n, dtype=np.float64)
-    return {"triangles": np.asarray(tris, dtype=np.float64), "normals": n}
+    if not smooth:
+        return {"triangles": tris, "normals": None}
+    given = ~np.isnan(norms).any(axis=(1, 2))
+    zero = ~norms.any(axis=2) & given[:, None]
+    if zero.any():
+        args.warn("mesh normal", "a zero normal in a mesh is changed to <1,0,0>, as POV-Ray does")
+        norms = np.where(zero[..., None], np.array([1.0, 0.0, 0.0]), norms)
+    with np.errstate(invalid="ignore"):
+        units = norms / np.linalg.norm(norms, axis=2, keepdims=True)
+    curved = given & ~(np.abs(units[:, 1:] - units[:, :1]) <= _SAME_NORMAL).all(axis=(1, 2))
+    if not curved.any():
+        return {"triangles": tris, "normals": None}
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    face = np.repeat(np.cross(b - a, c - a)[:, None], 3, axis=1)
+    return {"triangles": tris, "normals": np.where(curved[:, None, None], norms, face)}

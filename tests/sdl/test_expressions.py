@@ -6,7 +6,7 @@ import pytest
 
 from raytracer.errors import SceneError
 
-from .conftest import value
+from .conftest import run_sdl, value
 
 
 @pytest.mark.parametrize("expr, expected", [
@@ -136,3 +136,57 @@ def test_linear_spline_interpolates():
 def test_division_by_zero_is_a_scene_error():
     with pytest.raises(SceneError, match="t.pov:1:16: division by zero"):
         value("#declare R = 1 / 0;")
+
+
+# A vector literal of plain numbers is read in one step (Stream.literal_components); anything else
+# token by token. Each case: its value, read with the fast path and without it, and the tokens the
+# whole scene read (the token budget counts them the same).
+VECTOR_LITERALS = [
+    ("<1, 2, 3>", (1.0, 2.0, 3.0)),
+    ("<-1, +2, -3.5e1>", (-1.0, 2.0, -35.0)),
+    ("<1, 2, 3, 4, 5>", (1.0, 2.0, 3.0, 4.0, 5.0)),
+    ("<1, 2>", (1.0, 2.0)),
+    ("<1, 2,>", (1.0, 2.0)),  # a trailing comma
+    ("<1 2 3>", (1.0, 2.0, 3.0)),  # commas are optional
+    ("<1, 2, 3> * 2", (2.0, 4.0, 6.0)),
+    ("<1, 2, 3>.y", 2.0),
+    ("<1, 2, 3> + <1, 1, 1>.x", (2.0, 3.0, 4.0)),
+    ("<1, 2 + 1, 3>", (1.0, 3.0, 3.0)),
+    ("<1, (2 > 1), 3>", (1.0, 1.0, 3.0)),
+    ("<- -1, 2, 3>", (1.0, 2.0, 3.0)),
+    ("<1, 2, 3 > 2>", None),  # '>' closes the vector: then '2 >' is not an expression
+    ("<1, 2, 3, 4, 5, 6>", None),  # six components
+]
+
+
+@pytest.mark.parametrize("text, expected", VECTOR_LITERALS)
+def test_a_vector_of_plain_numbers_read_at_once_is_the_one_read_token_by_token(monkeypatch, text, expected):
+    """As a value, and as a shape's vector argument followed by ',' (a sphere's centre) or '}' (the
+    last of a mesh2's vertices), where Stream.literal_vector reads the whole argument at once."""
+    from raytracer.sdl._stream import Stream
+
+    def read(fast: bool):
+        if not fast:
+            monkeypatch.setattr(Stream, "literal_components", lambda self: None)
+            monkeypatch.setattr(Stream, "literal_vector", lambda self: None)
+        try:
+            p = run_sdl(f"#macro M() {text} #end\n#declare R = M();\n#declare S = {text};\n"
+                        f"#declare B = sphere {{ {text}, 1 }}\n"
+                        f"#declare T = mesh2 {{ vertex_vectors {{ 3, 0, x, {text} }}"
+                        " face_indices { 1, <0, 1, 2> } }")
+        except SceneError as e:
+            return ("error", e.bare_message, e.location)
+        finally:
+            monkeypatch.undo()
+        got = [p.lookup(n) for n in ("R", "S")]
+        return ([v.c if hasattr(v, "c") else v for v in got], p.lookup("B").shape["center"],
+                p.lookup("T").shape["triangles"][0, 2].tolist(), p.tokens_read)
+
+    fast, slow = read(True), read(False)
+    assert fast == slow
+    if expected is None:
+        assert fast[0] == "error"
+    else:
+        assert fast[0] == [pytest.approx(expected)] * 2
+        as_point = (tuple(expected) + (0.0,) * 3)[:3] if isinstance(expected, tuple) else (expected,) * 3
+        assert fast[1] == pytest.approx(as_point) and fast[2] == pytest.approx(as_point)

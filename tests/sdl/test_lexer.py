@@ -61,3 +61,19 @@ def test_stray_character_is_an_error_with_location():
     with pytest.raises(SceneError) as e:
         tokenize("a @", "f.pov")
     assert str(e.value).startswith("f.pov:1:3: expected a token, found character '@'")
+
+
+def test_a_location_found_from_an_offset_is_the_location_written_out():
+    import pickle
+
+    text = 'a\n\n  "é"\n/* x\n y */ c'  # a non-ASCII line: offsets count characters, not bytes
+    toks = tokenize(text, "f.pov")
+    want = [SourceLoc("f.pov", 1, 1), SourceLoc("f.pov", 3, 3), SourceLoc("f.pov", 5, 7),
+            SourceLoc("f.pov", 5, 8)]
+    got = [t.loc for t in toks]
+    assert got == want
+    assert [hash(g) for g in got] == [hash(w) for w in want]
+    assert [str(g) for g in got] == ["f.pov:1:1", "f.pov:3:3", "f.pov:5:7", "f.pov:5:8"]
+    assert pickle.loads(pickle.dumps(got)) == want
+    assert repr(tokenize(text, "f.pov")[1].loc) == "SourceLoc(file='f.pov', line=3, col=3)"
+    assert SourceLoc("f.pov", 1, 1) != SourceLoc("f.pov", 1, 2)
