@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._build import Record
 from .._dtype import as_float, as_float_or_none
 from ._transform import Transform
 
@@ -29,7 +30,7 @@ def _normalize(v):
     return v / jnp.where(n > 0, n, 1.0)
 
 
-class Camera(eqx.Module):
+class Camera(Record):
     """POV-Ray camera (left-handed: +x right, +y up, +z into the screen).
 
     Attributes (POV defaults; units are scene units, angles in degrees):

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._build import Record
 from .._dtype import as_float, as_float_or_none
 from ..kernels import safe_normalize
 from ..shading import lighting
@@ -26,7 +27,7 @@ LIGHT_DEFAULTS: Mapping[str, Any] = {"color": (1.0, 1.0, 1.0), "point_at": (0.0,
 SPOT_DEFAULTS: Mapping[str, Any] = {"radius": 30.0, "falloff": 45.0, "tightness": 0.0}  # degrees
 
 
-class Spot(eqx.Module):
+class Spot(Record):
     """Spotlight cone (semantics §2.4): ``cosθ^tightness · smoothstep(cos falloff, cos radius, cosθ)``.
 
     Attributes: angles in degrees, measured from the axis ``position → point_at``.
@@ -37,7 +38,7 @@ class Spot(eqx.Module):
     tightness: Float[Array, ""] = eqx.field(converter=as_float, default=SPOT_DEFAULTS["tightness"])
 
 
-class AreaLight(eqx.Module):
+class AreaLight(Record):
     """A rectangular grid of ``size1 × size2`` shadow samples spanning ``axis1`` and ``axis2``.
 
     Only the shadow is area-sampled (diffuse and highlights use the centre), with POV-Ray's
@@ -72,7 +73,7 @@ def area_grid_too_large(n1: int, n2: int) -> str:
             "penumbra is traced at once")
 
 
-class Light(eqx.Module):
+class Light(Record):
     """A POV-Ray ``light_source``.
 
     Attributes:

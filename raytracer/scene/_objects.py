@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import equinox as eqx
 
+from .._build import Record
 from ..shapes import AbstractShape
 from ._texture import Interior, Texture
 from ._transform import Transform
@@ -11,7 +12,7 @@ from ._transform import Transform
 CSG_OPERATIONS = ("union", "intersection", "difference", "merge")
 
 
-class AbstractObject(eqx.Module):
+class AbstractObject(Record):
     """Something with an inside and a surface that can be placed in a scene or a CSG tree."""
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import equinox as eqx
 from jaxtyping import Array, Float
 
+from .._build import Record
 from .._dtype import as_float
 from ..errors import SceneWarning
 from ._camera import Camera
@@ -14,7 +15,7 @@ from ._objects import AbstractObject
 OUTPUT_TRANSFERS = ("linear", "gamma", "srgb_decode")
 
 
-class Settings(eqx.Module):
+class Settings(Record):
     """``global_settings`` and the output transfer implied by ``#version``/``assumed_gamma`` (semantics §3.1).
 
     Attributes:
@@ -40,7 +41,7 @@ class Settings(eqx.Module):
             raise ValueError("max_trace_level must be in 1…256")
 
 
-class Scene(eqx.Module):
+class Scene(Record):
     """A renderable scene. Every inexact array leaf is a differentiable parameter.
 
     Attributes:

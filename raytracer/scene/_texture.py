@@ -13,6 +13,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import patterns
+from .._build import Record
 from .._dtype import as_float, as_float_or_none
 from ._transform import Transform
 
@@ -27,7 +28,7 @@ def _rgbft(c) -> np.ndarray:
     return c
 
 
-class Pigment(eqx.Module):
+class Pigment(Record):
     """A pattern evaluated at the hit point and mapped through a colour map (semantics §5.2).
 
     Attributes:
@@ -92,7 +93,7 @@ class Pigment(eqx.Module):
         return cls(pattern, values=values, colors=colors, **kwargs)
 
 
-class Reflection(eqx.Module):
+class Reflection(Record):
     """``reflection { min, max [fresnel] falloff exponent metallic }`` (semantics §2.6). The
     ``metallic`` tint is absent when None (not compiled); a value of 0 is still a parameter."""
 
@@ -104,7 +105,7 @@ class Reflection(eqx.Module):
     fresnel: bool = eqx.field(static=True, default=False)
 
 
-class Finish(eqx.Module):
+class Finish(Record):
     """POV-Ray ``finish`` (defaults from semantics §2.1). Highlight terms are absent when None."""
 
     ambient: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.1, 0.1, 0.1))
@@ -120,7 +121,7 @@ class Finish(eqx.Module):
     conserve_energy: bool = eqx.field(static=True, default=False)
 
 
-class Interior(eqx.Module):
+class Interior(Record):
     """``interior``: index of refraction (None = 1, straight transmission) and fading (semantics §2.7)."""
 
     ior: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
@@ -129,14 +130,14 @@ class Interior(eqx.Module):
     fade_color: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
 
 
-class Layer(eqx.Module):
+class Layer(Record):
     """One texture layer: a pigment and a finish."""
 
     pigment: Pigment = eqx.field(default_factory=lambda: Pigment.solid((0.0, 0.0, 0.0)))
     finish: Finish = eqx.field(default_factory=Finish)
 
 
-class Texture(eqx.Module):
+class Texture(Record):
     """A stack of layers, top layer first (``layers[0]``). Most textures have one layer."""
 
     layers: tuple[Layer, ...] = eqx.field(default_factory=lambda: (Layer(),))

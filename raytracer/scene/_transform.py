@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._build import Record
 from .._dtype import as_float
 
 
@@ -66,7 +67,7 @@ def pov_matrix(values) -> np.ndarray:
     return m
 
 
-class Transform(eqx.Module):
+class Transform(Record):
     """An affine ``world_from_object`` transform.
 
     Attributes:

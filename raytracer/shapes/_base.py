@@ -34,13 +34,12 @@ from __future__ import annotations
 import abc
 from typing import Any, ClassVar, NamedTuple, Protocol
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from .._build import build
+from .._build import Record, build
 
 
 class NoEquivalent(Exception):
@@ -138,7 +137,7 @@ def array_module(*xs):
     return jnp if any(isinstance(x, jax.Array) for x in xs) else np
 
 
-class AbstractShape(eqx.Module):
+class AbstractShape(Record):
     """A primitive shape in its object space (see the module docstring for the interface)."""
 
     kind: ClassVar[str]
