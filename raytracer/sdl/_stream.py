@@ -348,9 +348,9 @@ class Stream:
         numbers (each with an optional sign) between commas, which is what the token-by-token
         parse would give them; None, with nothing read, for anything else. A ``mesh2``'s lists are
         such vectors by the hundred thousand, and the expression parser spent ~10 µs on each."""
-        if self.la is not None:
-            return None
         f = self.frames[-1]
+        if self.la is not None or not 0 < f.pos <= f.stop or f.tokens[f.pos - 1] is not self.last:
+            return None  # the '<' read last is not the token before this frame's position
         got = _literal_vector(f.tokens, f.pos, f.stop)
         if got is None:
             return None
