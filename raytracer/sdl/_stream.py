@@ -41,7 +41,7 @@ class Limits:
         max_written_chars:   characters of one file a scene writes with ``#write`` (kept in
                              memory; POV-Ray's ``meshcam_persp_demo.pov`` writes 17 M at 640×480).
         max_parse_seconds:   wall-clock seconds of one parse (the slowest of POV-Ray's sample
-                             scenes, ``tracevines.pov``, takes 24 s here; a scene of 10^5 objects 20-30 s);
+                             scenes, ``tracevines.pov``, takes 68 s here; a scene of 10^5 objects 20-30 s);
                              checked every ``PARSE_CLOCK_TOKENS`` tokens read. CLI: ``--parse-timeout``.
         max_parse_memory_mb: growth of the process's peak resident memory during one parse,
                              checked with the clock (the limits above bound single values; this
