@@ -30,7 +30,10 @@ class SourceLoc:
         return loc
 
     def _resolve(self) -> None:
-        starts = memoryview(self._table).cast("q")
+        table = self._table  # another thread may have resolved it since its caller looked
+        if table is None:
+            return
+        starts = memoryview(table).cast("q")
         line = bisect.bisect_right(starts, self._pos)
         self._line, self._col, self._table = line, self._pos - starts[line - 1] + 1, None
 

@@ -168,9 +168,13 @@ def _parse_mesh2(args) -> dict:
     corners = _indices(args, faces, len(verts), "face_indices", "vertex_vectors", loc)
     norms = None
     if normals is not None:
+        if nidx is not None:
+            nidx = nidx[:len(faces)]  # POV-Ray 3.7 ignores extra entries, without a warning
         idx = (_indices(args, faces, len(normals), "face_indices", "normal_vectors", loc) if nidx is None
                else _indices(args, nidx, len(normals), "normal_indices", "normal_vectors", loc))
         norms = _vectors(normals)[idx]
+        if len(norms) < len(faces):  # POV-Ray 3.7 (measured): the faces past the list are flat
+            norms = np.concatenate([norms, np.full((len(faces) - len(norms), 3, 3), np.nan)])
     return _mesh_fields(args, _vectors(verts)[corners], norms, norms is not None)
 
 

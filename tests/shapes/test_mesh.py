@@ -101,3 +101,21 @@ def test_mesh_normals_are_kept_as_povray_keeps_them(tmp_path):
     assert {w.feature for w in scene.warnings} == {"mesh normal"}
     ours = np.asarray(rt.render(scene, width=32, height=24))
     assert metrics.psnr(ours, render_povray(path, 32, 24)) >= 40.0  # measured 48 dB (19 dB before)
+
+
+def test_mesh2_faces_past_its_normal_indices_are_flat_and_extra_indices_ignored(tmp_path):
+    # measured with povray 3.7: a mesh2 whose normal_indices list is shorter than its faces
+    # renders, with no message, the same image as the one whose missing entries are <0,0,0>
+    # (three equal normals: a flat face); entries past the faces change nothing
+    def normals(indices):
+        scene = tmp_path / "m.pov"
+        scene.write_text(
+            "mesh2 { vertex_vectors { 4, <0,0,0>, <1,0,0>, <0,1,0>, <2,1,0> }\n"
+            " normal_vectors { 3, <0.5,0,-1>, <1,0.3,-1>, <0,0,-1> }\n"
+            f" face_indices {{ 2, <0,1,2>, <1,3,2> }} normal_indices {{ {indices} }} }}\n")
+        return np.asarray(rt.load_scene(scene).objects[0].shape.normals)
+
+    short = normals("1, <0,1,0>")
+    np.testing.assert_array_equal(short, normals("2, <0,1,0>, <0,0,0>"))
+    np.testing.assert_array_equal(short, normals("3, <0,1,0>, <0,0,0>, <1,2,1>"))
+    assert np.all(short[1] == short[1, 0]) and np.any(short[0] != short[0, 0])  # face 1 flat, 0 smooth
