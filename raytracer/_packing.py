@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import operator
 import pickle
 
 import jax
@@ -82,8 +83,9 @@ def is_traced(*xs) -> bool:
 
 
 def any_traced(xs) -> bool:
-    """``is_traced`` for a flat list of arrays and numbers (no tree walk)."""
-    return any(isinstance(x, jax.core.Tracer) for x in xs)
+    """``is_traced`` for a flat list of arrays and numbers (no tree walk): their types, collected
+    in one C loop (10^5 entries: 3 ms, against 35 ms for an ``isinstance`` per entry)."""
+    return any(issubclass(t, jax.core.Tracer) for t in set(map(type, xs)))
 
 
 def stack(xs, dtype=None):
@@ -91,8 +93,9 @@ def stack(xs, dtype=None):
     packing a large scene is not one JAX dispatch per object. Traced entries are stacked by one
     jitted call (:func:`traced_op`)."""
     if not any_traced(xs):
-        out = np.stack([np.asarray(x) for x in xs])
-        return out if dtype is None else out.astype(dtype)
+        # one C loop over the entries (np.stack expands each one first: 4-10x slower for 10^5)
+        out = np.array(xs)
+        return out if dtype is None else out.astype(dtype, copy=False)
     return traced_op(_stack, tuple(xs), None if dtype is None else np.dtype(dtype).name)
 
 
@@ -113,6 +116,10 @@ def traced_op(fn, xs, static=None):
     As one call, the transformation sees one primitive and caches its rule. ``fn`` a module-level
     function, ``static`` hashable."""
     return _traced_op(fn, xs, static)
+
+
+EYE4 = np.eye(4)
+EYE4.flags.writeable = False  # the identity where a transform is absent: one array, never written
 
 
 def inverse_affines(m):
@@ -148,12 +155,44 @@ class Placeholder:
     dtype: str
 
 
+_SHAPE_DTYPE = operator.attrgetter("shape", "dtype")
+_BLOCK = 1 << 16
+
+
+def array_types(types) -> bool:
+    """Whether every type of ``types`` is an array's (numpy, numpy scalar, JAX, tracer)."""
+    return all(issubclass(t, (np.ndarray, np.generic, jax.Array)) for t in types)
+
+
 def skeleton(tree, flat=None) -> Frozen:
     """``tree`` with every array leaf (numpy, JAX, tracer) replaced by its :class:`Placeholder`, as
-    one :class:`Frozen` value keyed by its structure and placeholders (one walk of the tree, or
-    none when ``flat`` gives its ``(leaves, treedef)``); the tree of placeholders is built on first
-    use (tracing), not for a render that finds its program compiled."""
+    one :class:`Frozen` value keyed by its structure and its leaves' shapes and dtypes (one walk of
+    the tree, or none when ``flat`` gives its ``(leaves, treedef)``); the tree of placeholders is
+    built on first use (tracing), not for a render that finds its program compiled."""
     leaves, treedef = jax.tree_util.tree_flatten(tree) if flat is None else flat
+    if array_types(set(map(type, leaves))):
+        # every leaf an array: its (shape, dtype) read in one C loop (10^5 spheres: 1.6 M leaves,
+        # 0.7 s against 1.3 s for a Python call per leaf). The key holds each distinct pair once
+        # (in order of first appearance) and every leaf's pair as a number in one bytes object:
+        # 1.6 M tuples kept for the life of the packed scene would be walked by every full
+        # collection of Python's cyclic GC.
+        # (in blocks: a list of 1.6 M pairs alone was ~190 MB of the peak)
+        number: dict = {}
+        blocks = []
+        for start in range(0, len(leaves), _BLOCK):
+            pairs = list(map(_SHAPE_DTYPE, leaves[start:start + _BLOCK]))
+            for pair in dict.fromkeys(pairs):
+                number.setdefault(pair, len(number))
+            blocks.append(np.fromiter(map(number.__getitem__, pairs), np.int32, len(pairs)))
+        distinct = tuple(number)
+        codes = np.concatenate(blocks).tobytes() if blocks else b""
+        del number, blocks
+
+        def make():
+            made = [Placeholder(tuple(shape), str(dtype)) for shape, dtype in distinct]
+            return treedef.unflatten([made[k] for k in np.frombuffer(codes, np.int32).tolist()])
+
+        return Frozen(key=(treedef, distinct, codes), make=make)
     made: dict = {}
 
     def leaf(x):
@@ -164,6 +203,5 @@ def skeleton(tree, flat=None) -> Frozen:
             return made[key]
         return x
 
-    placeholders = [leaf(x) for x in leaves]
-    placeholders = tuple(placeholders)
+    placeholders = tuple(leaf(x) for x in leaves)
     return Frozen(key=(treedef, placeholders), make=lambda: treedef.unflatten(placeholders))

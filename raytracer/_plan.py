@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 
 from . import patterns
+from ._gc import without_collections
 from .errors import SceneError, SceneWarning
 from .scene import (
     CSG,
@@ -111,8 +112,14 @@ class Prim:
     @property
     def transparent(self) -> bool:
         """Every layer of its texture can let light through (filter or transmit): it transmits
-        rays, and a shadow ray is filtered at its crossings instead of blocked."""
-        return all(layer.pigment.transparent for layer in self.texture.layers)
+        rays, and a shadow ray is filtered at its crossings instead of blocked. (Asked of every
+        primitive by the plan and both packings: computed once; ``functools.cached_property``
+        takes a lock per read in Python 3.11.)"""
+        known = self.__dict__.get("_transparent")
+        if known is None:
+            known = self.__dict__["_transparent"] = all(layer.pigment.transparent
+                                                        for layer in self.texture.layers)
+        return known
 
     @property
     def fades(self) -> bool:
@@ -215,6 +222,18 @@ class Plan:
 
 
 # ---------------------------------------------------------------- flattening
+_FLAGS = ("no_shadow", "no_image", "no_reflection", "double_illuminate")
+
+
+def _made(cls, **fields):
+    """``cls(**fields)`` for a frozen dataclass without ``__post_init__``, made as ``pickle`` makes
+    one (its ``__dict__`` filled): a frozen dataclass's ``__init__`` sets each field through
+    ``object.__setattr__``, ~1 µs a field for the 10^5 primitives of a large scene."""
+    self = object.__new__(cls)
+    self.__dict__.update(fields)
+    return self
+
+
 class _Flattener:
     def __init__(self):
         self.prims: list[Prim] = []
@@ -222,22 +241,21 @@ class _Flattener:
     def flatten(self, obj: AbstractObject, *, transforms, texture, interior, rendered, inverse,
                 conditions, flags) -> InsideTree:
         """Adds ``obj``'s primitives; returns the inside tree of ``obj`` (in its final placement)."""
-        own_flags = {f for f in ("no_shadow", "no_image", "no_reflection", "double_illuminate")
-                     if getattr(obj, f)}
-        flags = flags | own_flags
+        if obj.no_shadow or obj.no_image or obj.no_reflection or obj.double_illuminate:
+            flags = flags | {f for f in _FLAGS if getattr(obj, f)}
         obj_inverse = inverse != obj.inverse
         if isinstance(obj, Object):
             chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
-            clip_trees = self._clip_trees(obj.clipped_by, chain, interior)
+            clip_trees = self._clip_trees(obj.clipped_by, chain, interior) if obj.clipped_by else ()
             clip_conds = tuple(Condition(t, True) for t in clip_trees)
             index = len(self.prims)
-            self.prims.append(Prim(
-                obj=obj, transforms=chain,
+            self.prims.append(_made(
+                Prim, obj=obj, transforms=chain,
                 texture=obj.texture if obj.texture is not None else texture,
                 interior=obj.interior if obj.interior is not None else interior,
                 rendered=rendered, inverse=obj_inverse, conditions=conditions + clip_conds,
                 flags=frozenset(flags)))
-            return _clipped(InPrim(index, obj_inverse), clip_trees)
+            return _clipped(_made(InPrim, prim=index, inverse=obj_inverse), clip_trees)
         if isinstance(obj, CSG):
             chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
             tex = obj.texture if obj.texture is not None else texture
@@ -315,7 +333,10 @@ def bounding_units(objects, roots, n_prims: int) -> tuple[tuple[InsideTree, ...]
             units.append(tree)
 
     for obj, tree in zip(objects, roots, strict=True):
-        split(obj, tree)
+        if type(tree) is InPrim:  # a primitive on its own (most objects of a large scene)
+            units.append(tree)
+        else:
+            split(obj, tree)
     unit_of: dict[int, int] = {}
 
     def mark(tree, u):
@@ -326,10 +347,14 @@ def bounding_units(objects, roots, n_prims: int) -> tuple[tuple[InsideTree, ...]
                 mark(term, u)
 
     for u, tree in enumerate(units):
-        mark(tree, u)
+        if type(tree) is InPrim:
+            unit_of.setdefault(tree.prim, u)
+        else:
+            mark(tree, u)
     return tuple(units), tuple(unit_of[i] for i in range(n_prims))
 
 
+@without_collections  # 10^5 primitives make no cycles (raytracer/_gc.py)
 def make_plan(scene: Scene) -> Plan:
     """Flattens ``scene`` and derives its :class:`Effects` (structure only; safe under jit)."""
     fl = _Flattener()
@@ -339,10 +364,13 @@ def make_plan(scene: Scene) -> Plan:
     prims = tuple(fl.prims)
     warnings = list(scene.warnings)
     rendered = [p for p in prims if p.rendered]
-    layers = [layer for p in rendered for layer in p.texture.layers]
-    finishes = [layer.finish for layer in layers]
-    pigments = [layer.pigment for layer in layers]
-    if any(sum(layer.finish.reflection is not None for layer in p.texture.layers) > 1 for p in rendered):
+    # each texture, pigment and finish once (by identity: a declared one is shared by many objects)
+    textures = list({id(p.texture): p.texture for p in rendered}.values())
+    layers = [layer for tex in textures for layer in tex.layers]
+    finishes = list({id(layer.finish): layer.finish for layer in layers}.values())
+    pigments = list({id(layer.pigment): layer.pigment for layer in layers}.values())
+    if any(len(tex.layers) > 1 and sum(layer.finish.reflection is not None for layer in tex.layers) > 1
+           for tex in textures):
         warnings.append(SceneWarning("layered texture", "layered textures: lower layers' reflections "
                                      "are traced along the top layer's mirror ray with its exponent"))
     if any("double_illuminate" in p.flags for p in rendered):

@@ -218,3 +218,114 @@ def test_the_compiled_program_takes_the_plan_packing_made_and_only_for_the_same_
     calls.clear()
     plan = render_module._plan_of(other)
     assert len(calls) == 1 and len(plan.lights) == 2 * len(render_module._plan_of(packed).lights)
+
+
+def test_the_skeleton_key_tells_structures_apart_and_builds_the_placeholder_tree():
+    """The objects' skeleton (the compiled program's static key) is read from its leaves' shapes
+    and dtypes in one pass: equal for scenes that differ only in values, different when one leaf's
+    dtype or shape or a static field differs, and its tree is every array replaced by its
+    ``Placeholder`` (independently: a ``tree_map``). A leaf that is not an array is kept as it is."""
+    from raytracer._packing import Placeholder, skeleton
+
+    def objects(radius=1.0, centre_dtype=np.float32, triangles=1, open_=False):
+        tri = np.arange(9 * triangles, dtype=np.float32).reshape(triangles, 3, 3)
+        sphere = eqx.tree_at(lambda s: s.center, rt.Sphere((0, 1, 2), radius),
+                             np.array([0, 1, 2], centre_dtype))  # (the constructor casts)
+        return (rt.Object(sphere),
+                rt.Object(rt.Mesh(tri, None)),
+                rt.Object(rt.Cylinder((0, 0, 0), (0, 1, 0), 0.5, open=open_)))
+
+    base = skeleton(objects())
+    expected = jax.tree_util.tree_map(lambda x: Placeholder(tuple(np.shape(x)), str(np.asarray(x).dtype)),
+                                      objects())
+    assert base.value == expected
+    assert skeleton(objects(radius=2.0)) == base and hash(skeleton(objects(radius=2.0))) == hash(base)
+    for other in (objects(centre_dtype=np.float64), objects(triangles=2), objects(open_=True)):
+        assert skeleton(other) != base
+    mixed = (np.zeros(3), 1.5)  # a Python number among the leaves: kept in the tree and the key
+    assert skeleton(mixed).value == (Placeholder((3,), "float64"), 1.5)
+    assert skeleton(mixed) != skeleton((np.zeros(3), 2.5))
+
+
+def test_shapes_group_and_stack_as_a_pytree_walk_groups_and_stacks_them():
+    """``pack_geometry`` reads a shape's variant and stacks its group from its fields: the groups
+    and stacked arrays are those of the pytree walk (treedef and leaf shapes; ``tree_map`` of a
+    stack) for every registered shape's test case, static variants included."""
+    from raytracer.shading._geometry import _stack, _variant
+    from tests.shapes._cases import CASES
+
+    shapes = [case.make(*case.params) for case in CASES for _ in range(2)]
+    shapes.append(rt.Sphere(np.zeros(3, np.float64), np.float64(1.0)))  # float64: the same group
+    by_walk, by_fields = {}, {}
+    for i, s in enumerate(shapes):
+        leaves, treedef = jax.tree_util.tree_flatten(s)
+        by_walk.setdefault((treedef, tuple(np.shape(x) for x in leaves)), []).append(i)
+        by_fields.setdefault(_variant(s), []).append(i)
+    assert sorted(by_walk.values()) == sorted(by_fields.values())
+    for key, ids in by_fields.items():
+        members = [shapes[i] for i in ids]
+        fast = _stack(members, plain=isinstance(key[0], type))
+        walked = jax.tree_util.tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *members)
+        assert jax.tree_util.tree_structure(fast) == jax.tree_util.tree_structure(walked)
+        for a, b in zip(jax.tree_util.tree_leaves(fast), jax.tree_util.tree_leaves(walked), strict=True):
+            np.testing.assert_array_equal(a, b)
+            assert a.dtype == b.dtype
+
+
+def test_materials_pack_shared_finishes_and_colour_maps_of_every_length_row_by_row():
+    """A finish shared by several objects is stacked once and gathered; colour maps of different
+    lengths are padded by repeating their last entry. Each row holds its own object's values."""
+    from raytracer._plan import make_plan
+    from raytracer.shading._materials import pack_materials
+
+    shared = rt.Finish(diffuse=0.5, ambient=0.1)
+    maps = [np.array([0.0]), np.array([0.0, 1.0]), np.array([0.0, 0.5, 1.0])]
+    colours = [np.tile(np.arange(5.0), (len(v), 1)) * (1 + np.arange(len(v)))[:, None] for v in maps]
+    pigments = [rt.Pigment(pattern=p, values=v, colors=c)
+                for p, v, c in zip(("solid", "checker", "gradient"), maps, colours, strict=True)]
+    finishes = [shared, rt.Finish(diffuse=0.9, ambient=0.2), shared]
+    objects = tuple(rt.Object(rt.Sphere((3.0 * i, 0, 0), 1.0),
+                              texture=rt.Texture(layers=(rt.Layer(pigment=pg, finish=f),)))
+                    for i, (pg, f) in enumerate(zip(pigments, finishes, strict=True)))
+    mats = pack_materials(make_plan(rt.Scene(camera=rt.Camera(), objects=objects)), np.float64)
+    np.testing.assert_array_equal(mats.finish["diffuse"], np.float32([0.5, 0.9, 0.5]))
+    ambient = np.reshape(mats.finish["ambient"], (3, -1))[:, 0]
+    np.testing.assert_array_equal(ambient, np.float32([0.1, 0.2, 0.1]))
+    for row, (v, c) in enumerate(zip(maps, colours, strict=True)):
+        n = len(v)
+        np.testing.assert_array_equal(mats.values[row], np.concatenate([v, np.repeat(v[-1], 3 - n)]))
+        np.testing.assert_array_equal(mats.colors[row], np.concatenate([c, np.repeat(c[-1:], 3 - n, 0)]))
+
+
+def test_collections_paused_for_a_block_come_back_as_they_were():
+    import gc
+
+    from raytracer._gc import paused
+
+    assert gc.isenabled()
+    with pytest.raises(RuntimeError):
+        with paused():
+            assert not gc.isenabled()
+            raise RuntimeError
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        with paused():
+            pass
+        assert not gc.isenabled()  # a caller that turned it off keeps it off
+    finally:
+        gc.enable()
+
+
+def test_a_scene_file_larger_than_the_token_cache_is_not_kept(tmp_path, monkeypatch):
+    from raytracer.sdl import _stream
+
+    small, large = tmp_path / "small.pov", tmp_path / "large.pov"
+    small.write_text("#declare A = 1;\n")
+    large.write_text(_spheres(30))
+    monkeypatch.setattr(_stream, "LEXED_CACHE_TOKENS", 200)
+    _stream._lexed_file(str(small))
+    toks = _stream._lexed_file(str(large))
+    assert len(toks) > 200
+    kept = {key[0] for key in _stream._LEXED}
+    assert str(small) in kept and str(large) not in kept

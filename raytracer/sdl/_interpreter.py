@@ -75,6 +75,13 @@ class Interpreter(Stream, Directives):
         return KEYWORDS
 
     # ---- statements ----------------------------------------------------------------------
+    def release(self) -> None:
+        """Drops everything this interpreter holds (its tokens, records, frames and tables). Its
+        tables of bound methods make it a reference cycle, which only Python's cyclic collector
+        frees: until then it kept a scene file's tokens and records alive (for 100,000 spheres
+        3 M tokens, ~250 MB, past the parse and through the packing)."""
+        vars(self).clear()
+
     def run(self) -> None:
         while True:
             t = self.peek()

@@ -6,12 +6,12 @@ level: they are identifiers, and the interpreter decides what they mean in conte
 
 from __future__ import annotations
 
-import gc
 import re
 from typing import NamedTuple
 
 import numpy as np
 
+from .._gc import paused
 from ..errors import SceneError, SourceLoc
 
 NUM, STR, ID, OP, EOF = "num", "str", "id", "op", "eof"
@@ -148,15 +148,10 @@ def tokenize(text: str, file: str = "<string>") -> list[Token]:
     Raises:
         SceneError: on an unterminated comment or string or a character that is not SDL.
     """
-    collecting = gc.isenabled()
     # Tokens make no reference cycles, and the collections that a million new tracked objects set
     # off (the full ones walk every token made so far) were ~40 % of lexing a large mesh.
-    gc.disable()
-    try:
+    with paused():
         return _tokens(text, file)
-    finally:
-        if collecting:
-            gc.enable()
 
 
 def _tokens(text: str, file: str) -> list[Token]:

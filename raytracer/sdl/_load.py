@@ -74,6 +74,7 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
         raise InternalError(f"{type(e).__name__}: {e} ({where})", loc, chain) from e
     finally:
         sys.setrecursionlimit(old_limit)
+        p.release()
 
 
 def _check_open_blocks(p) -> None:

@@ -93,6 +93,11 @@ def _lexed_file(path: str) -> list[Token]:
             _LEXED.move_to_end(key)
             return toks
     toks = tokenize(text, path)
+    if len(toks) > LEXED_CACHE_TOKENS:
+        # a file larger than the whole cache (a generated scene) is not kept: its tokens, ~30 per
+        # object, would stay alive for the process, and every full collection of Python's cyclic
+        # GC walks them all (for 100,000 spheres, 3 M tokens: ~2 s of the compile after the parse)
+        return toks
     with _LEXED_LOCK:
         _LEXED[key] = toks
         total = sum(len(t) for t in _LEXED.values())

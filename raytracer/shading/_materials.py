@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import patterns
-from .._packing import any_traced, inverse_affines, register_packed, stack, traced_op
+from .._packing import EYE4, any_traced, inverse_affines, register_packed, stack, traced_op
 from .._plan import Plan
 from ..kernels import matvec
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
@@ -73,8 +73,15 @@ def _padded(xs, m: int, dtype):
     """(n, m, …): each array of ``xs`` (its own length along axis 0) padded to ``m`` entries by
     repeating its last entry (a colour-map lookup is unchanged by it)."""
     if not any_traced(xs):
-        return np.stack([np.concatenate([np.asarray(x), np.repeat(np.asarray(x)[-1:], m - x.shape[0], 0)])
-                         for x in xs]).astype(dtype)
+        by_length: dict[int, list[int]] = {}
+        for i, x in enumerate(xs):
+            by_length.setdefault(x.shape[0], []).append(i)
+        out = np.empty((len(xs), m) + np.shape(xs[0])[1:], dtype)
+        for n, rows in by_length.items():  # one block per length, not one padding per entry
+            block = np.array([xs[i] for i in rows])
+            out[rows, :n] = block
+            out[rows, n:] = block[:, n - 1:n]
+        return out
     return traced_op(_padded_traced, tuple(xs), (m, np.dtype(dtype).name))
 
 
@@ -98,15 +105,18 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
     pg_ = [vars(pg) for pg in pigments]
     names = tuple(sorted({pg["pattern"] for pg in pg_}))
     m = max(pg["values"].shape[0] for pg in pg_)
-    world_from_pattern = stack([np.eye(4) if pg["transform"] is None else pg["transform"].matrix
+    world_from_pattern = stack([EYE4 if pg["transform"] is None else pg["transform"].matrix
                                 for pg in pg_], dtype)
     zero3 = np.zeros(3)
     no_reflection = Reflection()
-    by_id: dict[int, dict] = {}  # a finish shared by many primitives (a declared one) is read once
+    # a finish shared by many primitives (a declared one) is read and stacked once, then gathered
+    by_id: dict[int, int] = {}
+    fin = []
     for f in finishes:
         if id(f) not in by_id:
-            by_id[id(f)] = _finish_arrays(f, no_reflection)
-    fin = [by_id[id(f)] for f in finishes]
+            by_id[id(f)] = len(fin)
+            fin.append(_finish_arrays(f, no_reflection))
+    fin_row = np.fromiter((by_id[id(f)] for f in finishes), np.int64, len(finishes))
     return PackedMaterials(
         n_layers=n_layers,
         layer_present=present,
@@ -125,7 +135,7 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         turbulence=stack([zero3 if pg["turbulence"] is None else pg["turbulence"] for pg in pg_], dtype),
         omega=stack([pg["omega"] for pg in pg_], dtype),
         lambda_=stack([pg["lambda_"] for pg in pg_], dtype),
-        finish={k: stack([fi[k] for fi in fin], dtype) for k in fin[0]},
+        finish={k: stack([fi[k] for fi in fin], dtype)[fin_row] for k in fin[0]},
         fresnel=np.array([f.reflection is not None and f.reflection.fresnel for f in finishes]),
         conserve_energy=np.array([f.conserve_energy for f in finishes]),
         ior=stack([1.0 if it.ior is None else it.ior for it in interiors], dtype),
