@@ -97,3 +97,39 @@ def test_numpy_leaves_under_jit_and_grad():
     g = eqx.filter_grad(volume_and_offset)(sphere)
     assert np.isclose(float(g.radius), 4.0 * np.pi * 4.0, rtol=1e-6)  # d/dr (4/3 π r³) = 4π r²
     np.testing.assert_allclose(np.asarray(g.center), np.ones(3))
+
+
+def test_python_numbers_become_the_arrays_numpy_makes_of_them():
+    """``as_float`` reads Python numbers and tuples of them without numpy's checks: bit for bit the
+    array numpy makes (through float64), signed zeros, NaN and infinities included, and a finite
+    value past float32's range is refused as before."""
+    from raytracer._dtype import OutOfPrecision, _as_float
+
+    rng = np.random.default_rng(0)
+    random = (rng.normal(size=40) * 10.0 ** rng.integers(-30, 30, 40)).tolist()
+    values = [0.0, -0.0, 1, -7, 2**53 - 1, -(2**53) + 1, 3.4e38, -3.4e38, float("inf"), -float("inf"),
+              float("nan"), 1e-45, -1e-40, *random]
+    for x in values + [tuple(values[i:i + k]) for k in (2, 3, 5) for i in range(0, 40, 7)] + [()]:
+        want = np.asarray(x, np.float64).astype(default_float())
+        got = _as_float(x)
+        assert got.dtype == want.dtype and got.shape == want.shape and not got.flags.writeable
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+    if not jax.config.jax_enable_x64:
+        for x in (1e39, -1e39, (0.0, 1e39)):
+            with pytest.raises(OutOfPrecision, match="float32's range"):
+                _as_float(x)
+
+
+def test_objects_share_a_finish_only_when_its_values_are_equal_bit_for_bit():
+    from raytracer import load_scene
+
+    finishes = ["ambient 0.1 diffuse 0.6", "diffuse 0.6 ambient 0.1", "ambient 0.1 diffuse 0.6",
+                "ambient -0.0", "ambient 0.0", "ambient 0.1 diffuse 0.6 reflection 0.2"]
+    text = "camera { location -5*z look_at 0 }\n" + "\n".join(
+        f"sphere {{ <{i}, 0, 0>, 0.4 finish {{ {f} }} }}" for i, f in enumerate(finishes))
+    got = [o.texture.layers[0].finish for o in load_scene(text).objects]
+    assert got[0] is got[2]  # equal values: one module
+    assert got[3] is not got[4] and np.signbit(got[3].ambient).all()
+    assert got[5] is not got[0] and got[5].reflection is not None
+    assert got[1] == got[0]  # (written in another order: equal, shared or not)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 
 from .. import scene as S
@@ -83,7 +85,12 @@ class Lowerer:
     def finish(self, fin: dict) -> S.Finish:
         """``lower_finish``, one module per distinct finish (a declared finish is shared by every
         object that names it; the values are numbers, flags and colour tuples)."""
-        key = _exact_key(fin)
+        try:
+            # pickle's bytes tell every value apart bit for bit, as ``_exact_key`` does, ~15x
+            # faster (each object's finish is a dict of its own, even where it names a declared one)
+            key = pickle.dumps(fin, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:  # a value pickle cannot take
+            key = _exact_key(fin)
         got = self._finish_cache.get(key)
         if got is None:
             got = self._finish_cache[key] = lower_finish(fin)
