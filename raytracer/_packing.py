@@ -160,8 +160,9 @@ _BLOCK = 1 << 16
 
 
 def array_types(types) -> bool:
-    """Whether every type of ``types`` is an array's (numpy, numpy scalar, JAX, tracer)."""
-    return all(issubclass(t, (np.ndarray, np.generic, jax.Array)) for t in types)
+    """Whether every type of ``types`` is an array's (numpy, numpy scalar, JAX, tracer: a tracer
+    is an instance of ``jax.Array`` but its class is no subclass of it)."""
+    return all(issubclass(t, (np.ndarray, np.generic, jax.Array, jax.core.Tracer)) for t in types)
 
 
 def skeleton(tree, flat=None) -> Frozen:

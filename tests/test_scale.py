@@ -242,6 +242,9 @@ def test_the_skeleton_key_tells_structures_apart_and_builds_the_placeholder_tree
     assert skeleton(objects(radius=2.0)) == base and hash(skeleton(objects(radius=2.0))) == hash(base)
     for other in (objects(centre_dtype=np.float64), objects(triangles=2), objects(open_=True)):
         assert skeleton(other) != base
+    traced = []
+    jax.jit(lambda o: traced.append(skeleton(o)) or 0)(objects(radius=3.0))
+    assert traced[0] == base  # the same key under a trace: a grad after a render traces no new program
     mixed = (np.zeros(3), 1.5)  # a Python number among the leaves: kept in the tree and the key
     assert skeleton(mixed).value == (Placeholder((3,), "float64"), 1.5)
     assert skeleton(mixed) != skeleton((np.zeros(3), 2.5))
@@ -255,7 +258,11 @@ def test_shapes_group_and_stack_as_a_pytree_walk_groups_and_stacks_them():
     from tests.shapes._cases import CASES
 
     shapes = [case.make(*case.params) for case in CASES for _ in range(2)]
-    shapes.append(rt.Sphere(np.zeros(3, np.float64), np.float64(1.0)))  # float64: the same group
+    sphere = rt.Sphere((0.0, 0.0, 0.0), 1.0)
+    shapes += [eqx.tree_at(lambda s: s.center, sphere, np.zeros(3, np.float64)),  # float64: one group
+               eqx.tree_at(lambda s: s.radius, sphere, 0.5),  # a Python number, a numpy scalar
+               eqx.tree_at(lambda s: s.radius, sphere, np.float32(0.5)),
+               rt.Polygon(np.zeros((3, 3)), edges=[[0, 1], [1, 2], [2, 0]])]  # static lists
     by_walk, by_fields = {}, {}
     for i, s in enumerate(shapes):
         leaves, treedef = jax.tree_util.tree_flatten(s)

@@ -63,7 +63,9 @@ class PackedGeometry:
 register_packed(PackedGeometry, ("shapes", "object_from_world", "accel", "unit_boxes"))
 
 
-_ARRAYS = (np.ndarray, jax.Array)  # (tracers are jax.Array instances too)
+# the leaf types of a shape's array fields (tracers are jax.Array instances too; a number set by
+# ``eqx.tree_at`` is a leaf as well)
+_LEAVES = (np.ndarray, jax.Array, np.generic, float, int)
 
 
 @functools.cache
@@ -104,12 +106,21 @@ def _variant(shape: AbstractShape) -> tuple:
         value = values[name]
         if value is None:
             shapes.append(None)
-        elif isinstance(value, _ARRAYS):
-            shapes.append(value.shape)
+        elif isinstance(value, _LEAVES):
+            shapes.append(np.shape(value))
         else:
-            leaves, treedef = jax.tree_util.tree_flatten(shape)
-            return treedef, tuple(np.shape(x) for x in leaves)
-    return cls, tuple(values[n] for n in static), tuple(shapes)
+            return _walked_variant(shape)
+    key = cls, tuple(values[n] for n in static), tuple(shapes)
+    try:
+        hash(key)
+    except TypeError:  # a static value that does not hash (a polygon's edges given as lists)
+        return _walked_variant(shape)
+    return key
+
+
+def _walked_variant(shape: AbstractShape) -> tuple:
+    leaves, treedef = jax.tree_util.tree_flatten(shape)
+    return treedef, tuple(np.shape(x) for x in leaves)
 
 
 def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
