@@ -66,6 +66,9 @@ def _as_float(x) -> jax.Array | np.ndarray:
     tx = type(x)
     if tx is tuple and all(type(e) is float or (type(e) is int and -_EXACT_INT < e < _EXACT_INT) for e in x):
         return _from_numbers(x)
+    if tx is tuple and x and all(type(row) is tuple and len(row) == len(x[0]) for row in x) and all(
+            type(e) is float or (type(e) is int and -_EXACT_INT < e < _EXACT_INT) for row in x for e in row):
+        return _from_numbers(x)  # rows of numbers (a colour map)
     if tx is float or (tx is int and -_EXACT_INT < x < _EXACT_INT):
         return _from_numbers(x)
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
@@ -84,12 +87,14 @@ def _as_float(x) -> jax.Array | np.ndarray:
 
 
 def _from_numbers(x) -> np.ndarray:
-    """``_as_float`` of a Python number or a tuple of them (each exact in float64), checked in
+    """``_as_float`` of a Python number, a tuple of them or a tuple of equal-length tuples of them
+    (each exact in float64), checked in
     Python: a scene's colours and centres are mostly distinct values, and numpy's array checks
     cost ~8 µs a value (10^5 spheres: ~3 values each)."""
     dtype = default_float()
     if dtype == jnp.float32:
-        for v in (x if type(x) is tuple else (x,)):
+        flat = x if type(x) is not tuple else x if not x or type(x[0]) is not tuple else sum(x, ())
+        for v in (flat if type(flat) is tuple else (flat,)):
             if not -_FLOAT32_MAX <= v <= _FLOAT32_MAX and math.isfinite(v):
                 raise OutOfPrecision(f"expected a value within float32's range (±3.4e38), found {v:g}: "
                                      "load the scene in float64 (jax_enable_x64, --x64)")

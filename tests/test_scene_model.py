@@ -100,7 +100,8 @@ def test_numpy_leaves_under_jit_and_grad():
 
 
 def test_python_numbers_become_the_arrays_numpy_makes_of_them():
-    """``as_float`` reads Python numbers and tuples of them without numpy's checks: bit for bit the
+    """``as_float`` reads Python numbers, tuples of them and tuples of such rows (a colour map)
+    without numpy's checks: bit for bit the
     array numpy makes (through float64), signed zeros, NaN and infinities included, and a finite
     value past float32's range is refused as before."""
     from raytracer._dtype import OutOfPrecision, _as_float
@@ -109,14 +110,16 @@ def test_python_numbers_become_the_arrays_numpy_makes_of_them():
     random = (rng.normal(size=40) * 10.0 ** rng.integers(-30, 30, 40)).tolist()
     values = [0.0, -0.0, 1, -7, 2**53 - 1, -(2**53) + 1, 3.4e38, -3.4e38, float("inf"), -float("inf"),
               float("nan"), 1e-45, -1e-40, *random]
-    for x in values + [tuple(values[i:i + k]) for k in (2, 3, 5) for i in range(0, 40, 7)] + [()]:
+    rows = [tuple(tuple(values[i + 5 * r:i + 5 * r + 5]) for r in range(k))
+            for k in (1, 2) for i in range(0, 30, 6)]
+    for x in values + [tuple(values[i:i + k]) for k in (2, 3, 5) for i in range(0, 40, 7)] + rows + [()]:
         want = np.asarray(x, np.float64).astype(default_float())
         got = _as_float(x)
         assert got.dtype == want.dtype and got.shape == want.shape and not got.flags.writeable
         np.testing.assert_array_equal(got, want)
         np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
     if not jax.config.jax_enable_x64:
-        for x in (1e39, -1e39, (0.0, 1e39)):
+        for x in (1e39, -1e39, (0.0, 1e39), ((0.0, 1.0), (1e39, 0.0))):
             with pytest.raises(OutOfPrecision, match="float32's range"):
                 _as_float(x)
 

@@ -23,12 +23,14 @@ def _transform(m) -> S.Transform | None:
 
 
 def lower_pigment(pig: PigRec, world: np.ndarray | None) -> S.Pigment:
+    if pig.pattern == "solid":  # (most objects of a large scene: one colour, read as Python numbers)
+        value, color = pig.cmap[0]
+        rgbft = color.padded(5)
+        return build(S.Pigment, pattern="solid", values=(float(value) * 0.0,), colors=(rgbft,),
+                     transparent=bool(pig.ft or rgbft[3] != 0 or rgbft[4] != 0))
     colors = np.array([c.padded(5) for _, c in pig.cmap], dtype=np.float64)
     values = np.array([v for v, _ in pig.cmap], dtype=np.float64)
     transparent = bool(pig.ft or np.any(colors[:, 3:] != 0))
-    if pig.pattern == "solid":
-        return build(S.Pigment, pattern="solid", values=values[:1] * 0, colors=colors[:1],
-                     transparent=transparent)
     m = pig.transform
     if world is not None:
         m = world if m is None else world @ m
