@@ -336,3 +336,24 @@ def test_a_scene_file_larger_than_the_token_cache_is_not_kept(tmp_path, monkeypa
     assert len(toks) > 200
     kept = {key[0] for key in _stream._LEXED}
     assert str(small) in kept and str(large) not in kept
+
+
+@pytest.mark.parametrize("count", [10, 400])
+def test_a_parse_leaves_no_reference_cycles_that_grow_with_its_work(count):
+    """``load_scene`` runs with the cyclic collector paused, so a parse must not make garbage that
+    only the collector frees: what is left after macros, loops and objects stays a few objects
+    (the interpreter, a cycle, is released when the parse ends), whatever the loop count."""
+    import gc
+
+    text = ("#macro Ball(I) sphere { <I, 0, 0>, 0.4 pigment { rgb <I / 500, 0.5, 0.5> } } #end\n"
+            "camera { location -5*z look_at 0 }\nlight_source { <1, 5, -5> color rgb 1 }\n"
+            f"#declare I = 0; #while (I < {count}) union {{ Ball(I) Ball(I + 0.5) }}\n"
+            "#declare I = I + 1; #end\n")
+    gc.collect()
+    gc.disable()
+    try:
+        scene = load_scene(text)
+        left = gc.collect()
+    finally:
+        gc.enable()
+    assert len(scene.objects) == count and left <= 20
