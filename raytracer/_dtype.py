@@ -61,16 +61,31 @@ def as_float(x) -> jax.Array | np.ndarray:
 _EXACT_INT = 1 << 53  # ints a float64 holds exactly
 
 
+def _exact_number(e) -> bool:
+    return type(e) is float or (type(e) is int and -_EXACT_INT < e < _EXACT_INT)
+
+
+def _numbers(x) -> tuple | None:
+    """The numbers of ``x`` when it is a Python number, a tuple of them or a tuple of equal-length
+    tuples of them (a colour map), each exact in float64; None for anything else."""
+    if type(x) is not tuple:
+        flat = (x,)
+    elif x and type(x[0]) is tuple:
+        if not all(type(row) is tuple and len(row) == len(x[0]) for row in x):
+            return None
+        flat = tuple(e for row in x for e in row)
+    else:
+        flat = x
+    return flat if all(map(_exact_number, flat)) else None
+
+
 def _as_float(x) -> jax.Array | np.ndarray:
-    """``as_float`` without the cache of constants."""
-    tx = type(x)
-    if tx is tuple and all(type(e) is float or (type(e) is int and -_EXACT_INT < e < _EXACT_INT) for e in x):
-        return _from_numbers(x)
-    if tx is tuple and x and all(type(row) is tuple and len(row) == len(x[0]) for row in x) and all(
-            type(e) is float or (type(e) is int and -_EXACT_INT < e < _EXACT_INT) for row in x for e in row):
-        return _from_numbers(x)  # rows of numbers (a colour map)
-    if tx is float or (tx is int and -_EXACT_INT < x < _EXACT_INT):
-        return _from_numbers(x)
+    """``as_float`` without the cache of constants. Python numbers (and tuples of them, see
+    ``_numbers``) are checked in Python: a scene's colours and centres are mostly distinct
+    values, and numpy's array checks below cost ~8 µs a value (10^5 spheres: ~3 values each)."""
+    numbers = _numbers(x)
+    if numbers is not None:
+        return _from_numbers(x, numbers)
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
         return x
     src = np.asarray(x, dtype=np.float64)
@@ -86,15 +101,11 @@ def _as_float(x) -> jax.Array | np.ndarray:
     return a
 
 
-def _from_numbers(x) -> np.ndarray:
-    """``_as_float`` of a Python number, a tuple of them or a tuple of equal-length tuples of them
-    (each exact in float64), checked in
-    Python: a scene's colours and centres are mostly distinct values, and numpy's array checks
-    cost ~8 µs a value (10^5 spheres: ~3 values each)."""
+def _from_numbers(x, numbers: tuple) -> np.ndarray:
+    """``_as_float`` of ``x`` whose numbers are ``numbers`` (``_numbers(x)``)."""
     dtype = default_float()
     if dtype == jnp.float32:
-        flat = x if type(x) is not tuple else x if not x or type(x[0]) is not tuple else sum(x, ())
-        for v in (flat if type(flat) is tuple else (flat,)):
+        for v in numbers:
             if not -_FLOAT32_MAX <= v <= _FLOAT32_MAX and math.isfinite(v):
                 raise OutOfPrecision(f"expected a value within float32's range (±3.4e38), found {v:g}: "
                                      "load the scene in float64 (jax_enable_x64, --x64)")

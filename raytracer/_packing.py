@@ -176,8 +176,8 @@ def skeleton(tree, flat=None) -> Frozen:
         # 0.7 s against 1.3 s for a Python call per leaf). The key holds each distinct pair once
         # (in order of first appearance) and every leaf's pair as a number in one bytes object:
         # 1.6 M tuples kept for the life of the packed scene would be walked by every full
-        # collection of Python's cyclic GC.
-        # (in blocks: a list of 1.6 M pairs alone was ~190 MB of the peak)
+        # collection of Python's cyclic GC. The pairs are read in blocks (a list of 1.6 M of
+        # them was ~190 MB).
         number: dict = {}
         blocks = []
         for start in range(0, len(leaves), _BLOCK):
