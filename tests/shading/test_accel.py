@@ -486,3 +486,26 @@ difference { cylinder { 0, y, 0.6 } pigment { rgb 0.8 } }
     reference = np.asarray(render(load_scene(text), width=32, height=24))
     assert reference[12, 16].max() > 0.1  # the cylinder is seen
     np.testing.assert_allclose(ours, reference, atol=1e-5)
+
+
+def test_groups_of_any_size_compute_their_items_with_one_program(monkeypatch):
+    """A concrete group of one-item shapes computes its items in chunks of ``ITEMS_CHUNK`` shapes,
+    so a shape variant compiles one items program whatever its group's size (each size compiled
+    its own: ~0.1-0.2 s a group on a cold start). The items are those of one call over the whole
+    group, bit for bit, for a group shorter than a chunk and one of several chunks."""
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    monkeypatch.setattr(_accel, "ITEMS_CHUNK", 16)
+    before = _accel._group_items._cache_size()
+    groups = []
+    for n in (9, 16, 41):
+        text = "camera { location <0, 2, -9> look_at 0 }\n" + "".join(
+            f"sphere {{ <{0.3 * i - 6}, {np.sin(i)}, {0.1 * i}>, {0.1 + 0.01 * i} }}\n" for i in range(n))
+        geo = pack_geometry(make_plan(load_scene(text)), jnp.float32)
+        assert geo.accel.n_items == n and len(geo.groups) == 1
+        groups.append((geo.shapes[0], np.asarray(geo.object_from_world[0])))
+    assert _accel._group_items._cache_size() - before == 1  # one program for the three sizes
+    for shape, ofw in groups:
+        wfo = np.linalg.inv(ofw)
+        whole = _accel._group_items(jax.tree_util.tree_map(jax.lax.stop_gradient, shape), ofw, wfo)
+        for a, b in zip(whole, _accel._items(shape, ofw, wfo), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), b)
