@@ -43,7 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.custom_batching import custom_vmap
 
-from .._packing import register_packed
+from .._packing import any_traced, is_traced, register_packed
 from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes._base import AbstractShape
 
@@ -222,12 +222,10 @@ def _items(shape, ofw, wfo):
     its group's size: each size compiled its own, ~0.1-0.2 s a group on a cold start
     (``advanced/lamppost``: nine groups, 1.1-1.3 s of its packing)."""
     sg = jax.lax.stop_gradient
-    host = (shape, ofw, wfo)
-    leaves = jax.tree_util.tree_leaves(host)
     one_item = type(shape).n_native_items is AbstractShape.n_native_items
-    if not one_item or any(isinstance(x, jax.core.Tracer) for x in leaves):
+    if not one_item or is_traced(shape, ofw, wfo):
         return _group_items(jax.tree_util.tree_map(sg, shape), sg(ofw), sg(wfo))
-    host = jax.tree_util.tree_map(np.asarray, host)
+    host = jax.tree_util.tree_map(np.asarray, (shape, ofw, wfo))
     n = host[1].shape[0]
     total = -(-n // ITEMS_CHUNK) * ITEMS_CHUNK
     if total != n:
@@ -241,7 +239,7 @@ def _items(shape, ofw, wfo):
 def _joined(parts, dtype) -> jax.Array:
     """``jnp.concatenate(parts).astype(dtype)``, joined on the host when no part is traced (a
     jnp concatenate of host arrays compiles a conversion for every new shape of a part)."""
-    if any(isinstance(x, jax.core.Tracer) for x in parts):
+    if any_traced(parts):
         return jnp.concatenate(parts).astype(dtype)
     return jnp.asarray(np.concatenate([np.asarray(x) for x in parts]).astype(dtype))
 

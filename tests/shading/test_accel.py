@@ -503,7 +503,9 @@ def test_groups_of_any_size_compute_their_items_with_one_program(monkeypatch):
         geo = pack_geometry(make_plan(load_scene(text)), jnp.float32)
         assert geo.accel.n_items == n and len(geo.groups) == 1
         groups.append((geo.shapes[0], np.asarray(geo.object_from_world[0])))
-    assert _accel._group_items._cache_size() - before == 1  # one program for the three sizes
+    # one program for the three sizes (none if an earlier test compiled that chunk; one per size
+    # before the chunks)
+    assert _accel._group_items._cache_size() - before <= 1
     for shape, ofw in groups:
         wfo = np.linalg.inv(ofw)
         whole = _accel._group_items(jax.tree_util.tree_map(jax.lax.stop_gradient, shape), ofw, wfo)
