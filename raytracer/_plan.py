@@ -16,6 +16,7 @@ import dataclasses
 
 from . import patterns
 from ._gc import without_collections
+from ._packing import bucket
 from .errors import SceneError, SceneWarning
 from .scene import (
     CSG,
@@ -33,6 +34,7 @@ from .scene._transform import compose
 # straight (ior 1) surfaces a ray path may cross beyond max_trace_level: as many as the scene's
 # straight-transmitting primitives can put on one line, up to this bound (the plan warns beyond it)
 STRAIGHT_PASSES = 256
+EXACT_STRAIGHT_PASSES = 16  # more are rounded up to a ``_packing.bucket`` size
 MEDIA_SLOTS = 16  # at most this many interiors in a ray's list (POV-Ray's list has no bound)
 
 SUPPORTED_PATTERNS = patterns.RENDERED  # registered patterns the renderer evaluates
@@ -395,6 +397,10 @@ def make_plan(scene: Scene) -> Plan:
             f"rays can cross up to {straight_passes} ior-1 transparent surfaces; those past "
             f"{STRAIGHT_PASSES} beyond max_trace_level are not traced")))
         straight_passes = STRAIGHT_PASSES
+    elif straight_passes > EXACT_STRAIGHT_PASSES:
+        # a count in the bucket of the scene's count (levels with no live ray cost a test): scenes
+        # that differ only in their number of transparent items share one program
+        straight_passes = min(bucket(straight_passes), STRAIGHT_PASSES)
     depth = scene.settings.max_trace_level + straight_passes if (reflection or transmission) else 1
     casters = [p for p in prims if p.rendered and "no_shadow" not in p.flags]
     effects = Effects(

@@ -48,6 +48,42 @@ def test_program_has_the_same_operations_for_20_and_200_spheres(tmp_path, monkey
     assert args20 == args200 < 100
 
 
+def _varied(n: int) -> str:
+    """A plane and ``n`` spheres of every kind of material row the program looks up at a traced
+    primitive: solid and checker pigments, a wave, fresnel reflection with conserve_energy, an
+    inverted sphere, two texture layers, transparent ones that filter shadows."""
+    looks = ["pigment { rgb <0.8, 0.4, 0.2> }",
+             "pigment { checker rgb 1 rgb 0 scale 0.1 sine_wave } inverse",
+             "pigment { rgb 0.5 } finish { reflection { 0.1, 0.6 fresnel on } conserve_energy }",
+             "texture { pigment { rgb 1 } } texture { pigment { checker rgbt 1 rgbt <0, 0, 0, 0.5> } }",
+             "pigment { rgbf <0.9, 0.9, 0.2, 0.8> }"]
+    rows = [f"sphere {{ <{i % 20 - 10}, 0.5, {i // 20}>, 0.4 {looks[i % len(looks)]} }}" for i in range(n)]
+    return ("camera { location <0, 5, -12> look_at <0, 0, 3> }\nlight_source { <-5, 9, -9> color rgb 1 }\n"
+            "plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }\n" + "\n".join(rows))
+
+
+def test_scenes_that_differ_only_in_their_number_of_items_lower_to_one_program(tmp_path, monkeypatch):
+    """The per-primitive tables (materials, normal signs, media, bounding units) and the
+    hierarchy's tables are arrays padded to ``_packing.bucket`` sizes, not constants of the
+    program, and more than 16 straight passes are rounded up to a bucket: 105 and 110 spheres (one
+    bucket of primitives, items and passes) lower to the same program text, so XLA's compile of the
+    first serves the second through the persistent cache; 130 spheres (the next bucket) do not.
+    Before, each count made its own program (per-primitive constant tables, the tree's depth)."""
+    if _accel.unavailable_reason() is not None:
+        pytest.skip(_accel.unavailable_reason())
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    texts = {}
+    for n in (105, 110, 130):
+        path = tmp_path / f"v{n}.pov"
+        path.write_text(_varied(n))
+        scene = load_scene(path, width=16, height=12)
+        packed = pack(scene)
+        assert packed.geo.accel is not None and packed.geo.accel.n_items == n
+        texts[n] = _render_part.lower(packed, 16, 12, 1, 1, jnp.asarray(0), 4).as_text()
+    assert texts[105] == texts[110]
+    assert texts[110] != texts[130]
+
+
 @pytest.mark.slow  # two programs lowered
 def test_program_does_not_grow_with_lights_of_one_kind(tmp_path):
     """Lights of one structure are one vmapped computation: five point lights make the program two
@@ -295,9 +331,9 @@ def test_materials_pack_shared_finishes_and_colour_maps_of_every_length_row_by_r
                               texture=rt.Texture(layers=(rt.Layer(pigment=pg, finish=f),)))
                     for i, (pg, f) in enumerate(zip(pigments, finishes, strict=True)))
     mats = pack_materials(make_plan(rt.Scene(camera=rt.Camera(), objects=objects)), np.float64)
-    np.testing.assert_array_equal(mats.finish["diffuse"], np.float32([0.5, 0.9, 0.5]))
-    ambient = np.reshape(mats.finish["ambient"], (3, -1))[:, 0]
-    np.testing.assert_array_equal(ambient, np.float32([0.1, 0.2, 0.1]))
+    # rows past the objects' (padding to ``bucket(3)`` = 8 primitives) repeat the last one
+    np.testing.assert_array_equal(mats.finish["diffuse"], np.float32([0.5, 0.9] + [0.5] * 6))
+    np.testing.assert_array_equal(mats.finish["ambient"][:3], np.float32([0.1, 0.2, 0.1]))
     for row, (v, c) in enumerate(zip(maps, colours, strict=True)):
         n = len(v)
         np.testing.assert_array_equal(mats.values[row], np.concatenate([v, np.repeat(v[-1], 3 - n)]))

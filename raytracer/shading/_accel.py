@@ -43,7 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.custom_batching import custom_vmap
 
-from .._packing import any_traced, is_traced, register_packed
+from .._packing import any_traced, bucket, is_traced, pad_rows, register_packed
 from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes._base import AbstractShape
 
@@ -178,8 +178,6 @@ class AccelGroup:
     """Static description of the items of one accelerated group (``_geometry.Group``)."""
 
     group: int  # index into PackedGeometry.groups
-    first: int  # its first item
-    members: int  # primitives in the group
     per_member: int  # items per primitive (1, or a mesh's triangles)
     csg: bool = False  # members of CSG objects (``CsgUnits``): the query names the crossing it counts
     filters: bool = True  # some item is a transparent shadow caster (``MASK_FILTER``): ``filtering`` asks it
@@ -193,10 +191,13 @@ class Accel:
     item_prim: jax.Array  # (n,) int32 primitive of each item
     # the query's scene operands: node_box, node_info, order, kind, mask, params, unit, unit_box, program
     tables: tuple
-    n_items: int
+    n_items: int  # items (the tables' rows past them are padding: ``pack_accel``)
+    # (G, 2) int32: each group's first item and number of items (arrays, not constants of the
+    # program: scenes that differ only in their numbers of items share one program)
+    ranges: jax.Array | None = None
 
 
-register_packed(Accel, ("item_prim", "tables"))
+register_packed(Accel, ("item_prim", "tables", "ranges"))
 
 
 @jax.jit
@@ -280,7 +281,7 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     its unit's), then the CSG members' (not in the hierarchy: their objects' programs name them)."""
     sg = jax.lax.stop_gradient
     prim_mask = np.asarray(prim_mask, np.int32)
-    boxes, kinds, params, prims, accel_groups = [], [], [], [], []
+    boxes, kinds, params, prims, accel_groups, ranges = [], [], [], [], [], []
     first = 0
 
     def add(g, prim_ids, is_csg):
@@ -294,7 +295,8 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         kinds.append(np.full(n * k, type(shapes[g]).native_kernel, np.int32))
         prims.append(np.repeat(np.asarray(prim_ids, np.int32), k))
         filters = bool(np.any(prim_mask[np.asarray(prim_ids, np.int64)] & MASK_FILTER))
-        accel_groups.append(AccelGroup(g, first, n, k, is_csg, filters))
+        accel_groups.append(AccelGroup(g, k, is_csg, filters))
+        ranges.append((first, n * k))
         first += n * k
 
     for g, prim_ids in groups:
@@ -330,10 +332,18 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     else:
         item_unit = units
         unit_box = jnp.concatenate([sg(unit_boxes[0]), sg(unit_boxes[1])], axis=-1).astype(dtype)
-    tables = (node_box, node_info, order, jnp.asarray(np.concatenate(kinds)), jnp.asarray(masks),
-              _joined(params, dtype), jnp.asarray(item_unit), jnp.asarray(unit_box),
-              jnp.asarray(program))
-    return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first)
+    tables = (node_box, node_info, order, np.concatenate(kinds), masks, _joined(params, dtype), item_unit,
+              unit_box, program)
+    if _hierarchy()[0] is _build:
+        # the rows past the hierarchy's nodes and items are padding (zeros: no item, mask 0), which
+        # no node names: the query reads only what the root reaches
+        held, items = bucket(order.shape[0]), bucket(first)
+        tables = (tuple(pad_rows(x, 2 * held - 1, 0) for x in tables[:2]) + (pad_rows(order, held, 0),)
+                  + tuple(pad_rows(x, items, 0) for x in tables[3:7]) + tables[7:])
+        item_prim = pad_rows(item_prim, items, 0)
+    tables = tuple(map(jnp.asarray, tables))
+    return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first,
+                 jnp.asarray(np.asarray(ranges, np.int32).reshape(-1, 2)))
 
 
 def _relocate(csg: CsgUnits, member_base: int) -> np.ndarray:
@@ -355,9 +365,9 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
     item, t_chosen = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
     chosen = jnp.maximum(item, 0)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
-    for ag in accel.groups:
-        local = chosen - ag.first
-        mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)
+    for g, ag in enumerate(accel.groups):
+        local = chosen - accel.ranges[g, 0]
+        mine = (item >= 0) & (local >= 0) & (local < accel.ranges[g, 1])
         local = jnp.where(mine, local, 0)
         member, sub = local // ag.per_member, local % ag.per_member
         shape = jax.tree_util.tree_map(lambda a, member=member: a[member], shapes[ag.group])
@@ -399,11 +409,11 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     item, count, t_native = _all_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
     chosen = jnp.maximum(item, 0)
     ts = []
-    for ag in accel.groups:
+    for g, ag in enumerate(accel.groups):
         if not ag.filters:
             continue  # (the query names only items of groups with transparent shadow casters)
-        local = chosen - ag.first
-        mine = (item >= 0) & (local >= 0) & (local < ag.members * ag.per_member)
+        local = chosen - accel.ranges[g, 0]
+        mine = (item >= 0) & (local >= 0) & (local < accel.ranges[g, 1])
         local = jnp.where(mine, local, 0)
         member, sub = local // ag.per_member, local % ag.per_member
 

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._packing import EYE4, inverse_affines, register_packed, stack
+from .._packing import EYE4, bucket, inverse_affines, pad_rows, register_packed, stack
 from .._plan import InAll, InAny, InDiff, InPrim, InsideTree, Plan
 from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes import AbstractShape, world_bounds
@@ -58,9 +58,13 @@ class PackedGeometry:
     # the world boxes (lo, hi) of the units, (U, 3) each; None when the scene is one unit
     prim_unit: np.ndarray | None = None
     unit_boxes: tuple | None = None
+    # what the program looks up at a traced primitive, as arrays of ``bucket(P)`` entries (not
+    # constants: a program per object count): "sign" (``prim_sign``), "unit" (``prim_unit``, 0
+    # when None) and "medium" (``medium_ids``)
+    prim_table: dict | None = None
 
 
-register_packed(PackedGeometry, ("shapes", "object_from_world", "accel", "unit_boxes"))
+register_packed(PackedGeometry, ("shapes", "object_from_world", "accel", "unit_boxes", "prim_table"))
 
 
 # the leaf types of a shape's array fields (tracers are jax.Array instances too; a number set by
@@ -137,6 +141,16 @@ def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
     if prim.transparent and "no_shadow" not in prim.flags:
         return filter_query
     return True
+
+
+def medium_ids(prims) -> np.ndarray:
+    """Primitives whose interior is one record (the children of a CSG given one ``interior``) are
+    one medium, named by the first of them: a ray that enters a hollow glass ``difference``
+    through its outer sphere leaves it through its inner one. A primitive without an interior is
+    a medium of its own (ior 1)."""
+    first: dict[int, int] = {}
+    return np.array([i if p.interior is None else first.setdefault(id(p.interior), i)
+                     for i, p in enumerate(prims)], np.int32)
 
 
 def visibility_bits(prim) -> int:
@@ -314,8 +328,9 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
                          np.asarray(cand_prim, dtype=np.int32), len(cand_prim),
                          prim_sign=np.array([-1.0 if p.inverse else 1.0 for p in plan.prims]))
     if len(plan.units) > 1 or csg:
+        boxes = unit_boxes(plan, geo, wfo)
         geo = dataclasses.replace(geo, prim_unit=np.asarray(plan.prim_unit, np.int32),
-                                  unit_boxes=unit_boxes(plan, geo, wfo))
+                                  unit_boxes=tuple(pad_rows(b, bucket(len(plan.units))) for b in boxes))
     accel_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.accelerated and not grp.csg_member]
     csg_groups = [(g, grp.prims) for g, grp in enumerate(groups) if grp.csg_member]
     if accel_groups or csg_groups:
@@ -329,7 +344,26 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
     if plan.effects.csg:
         conditions = build_csg_conditions(geo, plan)
         geo = dataclasses.replace(geo, conditions=conditions if conditions.cand.size else None)
-    return geo
+    return _padded_to_bucket(geo, plan)
+
+
+def _padded_to_bucket(geo: PackedGeometry, plan: Plan) -> PackedGeometry:
+    """``geo`` with its per-primitive tables (``prim_table``) and the stacks of its hierarchy's
+    groups of one-item shapes padded to ``bucket`` sizes (copies of the last member, never named
+    by the hierarchy: ``_accel.pack_accel`` pads its own tables). Candidates are not padded: every
+    ray computes every candidate. A mesh's group is not either: its size is its triangles'."""
+    n = bucket(len(plan.prims))
+    unit = geo.prim_unit if geo.prim_unit is not None else np.zeros(len(plan.prims), np.int32)
+    table = {"sign": pad_rows(geo.prim_sign, n), "unit": pad_rows(unit, n),
+             "medium": pad_rows(medium_ids(plan.prims), n)}
+    shapes, ofw = list(geo.shapes), list(geo.object_from_world)
+    for g, group in enumerate(geo.groups):
+        one_item = type(shapes[g]).n_native_items is AbstractShape.n_native_items
+        if group.accelerated and one_item:
+            size = bucket(len(group.prims))
+            shapes[g] = jax.tree_util.tree_map(lambda x, size=size: pad_rows(x, size), shapes[g])
+            ofw[g] = pad_rows(ofw[g], size)
+    return dataclasses.replace(geo, shapes=tuple(shapes), object_from_world=tuple(ofw), prim_table=table)
 
 
 _world_bounds = jax.jit(jax.vmap(world_bounds))  # one program per group signature, not one per op
@@ -648,7 +682,7 @@ def _closest(geo: PackedGeometry, tt, prim, o, d):
         return jnp.argmin(tt)
     tmin = tt.min()
     tied = tt <= tmin + jnp.abs(tmin) * (TIE_EPSILONS * jnp.finfo(tt.dtype).eps)
-    unit = jnp.asarray(geo.prim_unit)[prim]
+    unit = jnp.asarray(geo.prim_table["unit"])[prim]
     last = np.int32(np.iinfo(np.int32).max)
     u1 = jnp.where(tied, unit, last).min()
     u2 = jnp.where(tied & (unit != u1), unit, last).min()
@@ -687,5 +721,5 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     c = _closest(geo, tt, pp, o, d)
     best_t, best_n, best_prim = tt[c], nn[c], pp[c]
     found = jnp.isfinite(best_t)
-    normal = best_n * jnp.asarray(geo.prim_sign, best_n.dtype)[best_prim]
+    normal = best_n * jnp.asarray(geo.prim_table["sign"], best_n.dtype)[best_prim]
     return Hit(found, jnp.where(found, best_t, 0.0), best_prim, normal)

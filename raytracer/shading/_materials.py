@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import patterns
-from .._packing import EYE4, any_traced, inverse_affines, register_packed, stack, traced_op
+from .._packing import EYE4, any_traced, bucket, inverse_affines, pad_rows, register_packed, stack, traced_op
 from .._plan import Plan
 from ..kernels import matvec
 from ..scene import WAVES, Finish, Interior, Pigment, Reflection
@@ -27,6 +27,12 @@ class PackedMaterials:
     evaluated pattern by pattern (only patterns present in the scene are traced) and selected by
     ``pattern_id``. Colour maps are padded to a common length by repeating their last entry, which
     leaves the lookup unchanged.
+
+    The static per-row tables serve decisions made while tracing (which candidate rows are
+    solid); the program's own lookups at a traced row read their copies in ``tables``, arrays
+    padded like every other array here to ``bucket(N)`` primitives (rows of padding repeat the last
+    one and are never read). So scenes that differ only in how many primitives the hierarchy
+    holds (``_accel``) give one program, not one with each table as a constant.
     """
 
     n_layers: int  # static: the most layers any primitive's texture has
@@ -53,6 +59,9 @@ class PackedMaterials:
     fade_power: jax.Array
     fade_color: jax.Array  # (N, 3)
     transparent: np.ndarray  # (N,) static: every layer's pigment can carry filter/transmit
+    # the static tables above as arrays (a traced row's lookups): layer_present, pattern_id, waves,
+    # fresnel, conserve_energy, transparent
+    tables: dict[str, jax.Array] = dataclasses.field(default_factory=dict)
 
 
 def _finish_arrays(f: Finish, no_reflection: Reflection) -> dict:
@@ -117,7 +126,7 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
             by_id[id(f)] = len(fin)
             fin.append(_finish_arrays(f, no_reflection))
     fin_row = np.fromiter((by_id[id(f)] for f in finishes), np.int64, len(finishes))
-    return PackedMaterials(
+    mats = PackedMaterials(
         n_layers=n_layers,
         layer_present=present,
         pattern_names=names,
@@ -145,11 +154,38 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         fade_color=stack([it.fade_color for it in interiors], dtype),
         transparent=np.array([p.transparent for p in plan.prims]),
     )
+    return _padded_to_bucket(mats, len(plan.prims))
+
+
+_ROW_ARRAYS = ("values", "colors", "pattern_from_world", "vector", "frequency", "phase", "turbulence",
+               "omega", "lambda_")
+_PRIM_ARRAYS = ("ior", "fade_distance", "fade_power", "fade_color")
+
+
+def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
+    """``mats`` with its arrays padded to ``bucket(n_prims)`` primitives and its static tables'
+    array copies (``PackedMaterials.tables``)."""
+    n = bucket(n_prims)
+    rows = n * mats.n_layers
+    out = dataclasses.replace(
+        mats,
+        **{k: pad_rows(getattr(mats, k), rows) for k in _ROW_ARRAYS},
+        **{k: pad_rows(getattr(mats, k), n) for k in _PRIM_ARRAYS},
+        finish={k: pad_rows(v, rows) for k, v in mats.finish.items()})
+    out.tables = {
+        "layer_present": pad_rows(mats.layer_present, n, False),
+        "pattern_id": pad_rows(mats.pattern_id, rows),
+        "waves": pad_rows(mats.waves, rows),
+        "fresnel": pad_rows(mats.fresnel, rows, False),
+        "conserve_energy": pad_rows(mats.conserve_energy, rows, False),
+        "transparent": pad_rows(mats.transparent, n, False),
+    }
+    return out
 
 
 register_packed(PackedMaterials, ("values", "colors", "pattern_from_world", "vector", "frequency", "phase",
                                   "turbulence", "omega", "lambda_", "finish", "ior", "fade_distance",
-                                  "fade_power", "fade_color"))
+                                  "fade_power", "fade_color", "tables"))
 
 
 def pat_wave_index(pg: Pigment) -> int:
@@ -176,7 +212,7 @@ def pigment_at(mats: PackedMaterials, prim, p):
     if _all_solid(mats):
         return mats.colors[prim, 0]
     q = _pattern_point(mats, prim, p)
-    pid = jnp.asarray(mats.pattern_id)[prim]
+    pid = jnp.asarray(mats.tables["pattern_id"])[prim]
     v = jnp.zeros((), p.dtype)
     for k in _evaluated_patterns(mats):
         v = jnp.where(pid == k, _raw_value(mats, k, prim, q), v)
@@ -211,7 +247,7 @@ def _raw_value(mats: PackedMaterials, k: int, row, q):
 def _pigment_of_value(mats: PackedMaterials, prim, v):
     """RGBFT (5,) of row ``prim`` whose pattern has raw value ``v``: frequency, phase, wave and
     colour map (or list entry); a solid row's colour whatever ``v``."""
-    pid = jnp.asarray(mats.pattern_id)[prim]
+    pid = jnp.asarray(mats.tables["pattern_id"])[prim]
     # frequency / phase with POV's 1.00001 wrap (semantics §5.2 step 3); a discrete pattern's value is the
     # index of its colour and is never wrapped
     freq, phase = mats.frequency[prim], mats.phase[prim]
@@ -219,7 +255,7 @@ def _pigment_of_value(mats: PackedMaterials, prim, v):
     w = jnp.where(w < 0, w - jnp.floor(w), w)
     discrete = jnp.asarray([patterns.REGISTRY[name].discrete for name in mats.pattern_names])[pid]
     v = jnp.where((freq != 0) & ~discrete, w, v)
-    wave = jnp.asarray(mats.waves)[prim]
+    wave = jnp.asarray(mats.tables["waves"])[prim]
     if np.any(mats.waves != 0):
         waved = jnp.stack([patterns.apply_wave(v, name) for name in WAVES])
         v = waved[wave]
@@ -253,7 +289,7 @@ def pigments_at(mats: PackedMaterials, rows, points, needed):
     m = rows.shape[0]
     if _all_solid(mats):
         return mats.colors[rows, 0]
-    pid = jnp.asarray(mats.pattern_id)[rows]
+    pid = jnp.asarray(mats.tables["pattern_id"])[rows]
     kinds = _evaluated_patterns(mats)
     # groups: the patterns computed, then patterns we do not render (value 0, then the row's
     # frequency, phase, wave and map, as ``pigment_at``), then entries not needed and solid rows

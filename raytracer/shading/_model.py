@@ -63,6 +63,7 @@ from ._geometry import (
     closest_hit,
     csg_mask,
     evaluate_inside,
+    medium_ids,
     visibility_bits,
 )
 from ._materials import PackedMaterials, costly_patterns, pigment_at, pigments_at, solid_rows
@@ -238,23 +239,13 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         transparent_cands=np.asarray(mats.transparent, bool)[shadow.cand_prim],
         inverse_sign=geo.prim_sign[shadow.cand_prim],
         fading_cands=np.flatnonzero([prims[i].transparent and prims[i].fades for i in shadow.cand_prim]),
-        medium=_medium_ids(prims),
+        medium=medium_ids(prims),
         accel_filters=geo.accel is not None and any(
             bits[i] & _accel.MASK_FILTER for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
         accel_fades=geo.accel is not None and any(
             bits[i] & _accel.MASK_FILTER and prims[i].fades
             for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
     )
-
-
-def _medium_ids(prims) -> np.ndarray:
-    """Primitives whose interior is one record (the children of a CSG given one ``interior``) are
-    one medium, named by the first of them: a ray that enters a hollow glass ``difference``
-    through its outer sphere leaves it through its inner one. A primitive without an interior is
-    a medium of its own (ior 1)."""
-    first: dict[int, int] = {}
-    return np.array([i if p.interior is None else first.setdefault(id(p.interior), i)
-                     for i, p in enumerate(prims)], np.int32)
 
 
 # ---------------------------------------------------------------- shadows
@@ -389,7 +380,7 @@ def _shadow_fade(ctx: TraceContext, l, cand, crossed):
         tc.append(accepted[-1])  # every crossing: an interior without fade attenuates by 1
         normals.append(crossed.normal.reshape(k * j, 3))
         prims.append(jnp.repeat(crossed.prim, j))
-        signs.append(jnp.asarray(ctx.geo.prim_sign, crossed.t.dtype)[prims[-1]])
+        signs.append(jnp.asarray(ctx.geo.prim_table["sign"], crossed.t.dtype)[prims[-1]])
         oks.append(ok)
     accepted, tc, n, prims, sign, ok = map(jnp.concatenate, (accepted, tc, normals, prims, signs, oks))
     prev = jnp.max(jnp.where(accepted[None, :] < tc[:, None], accepted[None, :], 0.0), axis=1)
@@ -409,7 +400,7 @@ def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
     (``_accel.Crossed``: their interiors' fade is ``_shadow_fade``'s)."""
     crossed = _accel.filtering(ctx.geo.accel, ctx.geo.shapes, ctx.geo.object_from_world, o, l, t_min, t_max)
     m = ctx.mats
-    present = jnp.asarray(m.layer_present)[crossed.prim]  # (k, n_layers)
+    present = jnp.asarray(m.tables["layer_present"])[crossed.prim]  # (k, n_layers)
     ok = jnp.isfinite(crossed.t)  # (k, J)
     points = o[None, None, :] + jnp.where(ok, crossed.t, 0.0)[..., None] * l[None, None, :]  # (k, J, 3)
     rows = crossed.prim[:, None] * m.n_layers + jnp.arange(m.n_layers)[None, :]  # (k, L)
@@ -693,7 +684,7 @@ def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
     if ctx.plan.effects.fresnel:
         f, total = lighting.fresnel(cos_i, eta_rel)
         fres = jnp.where(total, rmax, f * rmax + (1 - f) * rmin)
-        is_f = jnp.asarray(mats.fresnel)[row]
+        is_f = jnp.asarray(mats.tables["fresnel"])[row]
         reflec = jnp.where(is_f, fres, reflec)
         weight = jnp.where(is_f, jnp.max(reflec), weight)
     if ctx.plan.effects.reflection_metallic:
@@ -728,7 +719,7 @@ def _surface(ctx: TraceContext, ray: Rays) -> _Surface:
     offset = ctx.eps * (1.0 + jnp.max(jnp.abs(p)))
     return _Surface(found=hit.found & ray.alive, missed=ray.alive & ~hit.found, t=hit.t, prim=hit.prim,
                     p=p, n=n, entering=entering, p_out=p + offset * n, p_in=p - offset * n,
-                    medium=jnp.asarray(ctx.medium)[hit.prim])
+                    medium=jnp.asarray(ctx.geo.prim_table["medium"])[hit.prim])
 
 
 class _Layers(NamedTuple):
@@ -806,7 +797,7 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
         if not reflection:
             return tmp, layer_fil, None, None
         reflec_k, w_k = _reflectivity(ctx, row, cos_i, eta_rel, rgb)
-        conserve = jnp.asarray(mats.conserve_energy)[row]
+        conserve = jnp.asarray(mats.tables["conserve_energy"])[row]
         layer_fil = jnp.where(conserve, layer_fil * jnp.minimum(1.0, 1.0 - reflec_k), layer_fil)
         return tmp, layer_fil, reflec_k, w_k
 
@@ -825,7 +816,8 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
     for k in range(n_layers):
         # top first: each layer is seen through the filters of those above it, and the loop
         # stops once they let less than adc_bailout through
-        active = jnp.asarray(mats.layer_present)[prim, k] & ((trans > ctx.settings.adc_bailout) | (k == 0))
+        present = jnp.asarray(mats.tables["layer_present"])[prim, k]
+        active = present & ((trans > ctx.settings.adc_bailout) | (k == 0))
         local = local + jnp.where(active, fil * tmps[k], 0.0)
         if reflection:
             reflec = reflec + jnp.where(active, reflecs[k], 0.0)  # layers' reflections add up
@@ -857,7 +849,7 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
         att_col = jnp.ones(3, ctx.dtype)
     t_weight = jax.lax.stop_gradient(weight * jnp.max(jnp.abs(fil)))
     t_alive = s.found & (layers.trans > settings.adc_bailout) & (t_weight >= settings.adc_bailout)
-    t_alive = t_alive & jnp.asarray(mats.transparent)[prim]  # opaque pigments never transmit
+    t_alive = t_alive & jnp.asarray(mats.tables["transparent"])[prim]  # opaque pigments never transmit
     # TIR is found by the refraction step, so it only replaces the mirror ray where that step
     # runs; a conserve_energy + fresnel surface under TIR has fil = 0 and reflects instead (semantics §2.3)
     tir = tir & t_alive
