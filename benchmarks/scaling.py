@@ -26,9 +26,12 @@ header ``#version 3.7; global_settings { assumed_gamma 1.0 max_trace_level L }``
 Every measurement is a fresh worker process (``benchmarks/_worker.py``), one at a time:
 
 * ours (``kind: ours``): parse s (``load_scene``), compile s (``compile_render``: trace and XLA
-  compile of the render for this scene structure and size), warm s (median of ``--repeats`` runs
-  of the compiled function; fewer runs when they add up to more than a quarter of the timeout:
-  ``runs`` in the JSON), peak MB (``ru_maxrss`` of the worker: interpreter and JAX included);
+  compile of the render for this scene structure and size), compile s for another N (spheres
+  with N ≥ 8: ``compile_render`` of the nearest count whose arrays pad to the same sizes, after
+  the first in the same process: issue 11's "no compile for another object count"), warm s
+  (median of ``--repeats`` runs of the compiled function; fewer runs when they add up to more
+  than a quarter of the timeout: ``runs`` in the JSON), peak MB (``ru_maxrss`` of the worker:
+  interpreter and JAX included);
 * ours reverse mode (``kind: ours_grad``, spheres with N ≤ 100, every depth): compile s, warm s,
   peak MB of the jitted gradient, and ``grad / fwd``: its warm time over the forward warm time;
 * POV-Ray (``kind: povray``, ``+WT2``): its own Parse Time and Trace Time (median), peak MB of the
@@ -200,6 +203,24 @@ class Case:
     grad: bool = False
     pov_aa: int | None = None  # +R<n>, or None for -A
     details: dict = dataclasses.field(default_factory=dict)
+    # a scene of another object count in the same buckets (``_packing.bucket``): its
+    # ``compile_render`` after this one's, in the same process, is the "recompile" column
+    recount: Callable[[Path], Path] | None = None
+
+
+def other_count(n: int) -> int | None:
+    """The count nearest ``n`` (not ``n``) whose spheres scene pads to the same sizes as n's:
+    ``n`` items and ``n + 1`` primitives (the plane) in the same buckets; None below the
+    hierarchy's ``MIN_ITEMS``."""
+    from raytracer._packing import bucket
+    from raytracer.shading._accel import MIN_ITEMS
+
+    if n < MIN_ITEMS:
+        return None
+    for m in sorted(range(max(MIN_ITEMS, n - 64), n + 65), key=lambda m: (abs(m - n), m)):
+        if m != n and bucket(m) == bucket(n) and bucket(m + 1) == bucket(n + 1):
+            return m
+    return None
 
 
 def _text_file(name: str, text: Callable[[], str]) -> Callable[[Path], Path]:
@@ -211,24 +232,19 @@ def _text_file(name: str, text: Callable[[], str]) -> Callable[[Path], Path]:
     return write
 
 
+def _spheres_case(n: int, size: tuple[int, int]) -> Case:
+    m = other_count(n)
+    return Case("spheres", f"N = {n:,}", n, *size, _text_file(f"spheres_{n}.pov", lambda: spheres_scene(n)),
+                grad=n <= GRAD_MAX_N, details={"spheres": n, "objects": n + 1, "recount": m},
+                recount=None if m is None else _text_file(f"spheres_{m}.pov", lambda: spheres_scene(m)))
+
+
 def cases(family: str, quick: bool, max_n: int | None, max_triangles: int | None) -> list[Case]:
     """The cases of ``family`` in the order they run (increasing size)."""
     big = (160, 120) if quick else (640, 480)
     if family == "spheres":
         ns = [1, 10, 100, 1_000] if quick else [1, 10, 100, 1_000, 10_000, 100_000]
-        return [
-            Case(
-                "spheres",
-                f"N = {n:,}",
-                n,
-                *big,
-                _text_file(f"spheres_{n}.pov", lambda n=n: spheres_scene(n)),
-                grad=n <= GRAD_MAX_N,
-                details={"spheres": n, "objects": n + 1},
-            )
-            for n in ns
-            if max_n is None or n <= max_n
-        ]
+        return [_spheres_case(n, big) for n in ns if max_n is None or n <= max_n]
     if family == "mesh":
         sizes = [1_000, 10_000] if quick else [10_000, 100_000, 1_000_000]
         if max_triangles is not None:
@@ -329,8 +345,10 @@ def attempt(job: dict, timeout: float, max_rss_mb: float | None = None) -> dict:
     }
 
 
-def run_case(case: Case, scene: Path, images: Path, opts, stopped: dict[str, str]) -> dict:
-    """Measures ``case`` with each renderer not yet ``stopped`` in its family; updates ``stopped``."""
+def run_case(case: Case, scene: Path, images: Path, opts, stopped: dict[str, str],
+             recount: Path | None = None) -> dict:
+    """Measures ``case`` with each renderer not yet ``stopped`` in its family; updates ``stopped``.
+    ``recount``: the case's scene at another object count (``Case.recount``), compiled after it."""
     common = {
         "scene": scene,
         "width": case.width,
@@ -340,7 +358,8 @@ def run_case(case: Case, scene: Path, images: Path, opts, stopped: dict[str, str
     }
     stem = f"{case.family}_{case.x}"
     jobs = {
-        "ours": {**common, "kind": "ours", "spp": case.spp, "image": images / f"{stem}_ours.npy"},
+        "ours": {**common, "kind": "ours", "spp": case.spp, "image": images / f"{stem}_ours.npy",
+                 **({"recount_scene": recount} if recount is not None else {})},
         "ours_grad": {**common, "kind": "ours_grad", "spp": case.spp} if case.grad else None,
         "povray": {
             **common,
@@ -429,6 +448,7 @@ def family_table(rows: list[dict]) -> str:
                 f"{r['width']}×{r['height']}",
                 _cell(o, "parse_s"),
                 _cell(o, "compile_s"),
+                _cell(o, "recompile_s") if o and "recompile_s" in o else None,
                 _cell(o, "time_s"),
                 _cell(o, "peak_mb"),
                 _cell(p, "parse_s"),
@@ -444,6 +464,7 @@ def family_table(rows: list[dict]) -> str:
             "size",
             "ours parse s",
             "ours compile s",
+            "ours compile s, another N",
             "ours warm s (median)",
             "ours peak MB",
             "POV parse s",
@@ -633,7 +654,8 @@ def main(argv=None) -> int:
                     flush=True,
                 )
                 scene = case.write(scenes)
-                rows.append(run_case(case, scene, images, args, stopped))
+                recount = case.recount(scenes) if case.recount is not None else None
+                rows.append(run_case(case, scene, images, args, stopped, recount))
                 for npy in images.iterdir():
                     npy.unlink()
         if args.keep_scenes:

@@ -62,9 +62,11 @@ class Frozen:
 
 def register_packed(cls, arrays: tuple[str, ...]):
     """Registers dataclass ``cls`` as a pytree whose children are the fields ``arrays`` (arrays or
-    pytrees of them); every other field is static (compared by content)."""
+    pytrees of them); every other field is static (compared by content, or by the key
+    :func:`keyed` gave it)."""
     names = [f.name for f in dataclasses.fields(cls)]
     static = tuple(n for n in names if n not in arrays)
+    cls._packed_static_names = static
 
     def flatten(x):
         # the static half is pickled once per instance (a jit call flattens its arguments)
@@ -81,6 +83,14 @@ def register_packed(cls, arrays: tuple[str, ...]):
 
     jax.tree_util.register_pytree_node(cls, flatten, unflatten)
     return cls
+
+
+def keyed(x, key) -> None:
+    """Gives packed value ``x`` (of a :func:`register_packed` class) the static half compared by
+    ``key`` instead of by its content: a program is then keyed by what its trace reads of ``x``
+    (the caller's promise), not by every static table (``render._signature``)."""
+    static = {n: getattr(x, n) for n in type(x)._packed_static_names}
+    object.__setattr__(x, "_packed_static", Frozen(static, key=key))
 
 
 def is_traced(*xs) -> bool:

@@ -8,10 +8,13 @@ the forward render nor its gradient holds more than one tile's rays at a time.
 
 from __future__ import annotations
 
+import functools
 import math
 import operator
 import os
+import pickle
 import warnings
+import weakref
 from pathlib import Path
 from typing import NamedTuple
 
@@ -21,12 +24,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._gc import paused, without_collections
-from ._packing import Frozen, is_traced, skeleton, with_field
+from ._packing import Frozen, is_traced, keyed, skeleton, with_field
 from ._plan import Plan, make_plan
 from ._xla import warn_if_untuned
 from .scene import Scene
 from .shading import _accel
-from .shading._geometry import PackedGeometry, pack_geometry
+from .shading._geometry import PackedGeometry, pack_geometry, prim_bits
 from .shading._materials import PackedMaterials, pack_materials
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
@@ -152,13 +155,75 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
 def _pack(scene: Scene, scene_plan: Plan, flat=None) -> Packed:
     dtype = scene.camera.location.dtype
     rest = with_field(scene, "objects", ())
-    packed = Packed(rest, skeleton(scene.objects, flat), pack_geometry(scene_plan, dtype),
-                    pack_materials(scene_plan, dtype))
+    geo, mats = pack_geometry(scene_plan, dtype), pack_materials(scene_plan, dtype)
+    signature = _signature(scene_plan, geo, mats)
+    if signature is None:
+        objects = skeleton(scene.objects, flat)
+    else:
+        # the program is keyed by the signature: the skeleton is built only if asked for (a weak
+        # reference: a compiled program's cache keeps its key, which must not keep the scene)
+        key = hash(signature), signature
+        objects = Frozen(key=("objects", key), make=functools.partial(_skeleton_of, weakref.ref(scene)))
+        keyed(geo, ("geometry", key))
+        keyed(mats, ("materials", key))
+        keyed(geo.accel, ("hierarchy", key))
+    packed = Packed(rest, objects, geo, mats)
     # the compiled program's trace takes its plan from here (``_plan_of``) instead of making it
     # again from the skeleton: for 100,000 spheres that was 3 s of ``make_plan`` and 1.3 s of
     # building the skeleton's objects
     packed.objects.memo = (_rest_signature(rest), scene_plan)
     return packed
+
+
+def _skeleton_of(scene_ref):
+    scene = scene_ref()
+    if scene is None:
+        raise RuntimeError("the scene this value was packed from no longer exists: pack the scene again")
+    return skeleton(scene.objects).value
+
+
+def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> bytes | None:
+    """What the render program's trace reads of the packed objects beyond their arrays' shapes,
+    for a scene whose objects vary only in the hierarchy's groups of one-item shapes: then scenes
+    that differ only in how many objects those groups hold (in one ``_packing.bucket``) share one
+    compiled program, without a trace (issue 11). None for any other scene, whose program is
+    keyed by its whole skeleton as before.
+
+    The trace reads (``shading/_model.make_context``, ``_geometry``, ``_materials``): the effects;
+    the candidates (their groups, slots, CSG conditions and the ``where`` of every primitive
+    their inside trees name) and of each candidate primitive its visibility bits, transparency,
+    fade, ``inverse`` and material rows' static tables; the hierarchy's groups and whether its
+    items filter or fade shadows; the materials' patterns, layers and waves; whether the scene is
+    one bounding unit. Everything else it looks up at a traced primitive, from arrays. Scenes
+    with media (``initial_media`` evaluates every object's inside test at the eye), CSG objects
+    the hierarchy holds, or no hierarchy fall back."""
+    accel = geo.accel
+    if (accel is None or scene_plan.effects.media_slots or _accel.mode() != "native"
+            or any(g.csg_member for g in geo.groups)):
+        return None
+    prims = scene_plan.prims
+    bits = prim_bits(scene_plan)
+    held = [i for ag in accel.groups for i in geo.groups[ag.group].prims]
+    filters = any(bits[i] & _accel.MASK_FILTER for i in held)
+    fades = any(bits[i] & _accel.MASK_FILTER and prims[i].fades for i in held)
+    named = set(geo.cand_prim.tolist())
+    if geo.conditions is not None:
+        named.update(geo.conditions.circuit.leaf_prim.tolist())
+    layers = mats.n_layers
+
+    def rows(i):
+        return slice(i * layers, (i + 1) * layers)
+
+    candidates = [(i, int(bits[i]), prims[i].transparent, prims[i].fades, prims[i].inverse, geo.where[i],
+                   mats.layer_present[i].tobytes(), mats.pattern_id[rows(i)].tobytes(),
+                   mats.waves[rows(i)].tobytes(), mats.fresnel[rows(i)].tobytes(),
+                   mats.conserve_energy[rows(i)].tobytes()) for i in sorted(named)]
+    groups = [(g.kind, g.solid, g.accelerated, g.csg_member, None if g.accelerated else g.prims)
+              for g in geo.groups]
+    return pickle.dumps((
+        scene_plan.effects, candidates, groups, geo.cand_prim.tobytes(), geo.n_candidates,
+        geo.conditions, geo.unit_boxes is None, accel.groups, filters, fades, layers, mats.pattern_names,
+        mats.turbulent, mats.octaves, bool(np.any(mats.waves != 0))), protocol=pickle.HIGHEST_PROTOCOL)
 
 
 def _rest_signature(rest: Scene):

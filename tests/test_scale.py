@@ -15,6 +15,7 @@ import pytest
 
 import raytracer as rt
 from raytracer import load_scene
+from raytracer._packing import skeleton
 from raytracer.render import FORWARD_CAPACITY, PROGRESS_PARTS, _render_part, compile_render, pack
 from raytracer.shading import _accel
 
@@ -393,3 +394,37 @@ def test_a_parse_leaves_no_reference_cycles_that_grow_with_its_work(count):
     finally:
         gc.enable()
     assert len(scene.objects) == count and left <= 20
+
+
+def test_a_scene_with_another_number_of_items_runs_the_program_compiled_for_the_first(tmp_path, monkeypatch):
+    """``render._signature``: the program is keyed by what its trace reads of the objects, so a
+    scene that differs only in its number of hierarchy items (one bucket) runs the program traced
+    for another — no trace, no compile — and its image is bit-equal to the one its own program
+    (keyed by its whole skeleton, as before) makes."""
+    if _accel.unavailable_reason() is not None:
+        pytest.skip(_accel.unavailable_reason())
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    scenes = {}
+    for n in (105, 110):
+        path = tmp_path / f"v{n}.pov"
+        path.write_text(_varied(n))
+        scenes[n] = load_scene(path, width=16, height=12)
+    traced = []
+    make_context = render_module.make_context
+    monkeypatch.setattr(render_module, "make_context", lambda *a: traced.append(1) or make_context(*a))
+    rt.render(scenes[105], width=16, height=12)
+    assert traced
+    traced.clear()
+    shared = rt.render(scenes[110], width=16, height=12)
+    assert not traced  # the program of 105 spheres ran
+    monkeypatch.setattr(render_module, "_signature", lambda *a: None)
+    render_module._PACKED.clear()
+    own = rt.render(scenes[110], width=16, height=12)
+    assert traced  # keyed by its skeleton: a program of its own
+    np.testing.assert_array_equal(np.asarray(shared), np.asarray(own))
+    assert np.asarray(own).std() > 0.05  # spheres, a checker floor, shadows: not a blank image
+    monkeypatch.undo()
+    render_module._PACKED.clear()
+    keyed = pack(scenes[110]).objects  # keyed by the signature; its skeleton made when asked for
+    assert keyed != skeleton(scenes[110].objects)
+    assert keyed.value == skeleton(scenes[110].objects).value

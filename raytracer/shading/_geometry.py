@@ -226,8 +226,14 @@ def _bounded(tree: InsideTree, plan: Plan) -> bool:
 
 
 def prim_bits(plan: Plan) -> np.ndarray:
-    """(P,) int32: ``visibility_bits`` of every primitive."""
-    return np.array([visibility_bits(p) for p in plan.prims], np.int32)
+    """(P,) int32: ``visibility_bits`` of every primitive (read-only: kept with the plan, which
+    packing, its signature and the trace each ask)."""
+    bits = plan.__dict__.get("_prim_bits")
+    if bits is None:
+        bits = np.array([visibility_bits(p) for p in plan.prims], np.int32)
+        bits.flags.writeable = False
+        object.__setattr__(plan, "_prim_bits", bits)
+    return bits
 
 
 def _unit_members(plan: Plan) -> dict[int, list[int]]:

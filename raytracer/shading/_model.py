@@ -64,7 +64,7 @@ from ._geometry import (
     csg_mask,
     evaluate_inside,
     medium_ids,
-    visibility_bits,
+    prim_bits,
 )
 from ._materials import PackedMaterials, costly_patterns, pigment_at, pigments_at, solid_rows
 
@@ -226,7 +226,7 @@ class TraceContext:
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
                  background, dtype) -> TraceContext:
     prims = plan.prims
-    bits = np.array([visibility_bits(p) for p in prims], np.int32)  # the hierarchy's items use them too
+    bits = prim_bits(plan)  # the hierarchy's items use them too
     # shadow rays compute the crossings of shadow casters only (no_shadow objects are skipped)
     shadow = candidate_view(geo, plan, lambda i: bool(bits[i] & (_accel.MASK_SHADOW | _accel.MASK_FILTER)))
     return TraceContext(
