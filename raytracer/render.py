@@ -25,11 +25,11 @@ import numpy as np
 
 from ._gc import paused, without_collections
 from ._packing import Frozen, is_traced, keyed, skeleton, with_field
-from ._plan import Plan, make_plan
+from ._plan import InPrim, Plan, make_plan
 from ._xla import warn_if_untuned
 from .scene import Scene
 from .shading import _accel
-from .shading._geometry import PackedGeometry, pack_geometry, prim_bits
+from .shading._geometry import PackedGeometry, leaf_prims, pack_geometry, padded_group, prim_bits
 from .shading._materials import PackedMaterials, pack_materials
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
@@ -194,12 +194,11 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
     their inside trees name) and of each candidate primitive its visibility bits, transparency,
     fade, ``inverse`` and material rows' static tables; the hierarchy's groups and whether its
     items filter or fade shadows; the materials' patterns, layers and waves; whether the scene is
-    one bounding unit. Everything else it looks up at a traced primitive, from arrays. Scenes
-    with media (``initial_media`` evaluates every object's inside test at the eye), CSG objects
-    the hierarchy holds, or no hierarchy fall back."""
+    one bounding unit; the roots ``initial_media`` sends through the inside circuit (those of the
+    candidates' objects, in the candidates). Everything else it looks up at a traced primitive,
+    from arrays. Scenes with CSG objects the hierarchy holds, or no hierarchy, fall back."""
     accel = geo.accel
-    if (accel is None or scene_plan.effects.media_slots or _accel.mode() != "native"
-            or any(g.csg_member for g in geo.groups)):
+    if accel is None or _accel.mode() != "native" or any(g.csg_member for g in geo.groups):
         return None
     prims = scene_plan.prims
     bits = prim_bits(scene_plan)
@@ -209,6 +208,12 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
     named = set(geo.cand_prim.tolist())
     if geo.conditions is not None:
         named.update(geo.conditions.circuit.leaf_prim.tolist())
+    circuit_roots = ()
+    if scene_plan.effects.media_slots:  # the objects ``initial_media`` sends through the circuit
+        padded = {i for g in range(len(geo.groups)) if padded_group(geo, g) for i in geo.groups[g].prims}
+        circuit_roots = tuple(tree for tree in scene_plan.roots
+                              if not (isinstance(tree, InPrim) and tree.prim in padded))
+        named.update(i for tree in circuit_roots for i in leaf_prims(tree))
     layers = mats.n_layers
 
     def rows(i):
@@ -221,7 +226,7 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
     groups = [(g.kind, g.solid, g.accelerated, g.csg_member, None if g.accelerated else g.prims)
               for g in geo.groups]
     return pickle.dumps((
-        scene_plan.effects, candidates, groups, geo.cand_prim.tobytes(), geo.n_candidates,
+        scene_plan.effects, candidates, groups, circuit_roots, geo.cand_prim.tobytes(), geo.n_candidates,
         geo.conditions, geo.unit_boxes is None, accel.groups, filters, fades, layers, mats.pattern_names,
         mats.turbulent, mats.octaves, bool(np.any(mats.waves != 0))), protocol=pickle.HIGHEST_PROTOCOL)
 

@@ -52,12 +52,14 @@ def test_program_has_the_same_operations_for_20_and_200_spheres(tmp_path, monkey
 def _varied(n: int) -> str:
     """A plane and ``n`` spheres of every kind of material row the program looks up at a traced
     primitive: solid and checker pigments, a wave, fresnel reflection with conserve_energy, an
-    inverted sphere, two texture layers, transparent ones that filter shadows."""
+    inverted sphere, two texture layers, transparent ones that filter shadows, glass (refraction:
+    the camera's media are in the program)."""
     looks = ["pigment { rgb <0.8, 0.4, 0.2> }",
              "pigment { checker rgb 1 rgb 0 scale 0.1 sine_wave } inverse",
              "pigment { rgb 0.5 } finish { reflection { 0.1, 0.6 fresnel on } conserve_energy }",
              "texture { pigment { rgb 1 } } texture { pigment { checker rgbt 1 rgbt <0, 0, 0, 0.5> } }",
-             "pigment { rgbf <0.9, 0.9, 0.2, 0.8> }"]
+             "pigment { rgbf <0.9, 0.9, 0.2, 0.8> }",
+             "pigment { rgbf <1, 1, 1, 0.9> } interior { ior 1.4 }"]
     rows = [f"sphere {{ <{i % 20 - 10}, 0.5, {i // 20}>, 0.4 {looks[i % len(looks)]} }}" for i in range(n)]
     return ("camera { location <0, 5, -12> look_at <0, 0, 3> }\nlight_source { <-5, 9, -9> color rgb 1 }\n"
             "plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }\n" + "\n".join(rows))

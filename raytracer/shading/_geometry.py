@@ -62,9 +62,13 @@ class PackedGeometry:
     # constants: a program per object count): "sign" (``prim_sign``), "unit" (``prim_unit``, 0
     # when None) and "medium" (``medium_ids``)
     prim_table: dict | None = None
+    # per group: the primitive of each member of a padded group (``_padded_to_bucket``; -1 past
+    # its members) as an array, None for other groups
+    member_prims: tuple | None = None
 
 
-register_packed(PackedGeometry, ("shapes", "object_from_world", "accel", "unit_boxes", "prim_table"))
+register_packed(PackedGeometry, ("shapes", "object_from_world", "accel", "unit_boxes", "prim_table",
+                                 "member_prims"))
 
 
 # the leaf types of a shape's array fields (tracers are jax.Array instances too; a number set by
@@ -141,6 +145,13 @@ def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
     if prim.transparent and "no_shadow" not in prim.flags:
         return filter_query
     return True
+
+
+def leaf_prims(tree: InsideTree) -> set[int]:
+    """The primitives an inside tree tests."""
+    if isinstance(tree, InPrim):
+        return {tree.prim}
+    return set().union(*(leaf_prims(t) for t in tree.terms))
 
 
 def medium_ids(prims) -> np.ndarray:
@@ -363,13 +374,23 @@ def _padded_to_bucket(geo: PackedGeometry, plan: Plan) -> PackedGeometry:
     table = {"sign": pad_rows(geo.prim_sign, n), "unit": pad_rows(unit, n),
              "medium": pad_rows(medium_ids(plan.prims), n)}
     shapes, ofw = list(geo.shapes), list(geo.object_from_world)
+    members: list = [None] * len(geo.groups)
     for g, group in enumerate(geo.groups):
-        one_item = type(shapes[g]).n_native_items is AbstractShape.n_native_items
-        if group.accelerated and one_item:
+        if padded_group(geo, g):
             size = bucket(len(group.prims))
             shapes[g] = jax.tree_util.tree_map(lambda x, size=size: pad_rows(x, size), shapes[g])
             ofw[g] = pad_rows(ofw[g], size)
-    return dataclasses.replace(geo, shapes=tuple(shapes), object_from_world=tuple(ofw), prim_table=table)
+            members[g] = pad_rows(np.asarray(group.prims, np.int32), size, -1)
+    return dataclasses.replace(geo, shapes=tuple(shapes), object_from_world=tuple(ofw), prim_table=table,
+                               member_prims=tuple(members))
+
+
+def padded_group(geo: PackedGeometry, g: int) -> bool:
+    """Whether group ``g``'s stack is padded to a bucket: a group of one-item shapes the hierarchy
+    holds, not as members of CSG objects."""
+    group = geo.groups[g]
+    one_item = type(geo.shapes[g]).n_native_items is AbstractShape.n_native_items
+    return group.accelerated and not group.csg_member and one_item
 
 
 _world_bounds = jax.jit(jax.vmap(world_bounds))  # one program per group signature, not one per op

@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._plan import Effects, InPrim, Plan
-from ..kernels import safe_pow
+from ..kernels import matvec, safe_pow
 from ..scene import Light, Settings
 from ..scene._lights import area_blocks, light_types, point_geometry
 from . import _accel, lighting
@@ -63,6 +63,7 @@ from ._geometry import (
     closest_hit,
     csg_mask,
     evaluate_inside,
+    leaf_prims,
     medium_ids,
     prim_bits,
 )
@@ -172,32 +173,46 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
     """(K,) the media containing the point ``eye`` (the camera), in scene order: POV-Ray starts
     every camera ray inside every object that contains the camera, infinite planes included. An
     object counts once (a hollow glass ``difference`` does not contain its cavity); primitives with
-    no inside (triangles, meshes) contain nothing."""
+    no inside (triangles, meshes) contain nothing.
+
+    A medium is named by the first primitive sharing its interior (``medium_ids``), and every
+    object's primitives are numbered in scene order, so "in scene order" is the order of the
+    media's names. The objects of the hierarchy's padded groups (one primitive each, no
+    condition) are tested as arrays, one vmap per group (no table of the scene's size in the
+    program: another number of them is the same program); the others through the inside circuit."""
     slots = media_slots(ctx.plan.effects)
     if not slots or not ctx.plan.roots:
         return jnp.full(slots, -1, jnp.int32)
-    roots = list(ctx.plan.roots)
-    leaves = [sorted(_leaf_prims(tree)) for tree in roots]
-    trees = [(tree, 0) for tree in roots] + [(InPrim(q, ctx.plan.prims[q].inverse), 0)
-                                               for ls in leaves for q in ls]
-    inside = evaluate_inside(ctx.geo, build_inside_circuit(trees), jnp.asarray(eye)[None, :])
-    # leaf j of root r is in the list where both its object and the leaf itself contain the eye;
-    # a medium counts once, at the place of its first leaf in scene order
-    root_of = np.concatenate([np.full(len(ls), r, np.int32) for r, ls in enumerate(leaves)])
-    medium = ctx.medium[np.concatenate([np.asarray(ls, np.int32) for ls in leaves])]
-    place: dict[int, int] = {}  # medium → its place, by first occurrence
-    slot = np.array([place.setdefault(int(m), len(place)) for m in medium], np.int32)
-    order = np.array(list(place), np.int32)
-    leaf_in = inside[root_of] & inside[len(roots):]
-    present = jnp.zeros(order.shape[0], bool).at[slot].max(leaf_in)
-    pos = jnp.where(present, jnp.cumsum(present) - 1, slots)
-    return jnp.full(slots, -1, jnp.int32).at[pos].set(jnp.asarray(order), mode="drop")
-
-
-def _leaf_prims(tree) -> set[int]:
-    if isinstance(tree, InPrim):
-        return {tree.prim}
-    return set().union(*(_leaf_prims(t) for t in tree.terms))
+    geo = ctx.geo
+    eye = jnp.asarray(eye)
+    medium = jnp.asarray(geo.prim_table["medium"])
+    sign = jnp.asarray(geo.prim_table["sign"])
+    present = jnp.zeros(medium.shape[0], bool)
+    held: set[int] = set()
+    for g, members in enumerate(geo.member_prims or ()):
+        if members is None:
+            continue
+        held.update(geo.groups[g].prims)
+        members = jnp.asarray(members)
+        ofw = geo.object_from_world[g]
+        if geo.groups[g].solid:
+            inside = jax.vmap(lambda s, m: s.inside(matvec(m[:3, :3], eye) + m[:3, 3]))(geo.shapes[g], ofw)
+        else:
+            inside = jnp.zeros(members.shape[0], bool)
+        prim = jnp.maximum(members, 0)
+        inside = (inside != (sign[prim] < 0)) & (members >= 0)  # the object is its primitive
+        present = present.at[medium[prim]].max(inside)
+    roots = [tree for tree in ctx.plan.roots if not (isinstance(tree, InPrim) and tree.prim in held)]
+    if roots:
+        leaves = [sorted(leaf_prims(tree)) for tree in roots]
+        trees = [(tree, 0) for tree in roots] + [(InPrim(q, ctx.plan.prims[q].inverse), 0)
+                                                   for ls in leaves for q in ls]
+        inside = evaluate_inside(geo, build_inside_circuit(trees), eye[None, :])
+        # a leaf's medium is present where both its object and the leaf itself contain the eye
+        root_of = np.concatenate([np.full(len(ls), r, np.int32) for r, ls in enumerate(leaves)])
+        leaf = np.concatenate([np.asarray(ls, np.int32) for ls in leaves])
+        present = present.at[medium[leaf]].max(inside[root_of] & inside[len(roots):])
+    return jnp.nonzero(present, size=slots, fill_value=-1)[0].astype(jnp.int32)
 
 
 @dataclasses.dataclass

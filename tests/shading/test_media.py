@@ -50,3 +50,30 @@ def test_entering_appends_and_leaving_removes_the_last_entry_of_a_medium():
     np.testing.assert_array_equal(_media_without(m, 5), m)  # not inside 5: nothing changes
     full = jnp.asarray([1, 2, 3, 4], jnp.int32)
     np.testing.assert_array_equal(_media_with(full, 9), [2, 3, 4, 9])  # the oldest is forgotten
+
+
+@pytest.mark.parametrize("mode", ["native", "none"])
+def test_objects_of_the_hierarchy_that_contain_the_camera_start_its_rays_inside_them(monkeypatch, mode):
+    """The hierarchy's objects are tested at the eye as arrays (one vmap per padded group), the
+    others through the inside circuit (``RAYTRACER_ACCEL=none``: every one): either way the
+    camera starts inside the plane's half-space, the two glass spheres around it and the inverted
+    sphere it is outside of, in scene order."""
+    from raytracer.shading import _accel
+
+    if mode == "native" and _accel.unavailable_reason() is not None:
+        pytest.skip(_accel.unavailable_reason())
+    monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+    glass = "pigment {{ rgbf 1 }} interior {{ ior 1.3 }}"
+    rows = [f"sphere {{{{ <{3 * i}, 0, 10>, 1 {glass} }}}}" for i in range(20)]
+    rows[4] = f"sphere {{{{ <0, 0, -5>, 2 {glass} }}}}"
+    rows[7] = f"sphere {{{{ <0.5, 0, -5>, 3 {glass} }}}}"
+    rows[9] = f"sphere {{{{ <30, 0, 30>, 1 {glass} inverse }}}}"
+    text = ("camera {{ location <0, 0, -5> look_at <0, 0, 1> }}\nplane {{ z, 3 pigment {{ rgb 1 }} }}\n"
+            + "\n".join(rows)).format()
+    scene = load_scene(text)
+    p, packed = plan(scene), pack(scene)
+    assert (packed.geo.accel is not None) == (mode == "native")
+    ctx = make_context(p, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
+                       jnp.float32)
+    media = np.asarray(initial_media(ctx, scene.camera.frame()[0]))
+    assert media[media >= 0].tolist() == [0, 1 + 4, 1 + 7, 1 + 9]  # medium ids are prim indices
