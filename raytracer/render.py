@@ -29,7 +29,7 @@ from ._plan import InPrim, Plan, make_plan
 from ._xla import warn_if_untuned
 from .scene import Scene
 from .shading import _accel
-from .shading._geometry import PackedGeometry, leaf_prims, pack_geometry, padded_group, prim_bits
+from .shading._geometry import PackedGeometry, leaf_prims, pack_geometry, prim_bits
 from .shading._materials import PackedMaterials, pack_materials
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
@@ -196,9 +196,10 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
     items filter or fade shadows; the materials' patterns, layers and waves; whether the scene is
     one bounding unit; the roots ``initial_media`` sends through the inside circuit (those of the
     candidates' objects, in the candidates). Everything else it looks up at a traced primitive,
-    from arrays. Scenes with CSG objects the hierarchy holds, or no hierarchy, fall back."""
+    from arrays (the CSG objects the hierarchy holds are its items and programs: arrays). A
+    scene without a hierarchy falls back."""
     accel = geo.accel
-    if accel is None or _accel.mode() != "native" or any(g.csg_member for g in geo.groups):
+    if accel is None or _accel.mode() != "native":
         return None
     prims = scene_plan.prims
     bits = prim_bits(scene_plan)
@@ -210,7 +211,8 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
         named.update(geo.conditions.circuit.leaf_prim.tolist())
     circuit_roots = ()
     if scene_plan.effects.media_slots:  # the objects ``initial_media`` sends through the circuit
-        padded = {i for g in range(len(geo.groups)) if padded_group(geo, g) for i in geo.groups[g].prims}
+        padded = {i for g, members in enumerate(geo.member_prims) if members is not None
+                  for i in geo.groups[g].prims}
         circuit_roots = tuple(tree for tree in scene_plan.roots
                               if not (isinstance(tree, InPrim) and tree.prim in padded))
         named.update(i for tree in circuit_roots for i in leaf_prims(tree))

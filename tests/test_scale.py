@@ -49,7 +49,7 @@ def test_program_has_the_same_operations_for_20_and_200_spheres(tmp_path, monkey
     assert args20 == args200 < 100
 
 
-def _varied(n: int) -> str:
+def _varied(n: int, csg: bool = False) -> str:
     """A plane and ``n`` spheres of every kind of material row the program looks up at a traced
     primitive: solid and checker pigments, a wave, fresnel reflection with conserve_energy, an
     inverted sphere, two texture layers, transparent ones that filter shadows, glass (refraction:
@@ -60,7 +60,13 @@ def _varied(n: int) -> str:
              "texture { pigment { rgb 1 } } texture { pigment { checker rgbt 1 rgbt <0, 0, 0, 0.5> } }",
              "pigment { rgbf <0.9, 0.9, 0.2, 0.8> }",
              "pigment { rgbf <1, 1, 1, 0.9> } interior { ior 1.4 }"]
+    if csg:  # no glass: the camera's media would test each CSG object through the inside circuit
+        looks = looks[:-1]
     rows = [f"sphere {{ <{i % 20 - 10}, 0.5, {i // 20}>, 0.4 {looks[i % len(looks)]} }}" for i in range(n)]
+    if csg:  # and every seventh a CSG object the hierarchy holds as one item
+        rows[::7] = [f"intersection {{ sphere {{ <{i % 20 - 10}, 0.5, {i // 20}>, 0.45 }} box {{ <-0.35, "
+                     f"0.1, -0.35>, <0.35, 0.8, 0.35> translate <{i % 20 - 10}, 0, {i // 20}> }} "
+                     f"{looks[i % len(looks)]} }}" for i in range(0, n, 7)]
     return ("camera { location <0, 5, -12> look_at <0, 0, 3> }\nlight_source { <-5, 9, -9> color rgb 1 }\n"
             "plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }\n" + "\n".join(rows))
 
@@ -398,35 +404,38 @@ def test_a_parse_leaves_no_reference_cycles_that_grow_with_its_work(count):
     assert len(scene.objects) == count and left <= 20
 
 
-def test_a_scene_with_another_number_of_items_runs_the_program_compiled_for_the_first(tmp_path, monkeypatch):
+@pytest.mark.parametrize("csg, counts", [(False, (105, 110)), (True, (100, 105))])  # (one bucket each)
+def test_a_scene_with_another_number_of_items_runs_the_program_compiled_for_the_first(tmp_path, monkeypatch,
+                                                                                       csg, counts):
     """``render._signature``: the program is keyed by what its trace reads of the objects, so a
-    scene that differs only in its number of hierarchy items (one bucket) runs the program traced
-    for another — no trace, no compile — and its image is bit-equal to the one its own program
-    (keyed by its whole skeleton, as before) makes."""
+    scene that differs only in its number of hierarchy items (one bucket; CSG objects among them
+    or not) runs the program traced for another — no trace, no compile — and its image is
+    bit-equal to the one its own program (keyed by its whole skeleton, as before) makes."""
     if _accel.unavailable_reason() is not None:
         pytest.skip(_accel.unavailable_reason())
     monkeypatch.setenv("RAYTRACER_ACCEL", "native")
     scenes = {}
-    for n in (105, 110):
+    for n in counts:
         path = tmp_path / f"v{n}.pov"
-        path.write_text(_varied(n))
+        path.write_text(_varied(n, csg))
         scenes[n] = load_scene(path, width=16, height=12)
+        assert any(g.csg_member for g in pack(scenes[n]).geo.groups) == csg
     traced = []
     make_context = render_module.make_context
     monkeypatch.setattr(render_module, "make_context", lambda *a: traced.append(1) or make_context(*a))
-    rt.render(scenes[105], width=16, height=12)
+    rt.render(scenes[counts[0]], width=16, height=12)
     assert traced
     traced.clear()
-    shared = rt.render(scenes[110], width=16, height=12)
-    assert not traced  # the program of 105 spheres ran
+    shared = rt.render(scenes[counts[1]], width=16, height=12)
+    assert not traced  # the program of the first count ran
     monkeypatch.setattr(render_module, "_signature", lambda *a: None)
     render_module._PACKED.clear()
-    own = rt.render(scenes[110], width=16, height=12)
+    own = rt.render(scenes[counts[1]], width=16, height=12)
     assert traced  # keyed by its skeleton: a program of its own
     np.testing.assert_array_equal(np.asarray(shared), np.asarray(own))
     assert np.asarray(own).std() > 0.05  # spheres, a checker floor, shadows: not a blank image
     monkeypatch.undo()
     render_module._PACKED.clear()
-    keyed = pack(scenes[110]).objects  # keyed by the signature; its skeleton made when asked for
-    assert keyed != skeleton(scenes[110].objects)
-    assert keyed.value == skeleton(scenes[110].objects).value
+    keyed = pack(scenes[counts[1]]).objects  # keyed by the signature; its skeleton made when asked for
+    assert keyed != skeleton(scenes[counts[1]].objects)
+    assert keyed.value == skeleton(scenes[counts[1]].objects).value

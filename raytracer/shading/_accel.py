@@ -339,7 +339,8 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         # no node names: the query reads only what the root reaches
         held, items = bucket(order.shape[0]), bucket(first)
         tables = (tuple(pad_rows(x, 2 * held - 1, 0) for x in tables[:2]) + (pad_rows(order, held, 0),)
-                  + tuple(pad_rows(x, items, 0) for x in tables[3:7]) + tables[7:])
+                  + tuple(pad_rows(x, items, 0) for x in tables[3:7]) + tables[7:8]
+                  + (pad_rows(program, bucket(program.shape[0]), 0),))
         item_prim = pad_rows(item_prim, items, 0)
     tables = tuple(map(jnp.asarray, tables))
     return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first,

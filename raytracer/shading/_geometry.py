@@ -380,17 +380,17 @@ def _padded_to_bucket(geo: PackedGeometry, plan: Plan) -> PackedGeometry:
             size = bucket(len(group.prims))
             shapes[g] = jax.tree_util.tree_map(lambda x, size=size: pad_rows(x, size), shapes[g])
             ofw[g] = pad_rows(ofw[g], size)
-            members[g] = pad_rows(np.asarray(group.prims, np.int32), size, -1)
+            if not group.csg_member:  # (a CSG member's object is a tree: the inside circuit's)
+                members[g] = pad_rows(np.asarray(group.prims, np.int32), size, -1)
     return dataclasses.replace(geo, shapes=tuple(shapes), object_from_world=tuple(ofw), prim_table=table,
                                member_prims=tuple(members))
 
 
 def padded_group(geo: PackedGeometry, g: int) -> bool:
     """Whether group ``g``'s stack is padded to a bucket: a group of one-item shapes the hierarchy
-    holds, not as members of CSG objects."""
-    group = geo.groups[g]
+    holds (as objects of their own, or as members of CSG objects)."""
     one_item = type(geo.shapes[g]).n_native_items is AbstractShape.n_native_items
-    return group.accelerated and not group.csg_member and one_item
+    return geo.groups[g].accelerated and one_item
 
 
 _world_bounds = jax.jit(jax.vmap(world_bounds))  # one program per group signature, not one per op
