@@ -212,7 +212,7 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
     circuit_roots = ()
     if scene_plan.effects.media_slots:  # the objects ``initial_media`` sends through the circuit
         padded = {i for g, members in enumerate(geo.member_prims) if members is not None
-                  for i in geo.groups[g].prims}
+                  for i in geo.groups[g].prims}  # (of which initial_media tests the objects' own)
         circuit_roots = tuple(tree for tree in scene_plan.roots
                               if not (isinstance(tree, InPrim) and tree.prim in padded))
         named.update(i for tree in circuit_roots for i in leaf_prims(tree))

@@ -62,8 +62,9 @@ class PackedGeometry:
     # constants: a program per object count): "sign" (``prim_sign``), "unit" (``prim_unit``, 0
     # when None) and "medium" (``medium_ids``)
     prim_table: dict | None = None
-    # per group: the primitive of each member of a padded group (``_padded_to_bucket``; -1 past
-    # its members) as an array, None for other groups
+    # per group: the primitive of each member of a padded group (``_padded_to_bucket``) that is an
+    # object of its own (``solo_prims``; -1 for the others and past its members), as an array;
+    # None for other groups
     member_prims: tuple | None = None
 
 
@@ -375,15 +376,23 @@ def _padded_to_bucket(geo: PackedGeometry, plan: Plan) -> PackedGeometry:
              "medium": pad_rows(medium_ids(plan.prims), n)}
     shapes, ofw = list(geo.shapes), list(geo.object_from_world)
     members: list = [None] * len(geo.groups)
+    solo = solo_prims(plan)
     for g, group in enumerate(geo.groups):
         if padded_group(geo, g):
             size = bucket(len(group.prims))
             shapes[g] = jax.tree_util.tree_map(lambda x, size=size: pad_rows(x, size), shapes[g])
             ofw[g] = pad_rows(ofw[g], size)
             if not group.csg_member:  # (a CSG member's object is a tree: the inside circuit's)
-                members[g] = pad_rows(np.asarray(group.prims, np.int32), size, -1)
+                own = np.fromiter((i if i in solo else -1 for i in group.prims), np.int32, len(group.prims))
+                members[g] = pad_rows(own, size, -1)
     return dataclasses.replace(geo, shapes=tuple(shapes), object_from_world=tuple(ofw), prim_table=table,
                                member_prims=tuple(members))
+
+
+def solo_prims(plan: Plan) -> set[int]:
+    """The primitives that are objects of their own (their object's inside tree is theirs alone;
+    not a union's child): ``initial_media`` tests those of the padded groups as arrays."""
+    return {tree.prim for tree in plan.roots if isinstance(tree, InPrim)}
 
 
 def padded_group(geo: PackedGeometry, g: int) -> bool:

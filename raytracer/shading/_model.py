@@ -66,6 +66,7 @@ from ._geometry import (
     leaf_prims,
     medium_ids,
     prim_bits,
+    solo_prims,
 )
 from ._materials import PackedMaterials, costly_patterns, pigment_at, pigments_at, solid_rows
 
@@ -188,11 +189,12 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
     medium = jnp.asarray(geo.prim_table["medium"])
     sign = jnp.asarray(geo.prim_table["sign"])
     present = jnp.zeros(medium.shape[0], bool)
-    held: set[int] = set()
+    held: set[int] = set()  # objects of one primitive tested here (a union's children are not)
+    solo = solo_prims(ctx.plan)
     for g, members in enumerate(geo.member_prims or ()):
         if members is None:
             continue
-        held.update(geo.groups[g].prims)
+        held.update(solo.intersection(geo.groups[g].prims))
         members = jnp.asarray(members)
         ofw = geo.object_from_world[g]
         if geo.groups[g].solid:

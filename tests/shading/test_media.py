@@ -57,7 +57,8 @@ def test_objects_of_the_hierarchy_that_contain_the_camera_start_its_rays_inside_
     """The hierarchy's objects are tested at the eye as arrays (one vmap per padded group), the
     others through the inside circuit (``RAYTRACER_ACCEL=none``: every one): either way the
     camera starts inside the plane's half-space, the two glass spheres around it and the inverted
-    sphere it is outside of, in scene order."""
+    sphere it is outside of, in scene order, and not inside the inverted union of a sphere around
+    it (whose two spheres the hierarchy holds)."""
     from raytracer.shading import _accel
 
     if mode == "native" and _accel.unavailable_reason() is not None:
@@ -68,6 +69,9 @@ def test_objects_of_the_hierarchy_that_contain_the_camera_start_its_rays_inside_
     rows[4] = f"sphere {{{{ <0, 0, -5>, 2 {glass} }}}}"
     rows[7] = f"sphere {{{{ <0.5, 0, -5>, 3 {glass} }}}}"
     rows[9] = f"sphere {{{{ <30, 0, 30>, 1 {glass} inverse }}}}"
+    # an object of several primitives: the eye in one of an inverted union's spheres is outside it
+    rows[11] = ("union {{ sphere {{ <-0.5, 0, -5>, 1 }} sphere {{ <40, 0, 40>, 1 }} inverse "
+                "pigment {{ rgbf 1 }} interior {{ ior 1.3 }} }}")
     text = ("camera {{ location <0, 0, -5> look_at <0, 0, 1> }}\nplane {{ z, 3 pigment {{ rgb 1 }} }}\n"
             + "\n".join(rows)).format()
     scene = load_scene(text)
@@ -77,3 +81,6 @@ def test_objects_of_the_hierarchy_that_contain_the_camera_start_its_rays_inside_
                        jnp.float32)
     media = np.asarray(initial_media(ctx, scene.camera.frame()[0]))
     assert media[media >= 0].tolist() == [0, 1 + 4, 1 + 7, 1 + 9]  # medium ids are prim indices
+    if mode == "native":  # (the union's spheres are the hierarchy's)
+        union = [i for i, p_ in enumerate(p.prims) if p_.inverse and p_.interior is not None][-2:]
+        assert all(packed.geo.where[i][0] in [a.group for a in packed.geo.accel.groups] for i in union)
