@@ -178,9 +178,10 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
 
     A medium is named by the first primitive sharing its interior (``medium_ids``), and every
     object's primitives are numbered in scene order, so "in scene order" is the order of the
-    media's names. The objects of the hierarchy's padded groups (one primitive each, no
-    condition) are tested as arrays, one vmap per group (no table of the scene's size in the
-    program: another number of them is the same program); the others through the inside circuit."""
+    media's names. The objects of one primitive (``solo_prims``) in the hierarchy's padded groups
+    are tested as arrays, one vmap per group (no table of the scene's size in the program:
+    another number of them is the same program); the others (a union's children among them:
+    their object's tree decides) through the inside circuit."""
     slots = media_slots(ctx.plan.effects)
     if not slots or not ctx.plan.roots:
         return jnp.full(slots, -1, jnp.int32)
