@@ -29,7 +29,7 @@ from ._plan import InPrim, Plan, make_plan
 from ._xla import warn_if_untuned
 from .scene import Scene
 from .shading import _accel
-from .shading._geometry import PackedGeometry, leaf_prims, pack_geometry, prim_bits
+from .shading._geometry import PackedGeometry, hierarchy_filters, leaf_prims, pack_geometry, prim_bits
 from .shading._materials import PackedMaterials, pack_materials
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
@@ -203,9 +203,6 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
         return None
     prims = scene_plan.prims
     bits = prim_bits(scene_plan)
-    held = [i for ag in accel.groups for i in geo.groups[ag.group].prims]
-    filters = any(bits[i] & _accel.MASK_FILTER for i in held)
-    fades = any(bits[i] & _accel.MASK_FILTER and prims[i].fades for i in held)
     named = set(geo.cand_prim.tolist())
     if geo.conditions is not None:
         named.update(geo.conditions.circuit.leaf_prim.tolist())
@@ -229,8 +226,9 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
               for g in geo.groups]
     return pickle.dumps((
         scene_plan.effects, candidates, groups, circuit_roots, geo.cand_prim.tobytes(), geo.n_candidates,
-        geo.conditions, geo.unit_boxes is None, accel.groups, filters, fades, layers, mats.pattern_names,
-        mats.turbulent, mats.octaves, bool(np.any(mats.waves != 0))), protocol=pickle.HIGHEST_PROTOCOL)
+        geo.conditions, geo.unit_boxes is None, accel.groups, hierarchy_filters(geo, scene_plan)[1], layers,
+        mats.pattern_names, mats.turbulent, mats.octaves, bool(np.any(mats.waves != 0))),
+        protocol=pickle.HIGHEST_PROTOCOL)
 
 
 def _rest_signature(rest: Scene):

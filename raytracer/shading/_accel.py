@@ -229,8 +229,7 @@ def _items(shape, ofw, wfo):
     host = jax.tree_util.tree_map(np.asarray, (shape, ofw, wfo))
     n = host[1].shape[0]
     total = -(-n // ITEMS_CHUNK) * ITEMS_CHUNK
-    if total != n:
-        host = jax.tree_util.tree_map(lambda x: np.concatenate([x, np.repeat(x[-1:], total - n, 0)]), host)
+    host = jax.tree_util.tree_map(lambda x: pad_rows(x, total), host)
     parts = [_group_items(*jax.tree_util.tree_map(lambda x, s=start: x[s:s + ITEMS_CHUNK], host))
              for start in range(0, total, ITEMS_CHUNK)]
     return (np.concatenate([np.asarray(b) for b, _ in parts])[:n],

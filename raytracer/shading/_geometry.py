@@ -389,6 +389,18 @@ def _padded_to_bucket(geo: PackedGeometry, plan: Plan) -> PackedGeometry:
                                member_prims=tuple(members))
 
 
+def hierarchy_filters(geo: PackedGeometry, plan: Plan) -> tuple[bool, bool]:
+    """Whether the hierarchy holds transparent shadow-casting items (``MASK_FILTER``: its groups'
+    ``filters``), and whether some of them have an interior that fades."""
+    if geo.accel is None:
+        return False, False
+    groups = [ag for ag in geo.accel.groups if ag.filters]
+    bits = prim_bits(plan)
+    fades = any(bits[i] & _accel.MASK_FILTER and plan.prims[i].fades
+                for ag in groups for i in geo.groups[ag.group].prims)
+    return bool(groups), fades
+
+
 def solo_prims(plan: Plan) -> set[int]:
     """The primitives that are objects of their own (their object's inside tree is theirs alone;
     not a union's child): ``initial_media`` tests those of the padded groups as arrays."""

@@ -63,8 +63,8 @@ from ._geometry import (
     closest_hit,
     csg_mask,
     evaluate_inside,
+    hierarchy_filters,
     leaf_prims,
-    medium_ids,
     prim_bits,
     solo_prims,
 )
@@ -236,7 +236,6 @@ class TraceContext:
     transparent_cands: np.ndarray  # (S,) slot belongs to a transparent-capable prim
     inverse_sign: np.ndarray  # (S,) -1 where the prim is inverted
     fading_cands: np.ndarray  # shadow slots of transparent prims whose interior may fade
-    medium: np.ndarray  # (P,) the medium of each prim: the first prim sharing its interior record
     accel_filters: bool  # the hierarchy holds transparent shadow-casting items (``MASK_FILTER``)
     accel_fades: bool  # ... and some of them have an interior that fades
 
@@ -247,6 +246,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
     bits = prim_bits(plan)  # the hierarchy's items use them too
     # shadow rays compute the crossings of shadow casters only (no_shadow objects are skipped)
     shadow = candidate_view(geo, plan, lambda i: bool(bits[i] & (_accel.MASK_SHADOW | _accel.MASK_FILTER)))
+    filters, fades = hierarchy_filters(geo, plan)
     return TraceContext(
         plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
         background=background.astype(dtype), dtype=dtype,
@@ -257,12 +257,8 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         transparent_cands=np.asarray(mats.transparent, bool)[shadow.cand_prim],
         inverse_sign=geo.prim_sign[shadow.cand_prim],
         fading_cands=np.flatnonzero([prims[i].transparent and prims[i].fades for i in shadow.cand_prim]),
-        medium=medium_ids(prims),
-        accel_filters=geo.accel is not None and any(
-            bits[i] & _accel.MASK_FILTER for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
-        accel_fades=geo.accel is not None and any(
-            bits[i] & _accel.MASK_FILTER and prims[i].fades
-            for ag in geo.accel.groups for i in geo.groups[ag.group].prims),
+        accel_filters=filters,
+        accel_fades=fades,
     )
 
 
@@ -722,7 +718,7 @@ class _Surface(NamedTuple):
     entering: jax.Array  # () bool: the geometric normal faces the ray (entering the object)
     p_out: jax.Array  # (3,) spawn point on the ray's side of the surface
     p_in: jax.Array  # (3,) spawn point beyond the surface
-    medium: jax.Array  # () int the medium of the primitive hit (``TraceContext.medium``)
+    medium: jax.Array  # () int the medium of the primitive hit (``_geometry.medium_ids``)
 
 
 def _surface(ctx: TraceContext, ray: Rays) -> _Surface:
