@@ -1,6 +1,7 @@
 """How big a scene's render program is, and which raytracer functions make it so (compile time).
 
-    python scripts/program_size.py SCENE.pov [WIDTH HEIGHT] [--top N] [--paths FUNCTION] [--compile]
+    python scripts/program_size.py SCENE.pov [WIDTH HEIGHT] [--top N] [--paths FUNCTION [--depth D]]
+                                                        [--compile]
 
 Traces the program ``render`` compiles for the scene (one part, ``FIRST_CAPACITY``) to a jaxpr and
 counts its equations, those of nested bodies (scan, while, cond, inner jits) included, by the
@@ -30,12 +31,12 @@ def _frame_key(frames) -> str | None:
     return None if frame is None else f"{os.path.basename(frame.file_name)}:{frame.function_name}"
 
 
-def _path_key(frames, function: str) -> str | None:
+def _path_key(frames, function: str, depth: int = 5) -> str | None:
     ours = [f for f in frames if f"{os.sep}raytracer{os.sep}" in f.file_name]
     at = next((i for i, f in enumerate(ours) if f.function_name == function), None)
     if at is None:
         return None
-    return " < ".join(f"{f.function_name}:{f.line_num}" for f in ours[at + 1:at + 6]) or "(top)"
+    return " < ".join(f"{f.function_name}:{f.line_num}" for f in ours[at + 1:at + 1 + depth]) or "(top)"
 
 
 def count(jaxpr, key_of, parent=None, counts=None) -> collections.Counter:
@@ -64,6 +65,7 @@ def main(argv=None) -> int:
     parser.add_argument("size", nargs="*", type=int, default=[160, 120], help="WIDTH HEIGHT (160 120)")
     parser.add_argument("--top", type=int, default=30)
     parser.add_argument("--paths", metavar="FUNCTION", help="count FUNCTION's equations by its callers")
+    parser.add_argument("--depth", type=int, default=5, help="callers shown per path (--paths)")
     parser.add_argument("--compile", action="store_true", help="also lower and compile, and time both")
     args = parser.parse_args(argv)
     if len(args.size) != 2:
@@ -97,7 +99,7 @@ def main(argv=None) -> int:
     closed = jax.make_jaxpr(program)(arrays)
     traced = time.perf_counter() - start
     if args.paths:
-        counts = count(closed.jaxpr, lambda frames: _path_key(frames, args.paths))
+        counts = count(closed.jaxpr, lambda frames: _path_key(frames, args.paths, args.depth))
         print(f"{args.scene}: {sum(counts.values())} equations under {args.paths}, by caller")
     else:
         counts = count(closed.jaxpr, _frame_key)

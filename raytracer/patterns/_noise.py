@@ -10,6 +10,7 @@ measured statistics (mean, standard deviation, autocorrelation at lags ¼-2 unit
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -105,30 +106,44 @@ def dnoise(p):
     return _DNOISE_SCALE * jnp.sum(weight[:, None] * corner, axis=0)
 
 
+def _octaves(p, octaves, omega, lambda_):
+    """The octaves' amplitudes ``ωⁱ`` and their points ``λⁱ p`` stacked (octaves, 3), each a
+    running product as the sums below have always taken them."""
+    amplitudes, points = [1.0], [p]
+    amplitude, scale = 1.0, 1.0
+    for _ in range(1, int(octaves)):
+        amplitude = amplitude * omega
+        scale = scale * lambda_
+        amplitudes.append(amplitude)
+        points.append(scale * p)
+    return amplitudes, jnp.stack(points)
+
+
+# Every octave's noise is one vmapped evaluation over the stacked points, not one traced copy per
+# octave: POV-Ray's 6 octaves made 6 copies of the lattice in the program (session 24: a third of
+# advanced/pawns' equations), the sums below still run octave by octave in the same order.
+
+
 def turbulence(p, octaves: int = 6, omega=0.5, lambda_=2.0):
     """Scalar turbulence, POV's generator-2 formula (semantics §5.3) on our noise.
 
     ``clamp(2N(p) - 0.5, 0, 1) + Σ_{i=1}^{octaves-1} ωⁱ (2N(λⁱ p) - 0.5)``; ``octaves`` is static.
     """
     p = jnp.asarray(p)
-    value = jnp.clip(2.0 * noise(p) - 0.5, 0.0, 1.0)
-    amplitude, scale = 1.0, 1.0
-    for _ in range(1, int(octaves)):
-        amplitude = amplitude * omega
-        scale = scale * lambda_
-        value = value + amplitude * (2.0 * noise(scale * p) - 0.5)
+    amplitudes, points = _octaves(p, octaves, omega, lambda_)
+    n = jax.vmap(noise)(points)
+    value = jnp.clip(2.0 * n[0] - 0.5, 0.0, 1.0)
+    for i in range(1, len(amplitudes)):
+        value = value + amplitudes[i] * (2.0 * n[i] - 0.5)
     return value
 
 
 def dturbulence(p, octaves: int = 6, omega=0.5, lambda_=2.0):
     """Vector turbulence ``Σ_{i=0}^{octaves-1} ωⁱ DNoise(λⁱ p)`` (semantics §5.3); (3,)."""
     p = jnp.asarray(p)
-    value = dnoise(p)
-    amplitude, scale = 1.0, 1.0
-    for _ in range(1, int(octaves)):
-        amplitude = amplitude * omega
-        scale = scale * lambda_
-        value = value + amplitude * dnoise(scale * p)
+    amplitudes, points = _octaves(p, octaves, omega, lambda_)
+    d = jax.vmap(dnoise)(points)
+    value = d[0]
+    for i in range(1, len(amplitudes)):
+        value = value + amplitudes[i] * d[i]
     return value
-
-
