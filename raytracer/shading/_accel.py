@@ -355,6 +355,46 @@ def _relocate(csg: CsgUnits, member_base: int) -> np.ndarray:
     return program
 
 
+def _alike(accel: Accel, shapes, groups) -> list[list[int]]:
+    """The hierarchy's groups ``groups`` (indices into ``accel.groups``) in sets whose shapes stack
+    alike: one class, pytree structure and static fields, leaf shapes past the leading axis, and
+    items per member. One kernel evaluation serves a set: an item lies in one group, whose member's
+    arrays are selected before the kernel rather than its results after (``advanced/lamppost``'s
+    cylinders and boxes, items and CSG members, were two evaluations each)."""
+    sets: dict = {}
+    for g in groups:
+        ag = accel.groups[g]
+        leaves, treedef = jax.tree_util.tree_flatten(shapes[ag.group])
+        key = (treedef, tuple((np.shape(x)[1:], jnp.result_type(x)) for x in leaves), ag.per_member)
+        sets.setdefault(key, []).append(g)
+    return list(sets.values())
+
+
+def _chosen_members(accel: Accel, alike: list[int], shapes, object_from_world, item):
+    """For items ``item`` (any shape; < 0: none) of the groups ``alike`` (one of ``_alike``'s sets):
+    whether each is one, whether it is a CSG member, and its member's shape, object-from-world map
+    and sub-item (leaves of ``item``'s shape in front; a first member's where it is none)."""
+    chosen = jnp.maximum(item, 0)
+    out = None
+    for g in alike:
+        ag = accel.groups[g]
+        local = chosen - accel.ranges[g, 0]
+        mine = (item >= 0) & (local >= 0) & (local < accel.ranges[g, 1])
+        local = jnp.where(mine, local, 0)
+        member = local // ag.per_member
+        picked = (jax.tree_util.tree_map(lambda a, member=member: a[member], shapes[ag.group]),
+                  object_from_world[ag.group][member], local % ag.per_member)
+        if out is None:
+            out = (mine, mine & ag.csg) + picked
+            continue
+
+        def pick(a, b, mine=mine):
+            return jnp.where(mine.reshape(mine.shape + (1,) * (b.ndim - mine.ndim)), b, a)
+
+        out = (out[0] | mine, out[1] | (mine & ag.csg)) + jax.tree_util.tree_map(pick, out[2:], picked)
+    return out
+
+
 def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array):
     """The closest item hit beyond ``t_min`` by rays whose visibility bit is ``want``, computed
     again by its primitive's kernel: ``(found, t, prim, unit world normal)`` (``inverse`` not
@@ -365,17 +405,14 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
     item, t_chosen = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
     chosen = jnp.maximum(item, 0)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
-    for g, ag in enumerate(accel.groups):
-        local = chosen - accel.ranges[g, 0]
-        mine = (item >= 0) & (local >= 0) & (local < accel.ranges[g, 1])
-        local = jnp.where(mine, local, 0)
-        member, sub = local // ag.per_member, local % ag.per_member
-        shape = jax.tree_util.tree_map(lambda a, member=member: a[member], shapes[ag.group])
-        m = object_from_world[ag.group][member]
+    for alike in _alike(accel, shapes, range(len(accel.groups))):
+        mine, csg, shape, m, sub = _chosen_members(accel, alike, shapes, object_from_world, item)
         t, n = shape.sub_hits(matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
         ok = mine & (t > t_min) & jnp.isfinite(t) & (t < T_MAX)
         tt = jnp.where(ok, t, jnp.inf)
-        c = jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_chosen), jnp.inf)) if ag.csg else jnp.argmin(tt)
+        c = jnp.argmin(tt)
+        if any(accel.groups[g].csg for g in alike):
+            c = jnp.where(csg, jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_chosen), jnp.inf)), c)
         closer = tt[c] < best_t
         best_t = jnp.where(closer, tt[c], best_t)
         best_n = jnp.where(closer, safe_normalize(vecmat(n[c], m[:3, :3])), best_n)
@@ -407,28 +444,26 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     sg = jax.lax.stop_gradient
     want = jnp.asarray(MASK_FILTER, jnp.int32)
     item, count, t_native = _all_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
-    chosen = jnp.maximum(item, 0)
     ts = []
-    for g, ag in enumerate(accel.groups):
-        if not ag.filters:
-            continue  # (the query names only items of groups with transparent shadow casters)
-        local = chosen - accel.ranges[g, 0]
-        mine = (item >= 0) & (local >= 0) & (local < accel.ranges[g, 1])
-        local = jnp.where(mine, local, 0)
-        member, sub = local // ag.per_member, local % ag.per_member
+    # (the query names only items of groups with transparent shadow casters)
+    for alike in _alike(accel, shapes, [g for g, ag in enumerate(accel.groups) if ag.filters]):
+        members = _chosen_members(accel, alike, shapes, object_from_world, item)
+        any_csg = any(accel.groups[g].csg for g in alike)
 
-        def one(member, sub, mine, t_counted, ag=ag):
-            shape = jax.tree_util.tree_map(lambda a: a[member], shapes[ag.group])
-            m = object_from_world[ag.group][member]
+        def one(mine, csg, shape, m, sub, t_counted, any_csg=any_csg):
             t, n = shape.sub_hits(matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
             ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
             n = jax.vmap(lambda v: safe_normalize(vecmat(v, m[:3, :3])))(n)
-            if ag.csg:  # an entry per crossing its object counts: the member's crossing nearest it
-                c = jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_counted), jnp.inf))
-                return jnp.where(ok[c], t[c], jnp.inf)[None], n[c][None]
-            return jnp.where(ok, t, jnp.inf), n
+            t = jnp.where(ok, t, jnp.inf)
+            if not any_csg:
+                return t, n
+            # an entry per crossing its object counts: the member's crossing nearest it
+            c = jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_counted), jnp.inf))
+            nearest = jnp.full_like(t, jnp.inf).at[0].set(t[c])
+            return jnp.where(csg, nearest, t), jnp.where(csg, n.at[0].set(n[c]), n)
 
-        ts.append(jax.vmap(one)(member, sub, mine, t_native))
+        t, n = jax.vmap(one)(*members, t_native)
+        ts.append((t, n) if not all(accel.groups[g].csg for g in alike) else (t[:, :1], n[:, :1]))
     width = max(t.shape[1] for t, _ in ts)
 
     def widen(x, fill):
@@ -438,7 +473,7 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
 
     t = functools.reduce(jnp.minimum, [widen(t, jnp.inf) for t, _ in ts])
     n = sum(jnp.where(jnp.isfinite(widen(ti, jnp.inf))[..., None], widen(ni, 0.0), 0.0) for ti, ni in ts)
-    return Crossed(t, accel.item_prim[chosen], n, count > FILTER_ITEMS)
+    return Crossed(t, accel.item_prim[jnp.maximum(item, 0)], n, count > FILTER_ITEMS)
 
 
 # ---------------------------------------------------------------- RAYTRACER_ACCEL=jax

@@ -345,6 +345,8 @@ intersection { sphere { 0, 0.5 } box { -0.4, 0.4 } pigment { rgbf <1, 0.5, 0.5, 
                translate <1, 0.5, -6.5> }
 intersection { quadric { <1, 1, 1>, 0, 0, -0.25 } box { -0.4, 0.4 } pigment { rgb 0.6 }
                translate <3, 0.5, -3> }
+box { <-0.3, 0, -0.3>, <0.3, 0.6, 0.3> pigment { rgbf <0.6, 1, 0.6, 0.7> } translate <-2, 0, -6> }
+sphere { <2.5, 0.5, -7>, 0.4 pigment { rgbf <0.6, 0.6, 1, 0.8> } }
 """
 
 
@@ -353,7 +355,9 @@ intersection { quadric { <1, 1, 1>, 0, 0, -0.25 } box { -0.4, 0.4 } pigment { rg
 def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivatives(tmp_path, monkeypatch):
     """A CSG object is one item: the native query finds the first crossing of a member that the
     object's conditions count (bvh.cc's programs, in float64), the member's kernel computes the hit
-    again. Pixels and derivatives are the candidate path's, shadows included, filtered ones too."""
+    again. Pixels and derivatives are the candidate path's, shadows included, filtered ones too
+    (a transparent box and sphere of their own among the transparent CSG members: one kernel
+    evaluation serves the groups of one shape variant, ``_accel._alike``)."""
     path = tmp_path / "csg.pov"
     path.write_text(CSG_SCENE)
     scene = load_scene(path, width=48, height=36)
