@@ -658,9 +658,25 @@ def _leaf_values(geo: PackedGeometry, circuit: InsideCircuit, points):
     return values
 
 
-def evaluate_inside(geo: PackedGeometry, circuit: InsideCircuit, points) -> jax.Array:
-    """(Q,) bool: each root tree of ``circuit`` evaluated at its point of ``points`` (P, 3)."""
-    values = jnp.concatenate([jnp.array([False, True]), _leaf_values(geo, circuit, points)])
+def leaf_values_of(geo: PackedGeometry, circuit: InsideCircuit, inside_of) -> jax.Array:
+    """The leaves' inside tests read from ``inside_of(g)``: (n,) bool, group ``g``'s members'
+    inside tests (their own ``inverse`` excluded) at the circuit's only point, computed once."""
+    values = jnp.zeros(circuit.leaf_prim.shape[0], bool)
+    for g, group in enumerate(geo.groups):
+        rows = np.flatnonzero(np.isin(circuit.leaf_prim, np.asarray(group.prims)))
+        if not group.solid or rows.size == 0:
+            continue
+        local = np.array([geo.where[int(q)][1] for q in circuit.leaf_prim[rows]], np.int32)
+        values = values.at[rows].set(inside_of(g)[local])
+    return values
+
+
+def evaluate_inside(geo: PackedGeometry, circuit: InsideCircuit, points, leaf_values=None) -> jax.Array:
+    """(Q,) bool: each root tree of ``circuit`` evaluated at its point of ``points`` (P, 3); its
+    leaves' tests ``leaf_values`` where given (``leaf_values_of``)."""
+    if leaf_values is None:
+        leaf_values = _leaf_values(geo, circuit, points)
+    values = jnp.concatenate([jnp.array([False, True]), leaf_values])
     for is_all, children, negate, inverse in circuit.levels:
         kid = values[children] != jnp.asarray(negate)
         v = jnp.where(jnp.asarray(is_all), jnp.all(kid, axis=1), jnp.any(kid, axis=1))

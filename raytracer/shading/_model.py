@@ -65,6 +65,7 @@ from ._geometry import (
     evaluate_inside,
     hierarchy_filters,
     leaf_prims,
+    leaf_values_of,
     prim_bits,
     solo_prims,
 )
@@ -190,6 +191,14 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
     medium = jnp.asarray(geo.prim_table["medium"])
     sign = jnp.asarray(geo.prim_table["sign"])
     present = jnp.zeros(medium.shape[0], bool)
+    tested: dict[int, jax.Array] = {}
+
+    def inside_of(g):  # every member of group g at the eye, once for both uses below
+        if g not in tested:
+            tested[g] = jax.vmap(lambda s, m: s.inside(matvec(m[:3, :3], eye) + m[:3, 3]))(
+                geo.shapes[g], geo.object_from_world[g])
+        return tested[g]
+
     held: set[int] = set()  # objects of one primitive tested here (a union's children are not)
     solo = solo_prims(ctx.plan)
     for g, members in enumerate(geo.member_prims or ()):
@@ -197,11 +206,7 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
             continue
         held.update(solo.intersection(geo.groups[g].prims))
         members = jnp.asarray(members)
-        ofw = geo.object_from_world[g]
-        if geo.groups[g].solid:
-            inside = jax.vmap(lambda s, m: s.inside(matvec(m[:3, :3], eye) + m[:3, 3]))(geo.shapes[g], ofw)
-        else:
-            inside = jnp.zeros(members.shape[0], bool)
+        inside = inside_of(g) if geo.groups[g].solid else jnp.zeros(members.shape[0], bool)
         prim = jnp.maximum(members, 0)
         inside = (inside != (sign[prim] < 0)) & (members >= 0)  # the object is its primitive
         present = present.at[medium[prim]].max(inside)
@@ -210,7 +215,8 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
         leaves = [sorted(leaf_prims(tree)) for tree in roots]
         trees = [(tree, 0) for tree in roots] + [(InPrim(q, ctx.plan.prims[q].inverse), 0)
                                                    for ls in leaves for q in ls]
-        inside = evaluate_inside(geo, build_inside_circuit(trees), eye[None, :])
+        circuit = build_inside_circuit(trees)
+        inside = evaluate_inside(geo, circuit, eye[None, :], leaf_values_of(geo, circuit, inside_of))
         # a leaf's medium is present where both its object and the leaf itself contain the eye
         root_of = np.concatenate([np.full(len(ls), r, np.int32) for r, ls in enumerate(leaves)])
         leaf = np.concatenate([np.asarray(ls, np.int32) for ls in leaves])
