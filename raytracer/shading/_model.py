@@ -788,10 +788,12 @@ def _batched(fn, lights: _Lights, extra):
     return jax.vmap(fn)(lights.light, extra)
 
 
-def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibility) -> _Layers:
+def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibility,
+            pigments=None) -> _Layers:
     """Texture layers, top first (semantics §2.3): each adds its local colour filtered by the layers above;
     the loop stops once the layers above let less than adc_bailout through. ``visibility``: per
-    light, its shadow filter if the batch computed it, else None."""
+    light, its shadow filter if the batch computed it, else None; ``pigments``: each layer's
+    pigment (layers, 5) if the batch computed them, else None."""
     mats, fin = ctx.mats, ctx.mats.finish
     d, n, prim = ray.direction, s.n, s.prim
     # lights of one structure are one vmapped computation (their shadow rays too), so the program
@@ -806,7 +808,7 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
         # what a layer contributes by itself: its local colour (before the layers above filter
         # it), its filter, and its reflection colour and weight
         row = prim * n_layers + k
-        pig = pigment_at(mats, row, s.p)
+        pig = pigment_at(mats, row, s.p) if pigments is None else pigments[k]
         rgb, f, t = pig[:3], pig[3], pig[4]
         att = 1.0 - f - t
         tmp = att * rgb * (fin["ambient"][row] * ctx.settings.ambient_light + fin["emission"][row])
@@ -940,13 +942,15 @@ def _materialised(ctx: TraceContext, tree):
     return jax.lax.cond(keep, lambda x: x, lambda x: jax.tree.map(jnp.copy, x), tree)
 
 
-def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=None) -> Shading:
+def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=None,
+          pigments=None) -> Shading:
     """Shades one ray (no leading axis): its local colour and the children its hit spawns.
 
     A dead ray sees black and spawns nothing; a live ray that misses sees the background. A ray
     spawns children only if its level is below ``max_trace_level``; straight transmission (ior 1)
-    keeps the level (semantics §2.7). ``s`` and ``visibility`` (per light, a shadow filter or None)
-    are what :func:`shade_batch` computed for the whole batch.
+    keeps the level (semantics §2.7). ``s``, ``visibility`` (per light, a shadow filter or None) and
+    ``pigments`` (the layers' (layers, 5), or None) are what :func:`shade_batch` computed for the
+    whole batch.
     """
     eff = ctx.plan.effects
     if s is None:
@@ -955,7 +959,7 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
         visibility = (None,) * len(ctx.lights)
     cos_i = -jnp.dot(ray.direction, s.n)
     eta_rel, eta_fresnel = _relative_ior(ctx, ray, s)
-    layers = _layers(ctx, ray, s, cos_i, eta_fresnel, visibility)
+    layers = _layers(ctx, ray, s, cos_i, eta_fresnel, visibility, pigments)
     if (eff.reflection or eff.transmission) and jax.default_backend() == "cpu":
         # (a CPU fusion workaround: elsewhere a conditional may cost a device-to-host sync)
         layers = _materialised(ctx, layers)
@@ -987,7 +991,8 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     if any(adaptive):
         visibility = _batch_visibility(ctx, s, adaptive)
     if by_pattern:
-        visibility = _batch_shadows(ctx, s, visibility)
+        visibility, pigments = _batch_shadows(ctx, s, visibility, layers=True)
+        return jax.vmap(lambda r, s_, v, pig: shade(ctx, r, s_, v, pig))(rays, s, tuple(visibility), pigments)
     return jax.vmap(lambda r, s_, v: shade(ctx, r, s_, v))(rays, s, tuple(visibility))
 
 
@@ -1004,16 +1009,20 @@ def _many_filter_slots(ctx: TraceContext) -> bool:
     return ctx.accel_filters or int(np.count_nonzero(~_transparent_pairs(ctx)[2])) >= MIN_FILTER_SLOTS
 
 
-def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list) -> list:
+def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list, layers: bool = False):
     """``visibility`` with the shadow filter of every other shadow-casting light computed for the
     batch: the shadow rays' geometry ray by ray (lights of one structure vmapped together, as in
     ``_layers``), then the patterned pigments of all their transparent crossings together
     (``pigments_at``: each computes its own pattern, and the many slots of crossings a ray does not
-    have compute nothing), then each ray's product."""
+    have compute nothing), then each ray's product. With ``layers``, the same call also computes
+    the pigment of every texture layer at the batch's hits (returned (B, layers, 5), else None):
+    the program holds the scene's patterns once, not once for shadows and once for the surfaces
+    (``advanced/pawns``: ~900 of its ~8,300 equations), and a surface computes only its own
+    pattern, not every pattern of the scene."""
     b_size = s.p.shape[0]
     todo = [v is None and _casts_shadows(ctx, light_types(light, ctx.plan.effects))
             for light, v in zip(ctx.lights, visibility, strict=True)]
-    out = list(visibility)
+    classes, rows, points, needed = [], [], [], []
     for ids, lights, _ in _light_classes(ctx.lights, visibility, ctx.plan.effects):
         if not todo[ids[0]]:
             continue
@@ -1031,17 +1040,35 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list) -> list:
 
         weights, fl, lit = jax.vmap(per_ray)(s.p, s.p_out, s.n)  # (B, [lights,] S, …)
         wanted = s.found.reshape((b_size,) + (1,) * (lit.ndim - 1)) & lit
-        use = fl.use & wanted[..., None, None]
-        pig = pigments_at(ctx.mats, fl.rows.reshape(-1), fl.points.reshape(-1, 3), use.reshape(-1))
-        f = _rgb_filter(pig).reshape(fl.rows.shape + (3,))
+        fl = fl._replace(use=fl.use & wanted[..., None, None])
+        classes.append((ids, lights, weights, fl))
+        rows.append(fl.rows.reshape(-1))
+        points.append(fl.points.reshape(-1, 3))
+        needed.append(fl.use.reshape(-1))
+    n_layers = ctx.mats.n_layers
+    if layers:
+        k = jnp.arange(n_layers, dtype=jnp.int32)
+        rows.append((s.prim[:, None] * n_layers + k[None, :]).reshape(-1))
+        points.append(jnp.repeat(s.p, n_layers, axis=0))
+        present = jnp.asarray(ctx.mats.tables["layer_present"])[s.prim]  # (B, layers)
+        needed.append((s.found[:, None] & present).reshape(-1))
+    out = list(visibility)
+    if not rows:
+        return out, None
+    pig = pigments_at(ctx.mats, jnp.concatenate(rows), jnp.concatenate(points), jnp.concatenate(needed))
+    start = 0
+    for ids, lights, weights, fl in classes:
+        size = fl.rows.size
+        f = _rgb_filter(pig[start:start + size]).reshape(fl.rows.shape + (3,))
+        start += size
         shape = fl.base.shape[:-1]  # (B, [lights,] S)
         flat = _Filters(fl.base.reshape(-1, 3), fl.rows.reshape(-1, fl.rows.shape[-1]),
-                        fl.points.reshape(-1, fl.rows.shape[-1], 3), use.reshape(-1, fl.rows.shape[-1]))
+                        fl.points.reshape(-1, fl.rows.shape[-1], 3), fl.use.reshape(-1, fl.rows.shape[-1]))
         seen = jax.vmap(_filtered)(flat, f.reshape(-1, fl.rows.shape[-1], 3)).reshape(shape + (3,))
         vis = jnp.sum(weights[..., None] * seen, axis=-2)  # (B, [lights,] 3)
         for j, i in enumerate(ids):
             out[i] = vis if lights.count == 1 else vis[:, j]
-    return out
+    return out, (pig[start:].reshape(b_size, n_layers, 5) if layers else None)
 
 
 def _batch_visibility(ctx: TraceContext, s: _Surface, adaptive: list[bool]) -> list:

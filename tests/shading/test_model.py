@@ -126,8 +126,9 @@ intersection { sphere { 0, 1 } box { -0.7, 0.7 } translate <1.5, 1.2, -1>
 def test_batch_shadows_through_noise_patterns_are_the_per_ray_shadows(monkeypatch):
     """Where transparent shadow casters have noise patterns, ``shade_batch`` computes the shadows of
     a chunk's rays together, each crossing's pattern only where the crossing is
-    (``_batch_shadows``). The image is that of the per-ray shadows, which compute every pattern at
-    every slot of crossings. (The derivatives of the pigments so computed are held to the per-ray
+    (``_batch_shadows``), and in the same call the pigments of the hits' texture layers. The image
+    is that of the per-ray shadows and surfaces, which compute every pattern at every slot of
+    crossings and at every hit. (The derivatives of the pigments so computed are held to the per-ray
     ones above; the rest of the batch path is products and sums.)"""
     from raytracer import load_scene, render
     from raytracer.shading import _model
