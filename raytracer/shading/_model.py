@@ -118,12 +118,13 @@ def _media_last(media):
 
 def _media_without(media, prim):
     """The list with the last entry of ``prim`` taken out (the rest keep their order, packed at the
-    front): a ray inside two overlapping parts of one medium is still inside after leaving one."""
+    front): a ray inside two overlapping parts of one medium is still inside after leaving one.
+    A list is always packed (``_media_with``, ``initial_media``), so the entries after the one
+    taken out move down one slot: selects, not a scatter (XLA's CPU scatter is a serial loop)."""
     index = jnp.arange(media.shape[0])
     last = jnp.max(jnp.where(media == prim, index, -1))
-    keep = (media >= 0) & (index != last)
-    pos = jnp.where(keep, jnp.cumsum(keep) - 1, media.shape[0])
-    return jnp.full_like(media, -1).at[pos].set(media, mode="drop")
+    after = jnp.concatenate([media[1:], jnp.full((1,), -1, media.dtype)])
+    return jnp.where((last >= 0) & (index >= last), after, media)
 
 
 def _media_with(media, prim):
@@ -131,7 +132,8 @@ def _media_with(media, prim):
     count = jnp.sum(media >= 0)
     full = count >= media.shape[0]
     shifted = jnp.where(full, jnp.roll(media, -1), media)
-    return shifted.at[jnp.where(full, media.shape[0] - 1, count)].set(prim)
+    at = jnp.where(full, media.shape[0] - 1, count)
+    return jnp.where(jnp.arange(media.shape[0]) == at, prim, shifted)  # (a select, not a scatter)
 
 
 class Child(NamedTuple):

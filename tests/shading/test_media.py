@@ -48,6 +48,8 @@ def test_entering_appends_and_leaving_removes_the_last_entry_of_a_medium():
     np.testing.assert_array_equal(m, [7, 2, 7, -1])
     np.testing.assert_array_equal(_media_without(m, 7), [7, 2, -1, -1])  # still inside the first 7
     np.testing.assert_array_equal(_media_without(m, 5), m)  # not inside 5: nothing changes
+    np.testing.assert_array_equal(_media_without(m, 2), [7, 7, -1, -1])  # the later entries move down
+    np.testing.assert_array_equal(_media_without(jnp.asarray([1, 2, 3, 4], jnp.int32), 1), [2, 3, 4, -1])
     full = jnp.asarray([1, 2, 3, 4], jnp.int32)
     np.testing.assert_array_equal(_media_with(full, 9), [2, 3, 4, 9])  # the oldest is forgotten
 
