@@ -259,9 +259,13 @@ def _pigment_of_value(mats: PackedMaterials, prim, v):
     if np.any(mats.waves != 0):
         waved = jnp.stack([patterns.apply_wave(v, name) for name in WAVES])
         v = waved[wave]
-    c = _color_map(v, mats.values[prim], mats.colors[prim])
-    if any(patterns.REGISTRY[name].discrete for name in mats.pattern_names):
-        c = jnp.where(discrete, _list_entry(v, mats.colors[prim]), c)
+    kinds = [patterns.REGISTRY[name].discrete for name in mats.pattern_names if name != "solid"]
+    if kinds and all(kinds):  # every pattern lists its colours (checker floors): no colour map
+        c = _list_entry(v, mats.colors[prim])
+    else:
+        c = _color_map(v, mats.values[prim], mats.colors[prim])
+        if any(kinds):
+            c = jnp.where(discrete, _list_entry(v, mats.colors[prim]), c)
     return jnp.where(pid == _solid_index(mats), mats.colors[prim, 0], c)
 
 
