@@ -372,6 +372,12 @@ def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivat
     assert left == sorted(["plane", "quadric", "box"])
     csg_items = int(np.count_nonzero(np.asarray(geo.accel.tables[3]) == _accel.KIND_CSG))
     assert csg_items == 10 + 5
+    # the transparent box and sphere of their own share a kernel evaluation with CSG members, in
+    # the closest-hit and the filtering query alike
+    for groups in (range(len(geo.accel.groups)), [g for g, ag in enumerate(geo.accel.groups) if ag.filters]):
+        mixed = [s for s in _accel._alike(geo.accel, geo.shapes, groups)
+                 if len({geo.accel.groups[g].csg for g in s}) == 2]
+        assert len(mixed) == 2, mixed
     tangent = _tangent(scene, seed=1)
     out = {}
     for mode in ("native", "none"):
