@@ -101,7 +101,8 @@ sphere { 4, 1 pigment { bozo phase 0.5 color_map { [0 rgb 1] [1 rgb <0, 0.5, 1>]
 
 # transparent shadow casters with noise patterns: in the hierarchy (more than MIN_FILTER_ITEMS) and
 # candidates (an intersection), lit by two point lights of one structure, an area light and a
-# spotlight
+# spotlight; a floor of two texture layers (the top one a noise pattern), so the others' second
+# layer is absent
 SHADOWS = """
 #version 3.7;
 global_settings { assumed_gamma 1.0 }
@@ -110,7 +111,8 @@ light_source { <-6, 10, -5> color rgb 0.7 }
 light_source { <5, 8, -3> color rgb 0.5 }
 light_source { <0, 9, 4> color rgb 0.4 area_light x, z, 3, 3 }
 light_source { <2, 7, -6> color rgb 0.6 spotlight point_at <0, 0.5, 0> radius 12 falloff 20 }
-plane { y, 0 pigment { rgb 0.8 } }
+plane { y, 0 texture { pigment { rgb 0.8 } }
+  texture { pigment { bozo scale 0.7 color_map { [0 rgbt 1] [1 rgbf <0.2, 0.5, 0.9, 0.5>] } } } }
 #declare R = seed(5);
 #for (i, 0, 19)
   sphere { <rand(R) * 6 - 3, 0.4 + rand(R), rand(R) * 5 - 2>, 0.3 + 0.2 * rand(R)
