@@ -46,6 +46,7 @@ from jax.custom_batching import custom_vmap
 from .._packing import any_traced, bucket, is_traced, pad_rows, register_packed
 from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes._base import AbstractShape
+from ..shapes._cone import FRUSTUM, frustum_form_hits
 
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
 MIN_ITEMS = 8  # fewer items: every primitive is a candidate (measured: no faster either way at 10)
@@ -355,25 +356,32 @@ def _relocate(csg: CsgUnits, member_base: int) -> np.ndarray:
     return program
 
 
+FORM_HITS = {FRUSTUM: frustum_form_hits}  # the kernel of each form (``AbstractShape.kernel_form``)
+
+
 def _alike(accel: Accel, shapes, groups) -> list[list[int]]:
-    """The hierarchy's groups ``groups`` (indices into ``accel.groups``) in sets whose shapes stack
-    alike: one class, pytree structure and static fields, leaf shapes past the leading axis, and
-    items per member. One kernel evaluation serves a set: an item lies in one group, whose member's
-    arrays are selected before the kernel rather than its results after (``advanced/lamppost``'s
-    cylinders and boxes, items and CSG members, were two evaluations each)."""
+    """The hierarchy's groups ``groups`` (indices into ``accel.groups``) in sets whose kernels'
+    arrays stack alike: one kernel (the class's own, or a form several classes share:
+    ``AbstractShape.kernel_form``), pytree structure and static fields, leaf shapes past the
+    leading axis, and items per member. One kernel evaluation serves a set: an item lies in one
+    group, whose member's arrays are selected before the kernel rather than its results after
+    (``advanced/lamppost``'s cylinders, cones and open cones, items and CSG members, were five
+    evaluations)."""
     sets: dict = {}
     for g in groups:
         ag = accel.groups[g]
-        leaves, treedef = jax.tree_util.tree_flatten(shapes[ag.group])
-        key = (treedef, tuple((np.shape(x)[1:], jnp.result_type(x)) for x in leaves), ag.per_member)
+        form, arrays = shapes[ag.group].kernel_form()
+        leaves, treedef = jax.tree_util.tree_flatten(arrays)
+        key = (form, treedef, tuple((np.shape(x)[1:], jnp.result_type(x)) for x in leaves), ag.per_member)
         sets.setdefault(key, []).append(g)
     return list(sets.values())
 
 
 def _chosen_members(accel: Accel, alike: list[int], shapes, object_from_world, item):
     """For items ``item`` (any shape; < 0: none) of the groups ``alike`` (one of ``_alike``'s sets):
-    whether each is one, whether it is a CSG member, and its member's shape, object-from-world map
-    and sub-item (leaves of ``item``'s shape in front; a first member's where it is none)."""
+    whether each is one, whether it is a CSG member, its member's kernel arrays (the shape, or its
+    form's arrays), object-from-world map and sub-item (leaves of ``item``'s shape in front; a first
+    member's where it is none)."""
     chosen = jnp.maximum(item, 0)
     out = None
     for g in alike:
@@ -382,7 +390,8 @@ def _chosen_members(accel: Accel, alike: list[int], shapes, object_from_world, i
         mine = (item >= 0) & (local >= 0) & (local < accel.ranges[g, 1])
         local = jnp.where(mine, local, 0)
         member = local // ag.per_member
-        picked = (jax.tree_util.tree_map(lambda a, member=member: a[member], shapes[ag.group]),
+        arrays = shapes[ag.group].kernel_form()[1]
+        picked = (jax.tree_util.tree_map(lambda a, member=member: a[member], arrays),
                   object_from_world[ag.group][member], local % ag.per_member)
         if out is None:
             out = (mine, mine & ag.csg) + picked
@@ -393,6 +402,12 @@ def _chosen_members(accel: Accel, alike: list[int], shapes, object_from_world, i
 
         out = (out[0] | mine, out[1] | (mine & ag.csg)) + jax.tree_util.tree_map(pick, out[2:], picked)
     return out
+
+
+def _kernel_hits(accel: Accel, alike: list[int], shapes, arrays, o, d, sub):
+    """The crossings of the set ``alike``'s kernel with the arrays ``arrays`` (one member's)."""
+    form = shapes[accel.groups[alike[0]].group].kernel_form()[0]
+    return arrays.sub_hits(o, d, sub) if form is None else FORM_HITS[form](arrays, o, d)
 
 
 def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array):
@@ -406,8 +421,9 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
     chosen = jnp.maximum(item, 0)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
     for alike in _alike(accel, shapes, range(len(accel.groups))):
-        mine, csg, shape, m, sub = _chosen_members(accel, alike, shapes, object_from_world, item)
-        t, n = shape.sub_hits(matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
+        mine, csg, arrays, m, sub = _chosen_members(accel, alike, shapes, object_from_world, item)
+        o_m, d_m = matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d)
+        t, n = _kernel_hits(accel, alike, shapes, arrays, o_m, d_m, sub)
         ok = mine & (t > t_min) & jnp.isfinite(t) & (t < T_MAX)
         tt = jnp.where(ok, t, jnp.inf)
         c = jnp.argmin(tt)
@@ -450,8 +466,9 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
         members = _chosen_members(accel, alike, shapes, object_from_world, item)
         any_csg = any(accel.groups[g].csg for g in alike)
 
-        def one(mine, csg, shape, m, sub, t_counted, any_csg=any_csg):
-            t, n = shape.sub_hits(matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
+        def one(mine, csg, arrays, m, sub, t_counted, any_csg=any_csg, alike=alike):
+            t, n = _kernel_hits(accel, alike, shapes, arrays, matvec(m[:3, :3], o) + m[:3, 3],
+                                matvec(m[:3, :3], d), sub)
             ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
             n = jax.vmap(lambda v: safe_normalize(vecmat(v, m[:3, :3])))(n)
             t = jnp.where(ok, t, jnp.inf)

@@ -76,11 +76,22 @@ def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
         & (jnp.sum(q_perp * q_perp, axis=-1) <= radii * radii)
         & (radii > 0)
         & proper
-        & (not open_)
+        & ~jnp.asarray(open_)  # (a static flag, or a frustum form's array)
     )
     n_caps = jnp.stack([-a_hat, a_hat])
     t = jnp.concatenate([t_side, t_caps])
     return masked_hits(t, jnp.concatenate([n_side, n_caps]), jnp.concatenate([side_ok, caps_ok]))
+
+
+FRUSTUM = "frustum"  # the kernel form of cylinders and cones (``AbstractShape.kernel_form``)
+
+
+def frustum_form_hits(arrays, o, d):
+    """The crossings of the frustum ``arrays`` = (base, base radius, cap, cap radius, open) (one
+    shape's: ``Cylinder.kernel_form``, ``Cone.kernel_form``) with the line ``o + t d``: the
+    cylinder's and the cone's own ``hits``, bit for bit."""
+    base, base_radius, cap, cap_radius, open_ = arrays
+    return _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_)
 
 
 def _frustum_inside(base, base_radius, cap, cap_radius, p):
@@ -185,6 +196,10 @@ class Cylinder(AbstractShape):
     def hits(self, o, d):
         return cylinder_hits(self.base, self.cap, self.radius, o, d, open=self.open)
 
+    def kernel_form(self):
+        open_ = jnp.full(jnp.shape(self.radius), self.open)
+        return FRUSTUM, (self.base, self.radius, self.cap, self.radius, open_)
+
     def inside(self, p):
         # open or not, the inside is the solid's (semantics §4.1)
         return cylinder_inside(self.base, self.cap, self.radius, p)
@@ -232,6 +247,10 @@ class Cone(AbstractShape):
 
     def hits(self, o, d):
         return cone_hits(self.base, self.base_radius, self.cap, self.cap_radius, o, d, open=self.open)
+
+    def kernel_form(self):
+        return FRUSTUM, (self.base, self.base_radius, self.cap, self.cap_radius,
+                         jnp.full(jnp.shape(self.base_radius), self.open))
 
     def inside(self, p):
         return cone_inside(self.base, self.base_radius, self.cap, self.cap_radius, p)

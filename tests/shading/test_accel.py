@@ -106,6 +106,10 @@ def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
     extra = [] if ACCEL == "native" else ["mesh", "sphere", "torus", "torus", "box", "sphere"]
     assert sorted(p.kind for p in left) == sorted(["plane"] + extra)
     assert sum(bool(p.conditions) for p in left) == (0 if ACCEL == "native" else 2)
+    # the queries evaluate one frustum kernel for the cylinders and cones, open or not
+    frustums = [s for s in _accel._alike(geo.accel, geo.shapes, range(len(geo.accel.groups)))
+                if geo.shapes[geo.accel.groups[s[0]].group].kernel_form()[0] == "frustum"]
+    assert len(frustums) == 1 and len(frustums[0]) == 4  # cylinder, open cylinder, cone, open cone
 
 
 def test_the_hierarchy_gives_the_candidate_paths_image_and_derivatives(scene, monkeypatch):
