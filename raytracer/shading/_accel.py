@@ -46,7 +46,6 @@ from jax.custom_batching import custom_vmap
 from .._packing import any_traced, bucket, is_traced, pad_rows, register_packed
 from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes._base import AbstractShape
-from ..shapes._cone import FRUSTUM, frustum_form_hits
 
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
 MIN_ITEMS = 8  # fewer items: every primitive is a candidate (measured: no faster either way at 10)
@@ -356,24 +355,21 @@ def _relocate(csg: CsgUnits, member_base: int) -> np.ndarray:
     return program
 
 
-FORM_HITS = {FRUSTUM: frustum_form_hits}  # the kernel of each form (``AbstractShape.kernel_form``)
-
-
-def _alike(accel: Accel, shapes, groups) -> list[list[int]]:
+def _alike(accel: Accel, shapes, groups) -> list[tuple[object, list[int]]]:
     """The hierarchy's groups ``groups`` (indices into ``accel.groups``) in sets whose kernels'
-    arrays stack alike: one kernel (the class's own, or a form several classes share:
-    ``AbstractShape.kernel_form``), pytree structure and static fields, leaf shapes past the
-    leading axis, and items per member. One kernel evaluation serves a set: an item lies in one
-    group, whose member's arrays are selected before the kernel rather than its results after
-    (``advanced/lamppost``'s cylinders, cones and open cones, items and CSG members, were five
-    evaluations)."""
+    arrays stack alike, each with its kernel (None: the class's own ``sub_hits``; else a kernel
+    several classes share: ``AbstractShape.kernel_form``): one kernel, pytree structure and static
+    fields, leaf shapes past the leading axis, and items per member. One kernel evaluation serves
+    a set: an item lies in one group, whose member's arrays are selected before the kernel rather
+    than its results after (``advanced/lamppost``'s cylinders, cones and open cones, items and CSG
+    members, were five evaluations)."""
     sets: dict = {}
     for g in groups:
         ag = accel.groups[g]
-        form, arrays = shapes[ag.group].kernel_form()
+        kernel, arrays = shapes[ag.group].kernel_form()
         leaves, treedef = jax.tree_util.tree_flatten(arrays)
-        key = (form, treedef, tuple((np.shape(x)[1:], jnp.result_type(x)) for x in leaves), ag.per_member)
-        sets.setdefault(key, []).append(g)
+        key = (kernel, treedef, tuple((np.shape(x)[1:], jnp.result_type(x)) for x in leaves), ag.per_member)
+        sets.setdefault(key, (kernel, []))[1].append(g)
     return list(sets.values())
 
 
@@ -404,10 +400,9 @@ def _chosen_members(accel: Accel, alike: list[int], shapes, object_from_world, i
     return out
 
 
-def _kernel_hits(accel: Accel, alike: list[int], shapes, arrays, o, d, sub):
-    """The crossings of the set ``alike``'s kernel with the arrays ``arrays`` (one member's)."""
-    form = shapes[accel.groups[alike[0]].group].kernel_form()[0]
-    return arrays.sub_hits(o, d, sub) if form is None else FORM_HITS[form](arrays, o, d)
+def _kernel_hits(kernel, arrays, o, d, sub):
+    """The crossings of one member's kernel ``arrays`` (``_alike``'s ``kernel``: None, its shape's own)."""
+    return arrays.sub_hits(o, d, sub) if kernel is None else kernel(arrays, o, d)
 
 
 def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array):
@@ -420,10 +415,9 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
     item, t_chosen = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
     chosen = jnp.maximum(item, 0)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
-    for alike in _alike(accel, shapes, range(len(accel.groups))):
+    for kernel, alike in _alike(accel, shapes, range(len(accel.groups))):
         mine, csg, arrays, m, sub = _chosen_members(accel, alike, shapes, object_from_world, item)
-        o_m, d_m = matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d)
-        t, n = _kernel_hits(accel, alike, shapes, arrays, o_m, d_m, sub)
+        t, n = _kernel_hits(kernel, arrays, matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
         ok = mine & (t > t_min) & jnp.isfinite(t) & (t < T_MAX)
         tt = jnp.where(ok, t, jnp.inf)
         c = jnp.argmin(tt)
@@ -462,13 +456,12 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     item, count, t_native = _all_query(accel.tables, sg(o), sg(d), sg(t_min), sg(t_max), want)
     ts = []
     # (the query names only items of groups with transparent shadow casters)
-    for alike in _alike(accel, shapes, [g for g, ag in enumerate(accel.groups) if ag.filters]):
+    for kernel, alike in _alike(accel, shapes, [g for g, ag in enumerate(accel.groups) if ag.filters]):
         members = _chosen_members(accel, alike, shapes, object_from_world, item)
         any_csg = any(accel.groups[g].csg for g in alike)
 
-        def one(mine, csg, arrays, m, sub, t_counted, any_csg=any_csg, alike=alike):
-            t, n = _kernel_hits(accel, alike, shapes, arrays, matvec(m[:3, :3], o) + m[:3, 3],
-                                matvec(m[:3, :3], d), sub)
+        def one(mine, csg, arrays, m, sub, t_counted, any_csg=any_csg, kernel=kernel):
+            t, n = _kernel_hits(kernel, arrays, matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
             ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
             n = jax.vmap(lambda v: safe_normalize(vecmat(v, m[:3, :3])))(n)
             t = jnp.where(ok, t, jnp.inf)

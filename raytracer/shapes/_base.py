@@ -187,12 +187,12 @@ class AbstractShape(Record):
         """k of ``native_items`` (static: from shapes alone)."""
         return 1
 
-    def kernel_form(self) -> tuple[str | None, object]:
-        """``(form, arrays)``: shapes of several classes whose crossings one kernel computes from
-        arrays of one structure name that kernel's form (a cylinder is a frustum with equal radii;
-        ``open`` an array there, not a static field), so a query evaluates it once for groups of
-        them all (``shading/_accel._alike``; ``shading/_accel.FORM_HITS``: the kernels). Works on
-        a shape or a stack of them. Default ``(None, self)``: the shape's own ``sub_hits``."""
+    def kernel_form(self) -> tuple[object, object]:
+        """``(kernel, arrays)``: shapes of several classes whose crossings one kernel
+        ``kernel(arrays, o, d)`` computes from arrays of one structure name that kernel (a
+        cylinder is a frustum with equal radii; ``open`` an array there, not a static field), so a
+        query evaluates it once for groups of them all (``shading/_accel._alike``). Works on a
+        shape or a stack of them. Default ``(None, self)``: the shape's own ``sub_hits``."""
         return None, self
 
     def sub_hits(self, o: Float[Array, "3"], d: Float[Array, "3"], sub) -> tuple[Float[Array, " J"], Float[Array, "J 3"]]:  # noqa: E501

@@ -83,11 +83,9 @@ def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
     return masked_hits(t, jnp.concatenate([n_side, n_caps]), jnp.concatenate([side_ok, caps_ok]))
 
 
-FRUSTUM = "frustum"  # the kernel form of cylinders and cones (``AbstractShape.kernel_form``)
-
-
 def frustum_form_hits(arrays, o, d):
-    """The crossings of the frustum ``arrays`` = (base, base radius, cap, cap radius, open) (one
+    """The kernel of cylinders and cones alike (``AbstractShape.kernel_form``): the crossings of
+    the frustum ``arrays`` = (base, base radius, cap, cap radius, open) (one
     shape's: ``Cylinder.kernel_form``, ``Cone.kernel_form``) with the line ``o + t d``: the
     cylinder's and the cone's own ``hits``, bit for bit."""
     base, base_radius, cap, cap_radius, open_ = arrays
@@ -198,7 +196,7 @@ class Cylinder(AbstractShape):
 
     def kernel_form(self):
         open_ = jnp.full(jnp.shape(self.radius), self.open)
-        return FRUSTUM, (self.base, self.radius, self.cap, self.radius, open_)
+        return frustum_form_hits, (self.base, self.radius, self.cap, self.radius, open_)
 
     def inside(self, p):
         # open or not, the inside is the solid's (semantics §4.1)
@@ -249,7 +247,7 @@ class Cone(AbstractShape):
         return cone_hits(self.base, self.base_radius, self.cap, self.cap_radius, o, d, open=self.open)
 
     def kernel_form(self):
-        return FRUSTUM, (self.base, self.base_radius, self.cap, self.cap_radius,
+        return frustum_form_hits, (self.base, self.base_radius, self.cap, self.cap_radius,
                          jnp.full(jnp.shape(self.base_radius), self.open))
 
     def inside(self, p):

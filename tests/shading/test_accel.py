@@ -12,6 +12,7 @@ from raytracer import load_scene, render
 from raytracer._plan import make_plan
 from raytracer.shading import _accel
 from raytracer.shading._geometry import pack_geometry
+from raytracer.shapes._cone import frustum_form_hits
 
 # the hierarchy under test: the native one, or its JAX twin when the run has RAYTRACER_ACCEL=jax
 ACCEL = "jax" if os.environ.get("RAYTRACER_ACCEL", "").strip().lower() == "jax" else "native"
@@ -107,8 +108,8 @@ def test_hierarchy_holds_only_what_it_may(scene, monkeypatch):
     assert sorted(p.kind for p in left) == sorted(["plane"] + extra)
     assert sum(bool(p.conditions) for p in left) == (0 if ACCEL == "native" else 2)
     # the queries evaluate one frustum kernel for the cylinders and cones, open or not
-    frustums = [s for s in _accel._alike(geo.accel, geo.shapes, range(len(geo.accel.groups)))
-                if geo.shapes[geo.accel.groups[s[0]].group].kernel_form()[0] == "frustum"]
+    frustums = [s for kernel, s in _accel._alike(geo.accel, geo.shapes, range(len(geo.accel.groups)))
+                if kernel is frustum_form_hits]
     assert len(frustums) == 1 and len(frustums[0]) == 4  # cylinder, open cylinder, cone, open cone
 
 
@@ -379,7 +380,7 @@ def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivat
     # the transparent box and sphere of their own share a kernel evaluation with CSG members, in
     # the closest-hit and the filtering query alike
     for groups in (range(len(geo.accel.groups)), [g for g, ag in enumerate(geo.accel.groups) if ag.filters]):
-        mixed = [s for s in _accel._alike(geo.accel, geo.shapes, groups)
+        mixed = [s for _, s in _accel._alike(geo.accel, geo.shapes, groups)
                  if len({geo.accel.groups[g].csg for g in s}) == 2]
         assert len(mixed) == 2, mixed
     tangent = _tangent(scene, seed=1)
