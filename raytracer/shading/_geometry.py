@@ -643,16 +643,22 @@ def build_inside_circuit(trees: Sequence[tuple[InsideTree, int]]) -> InsideCircu
         roots=np.array([ref_id(r) for r in root_refs], np.int32))
 
 
+def _leaf_rows(geo: PackedGeometry, circuit: InsideCircuit):
+    """Per group with an inside test and leaves in ``circuit``: ``(g, rows, local)``, the leaves'
+    rows and their members' indices in the group (triangles, polygons, meshes have no inside: their
+    leaves stay False)."""
+    for g, group in enumerate(geo.groups):
+        rows = np.flatnonzero(np.isin(circuit.leaf_prim, np.asarray(group.prims)))
+        if group.solid and rows.size:
+            yield g, rows, np.array([geo.where[int(q)][1] for q in circuit.leaf_prim[rows]], np.int32)
+
+
 def _leaf_values(geo: PackedGeometry, circuit: InsideCircuit, points):
     """Inside tests of every leaf (primitive's own ``inverse`` excluded), vectorised per group."""
     values = jnp.zeros(circuit.leaf_prim.shape[0], bool)
-    for g, shapes, ofw in zip(geo.groups, geo.shapes, geo.object_from_world, strict=True):
-        rows = np.flatnonzero(np.isin(circuit.leaf_prim, np.asarray(g.prims)))
-        if not g.solid or rows.size == 0:
-            continue  # triangles, polygons, meshes have no inside: False
-        local = np.array([geo.where[int(q)][1] for q in circuit.leaf_prim[rows]], np.int32)
-        members = jax.tree_util.tree_map(lambda a, local=local: a[local], shapes)
-        m = ofw[local]
+    for g, rows, local in _leaf_rows(geo, circuit):
+        members = jax.tree_util.tree_map(lambda a, local=local: a[local], geo.shapes[g])
+        m = geo.object_from_world[g][local]
         obj_pts = jnp.einsum("nij,nj->ni", m[:, :3, :3], points[circuit.leaf_point[rows]]) + m[:, :3, 3]
         values = values.at[rows].set(jax.vmap(lambda s, p: s.inside(p))(members, obj_pts))
     return values
@@ -662,11 +668,7 @@ def leaf_values_of(geo: PackedGeometry, circuit: InsideCircuit, inside_of) -> ja
     """The leaves' inside tests read from ``inside_of(g)``: (n,) bool, group ``g``'s members'
     inside tests (their own ``inverse`` excluded) at the circuit's only point, computed once."""
     values = jnp.zeros(circuit.leaf_prim.shape[0], bool)
-    for g, group in enumerate(geo.groups):
-        rows = np.flatnonzero(np.isin(circuit.leaf_prim, np.asarray(group.prims)))
-        if not group.solid or rows.size == 0:
-            continue
-        local = np.array([geo.where[int(q)][1] for q in circuit.leaf_prim[rows]], np.int32)
+    for g, rows, local in _leaf_rows(geo, circuit):
         values = values.at[rows].set(inside_of(g)[local])
     return values
 
