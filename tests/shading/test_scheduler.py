@@ -130,6 +130,39 @@ def test_reverse_mode_of_a_chunked_map_keeps_the_chunks_inputs_not_every_interme
 
 
 
+def test_a_forward_chunk_loop_stops_at_the_last_live_chunk_and_differentiates_as_the_scan():
+    """Not differentiated, ``map_in_place`` is a ``while_loop`` over the chunks up to the last live
+    one (the dead chunks behind it take no loop step); its values, a dead chunk before the last
+    live one included (zeros), and its forward- and reverse-mode derivatives are the closed
+    form's, through the scan that a ``while_loop`` lacks in reverse mode."""
+    from raytracer.shading._chunks import map_in_place
+
+    n, chunk = 64, 8
+    x = jnp.linspace(-1.0, 1.0, n)
+    alive = (jnp.arange(n) < 40) & ((jnp.arange(n) < 16) | (jnp.arange(n) >= 24))  # chunk 2 dead
+    computed = np.asarray(jnp.any(alive.reshape(-1, chunk), axis=1).repeat(chunk))
+
+    def run(w):
+        return map_in_place(lambda v: {"y": jnp.sin(w * v) * v}, x, alive, chunk)["y"]
+
+    from jax.extend.core import jaxprs_in_params
+
+    def primitives(jaxpr):
+        return {name for e in jaxpr.eqns for name in
+                {e.primitive.name}.union(*(primitives(j) for j in jaxprs_in_params(e.params)))}
+
+    forward = primitives(jax.make_jaxpr(run)(1.5).jaxpr)
+    assert "while" in forward and "scan" not in forward
+    xs = np.asarray(x)
+    np.testing.assert_allclose(np.asarray(run(1.5)), np.where(computed, np.sin(1.5 * xs) * xs, 0.0),
+                               rtol=1e-6, atol=1e-7)
+    want = np.where(computed, np.cos(1.5 * xs) * xs * xs, 0.0)  # d/dw
+    _, tangent = jax.jvp(run, (1.5,), (1.0,))
+    np.testing.assert_allclose(np.asarray(tangent), want, rtol=1e-5, atol=1e-7)
+    grad = jax.grad(lambda w: jnp.sum(run(w)))(1.5)
+    np.testing.assert_allclose(float(grad), want.sum(), rtol=1e-5)
+
+
 def test_reverse_mode_of_a_deep_tree_with_costly_shading_keeps_each_levels_rays_not_its_intermediates(
         monkeypatch):
     """A pool shaded in one call keeps, per level of the scan, every intermediate reverse mode needs
