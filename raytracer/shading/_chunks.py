@@ -98,14 +98,8 @@ def _live_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int, b
     wrote its zeros (the Whitted scene at 1024×768: 0.325 → 0.30 s). A ``while_loop`` has no
     reverse mode, so its derivative (``custom_jvp``) is that of ``_blocked_map``'s scan: forward
     and reverse mode run today's differentiated program, the same values."""
-    # fn closes over the scene's arrays (and the tracers of an enclosing trace): a custom_jvp must
-    # take every one of them as an argument (jax.closure_convert hoists only the perturbed ones)
     example = jax.tree.map(lambda a: jax.ShapeDtypeStruct((chunk,) + a.shape[1:], a.dtype), items)
-    closed, shapes = jax.make_jaxpr(fn, return_shape=True)(example)
-    out_tree = jax.tree.structure(shapes)
-
-    def body(it, *consts):
-        return jax.tree.unflatten(out_tree, jax.core.eval_jaxpr(closed.jaxpr, consts, *jax.tree.leaves(it)))
+    body, consts, shapes = closure(fn, example)
 
     @jax.custom_jvp
     def run(items, live_chunk, consts):
@@ -125,26 +119,45 @@ def _live_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int, b
                                     (jnp.int32(0), zeros_like_shapes(shapes, (n_chunks,))))
         return jax.tree.map(lambda x: x.reshape((n,) + x.shape[2:]), out)
 
-    def scanned(items, live_chunk, consts):
-        return _blocked_map(lambda it: body(it, *consts), items, live_chunk, n, chunk, blocks)
-
     @partial(run.defjvp, symbolic_zeros=True)
     def _(primals, tangents):
-        # differentiated with respect to the perturbed inputs only, the others held as constants:
-        # instantiated zero tangents would compute (and compile) every unused derivative
-        flat, tree = jax.tree.flatten(primals)
-        flat_t = jax.tree.leaves(tangents)
-        moving = [not isinstance(t, SymbolicZero) for t in flat_t]
+        return jvp_of_moving(
+            lambda items, live_chunk, consts: _blocked_map(lambda it: body(it, *consts), items, live_chunk, n,
+                                                           chunk, blocks), primals, tangents)
 
-        def of_moving(*xs):
-            it = iter(xs)
-            args = [next(it) if m else p for p, m in zip(flat, moving, strict=True)]
-            return scanned(*jax.tree.unflatten(tree, args))
+    return run(items, live_chunk, consts)
 
-        return jax.jvp(of_moving, [p for p, m in zip(flat, moving, strict=True) if m],
-                       [t for t, m in zip(flat_t, moving, strict=True) if m])
 
-    return run(items, live_chunk, tuple(closed.consts))
+def closure(fn: Callable[[Any], Any], example):
+    """``fn`` of one argument shaped as ``example`` (a tree of ``ShapeDtypeStruct``) as
+    ``body(x, *consts)`` with every array it closes over (the scene's, and the tracers of an
+    enclosing trace) an argument, ``consts``, and the shapes of its result: a ``custom_jvp`` must take
+    them as arguments to differentiate with respect to them (``jax.closure_convert`` hoists only the
+    perturbed ones, and the others then leak out of the trace that made them)."""
+    closed, shapes = jax.make_jaxpr(fn, return_shape=True)(example)
+    out_tree = jax.tree.structure(shapes)
+
+    def body(x, *consts):
+        return jax.tree.unflatten(out_tree, jax.core.eval_jaxpr(closed.jaxpr, consts, *jax.tree.leaves(x)))
+
+    return body, tuple(closed.consts), shapes
+
+
+def jvp_of_moving(fn: Callable[..., Any], primals, tangents):
+    """A ``custom_jvp`` rule with symbolic zeros: ``jax.jvp`` of ``fn`` with respect to the inputs
+    whose tangent is not a ``SymbolicZero``, the others held as constants (instantiated zero
+    tangents would compute, and compile, every derivative no one asked for)."""
+    flat, tree = jax.tree.flatten(primals)
+    flat_t = jax.tree.leaves(tangents)
+    moving = [not isinstance(t, SymbolicZero) for t in flat_t]
+
+    def of_moving(*xs):
+        it = iter(xs)
+        args = [next(it) if m else p for p, m in zip(flat, moving, strict=True)]
+        return fn(*jax.tree.unflatten(tree, args))
+
+    return jax.jvp(of_moving, [p for p, m in zip(flat, moving, strict=True) if m],
+                   [t for t, m in zip(flat_t, moving, strict=True) if m])
 
 
 def map_live(fn: Callable[[Any], Any], items, alive, chunk: int, blocks: bool = True):

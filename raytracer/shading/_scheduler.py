@@ -24,13 +24,22 @@ Scan and cond differentiate like any JAX function (reverse mode included); nothi
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
 from ..kernels import safe_pow
-from ._chunks import intermediate_bytes, map_in_place, map_live, zeros_like_shapes
+from ._chunks import (
+    closure,
+    intermediate_bytes,
+    jvp_of_moving,
+    map_in_place,
+    map_live,
+    partition,
+    zeros_like_shapes,
+)
 from ._model import Rays, Shading, dead_rays
 
 
@@ -189,7 +198,22 @@ def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     Returns:
         ``(colours (N, 3), dropped)``: ``dropped`` counts children that did not fit (always 0
         without a capacity); a caller that needs the exact image re-renders with more capacity.
+
+    A compacted tree shaded in chunks is traced, where nothing differentiates it, by
+    :func:`_live_tree`, whose work follows the live rays; its derivatives are this scan's.
     """
+    n = rays.origin.shape[0]
+    size = n * slots_per_ray(branch, depth, capacity)
+    full = branch ** (depth - 1) if branch > 1 else 1
+    if capacity is not None and size < n * full and chunk < size and depth > 1:
+        return _live_tree(shade_rays, rays, depth=depth, branch=branch, chunk=chunk, capacity=capacity)
+    return _trace_scan(shade_rays, rays, depth=depth, branch=branch, chunk=chunk, capacity=capacity)
+
+
+def _trace_scan(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
+                capacity: int | None = None) -> tuple[jax.Array, jax.Array]:
+    """:func:`trace_tree` as a ``lax.scan`` over every level, each shading its whole pool (dead
+    chunks skipped), compacting it and keeping its records: JAX differentiates it in both modes."""
     n = rays.origin.shape[0]
     size = n * slots_per_ray(branch, depth, capacity)
     # the full width is only compared here, never allocated (a 111-level tree's is 2^110 slots:
@@ -218,3 +242,94 @@ def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     _, (records, dropped) = jax.lax.scan(level, pool, jnp.arange(depth))
     colour, _ = jax.lax.scan(_combine, jnp.zeros((size, 3), rays.origin.dtype), records, reverse=True)
     return colour[:n], jnp.sum(dropped)
+
+
+def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
+               capacity: int) -> tuple[jax.Array, jax.Array]:
+    """:func:`trace_tree` of a compacted tree whose work follows its live rays: a ``while_loop``
+    over the levels that stops at the first without a live ray, in each a ``while_loop`` over the
+    chunks up to the last live one, each chunk appending its live children to the next pool and
+    writing its records where they go; then the combine over the levels it traced. The scan shades
+    every level, and compacts, records and combines every pool slot of it, live or not (the
+    Whitted scene at 1024×768: a pool of 2 slots per camera ray, 0.45 live rays per camera ray
+    and level). A ``while_loop`` has no reverse mode: the derivatives (``custom_jvp``) are those
+    of :func:`_trace_scan`, the same values (the pools' order differs: a child of a chunk goes
+    after the children of the chunks before it, each chunk's first children first, where the
+    scan puts every ray's first child before any second one)."""
+    n = rays.origin.shape[0]
+    size = n * slots_per_ray(branch, depth, capacity)
+    spare = size + branch * chunk  # room for a chunk's whole block of children past the last slot
+    pool = _pad(rays, spare)
+    example = jax.tree.map(lambda a: jax.ShapeDtypeStruct((chunk,) + a.shape[1:], a.dtype), pool)
+    body, consts, shapes = closure(shade_rays, example)
+
+    def record(shape, dtype=None):
+        return jnp.zeros((depth, size) + shape.shape[1:], dtype or shape.dtype)
+
+    @jax.custom_jvp
+    def run(pool, consts):
+        records = LevelRecord(local=record(shapes.local), links=tuple(
+            Link(coef=record(c.coef), power=None if c.power is None else record(c.power),
+                 alive=record(c.ray.alive), dest=record(c.ray.level, jnp.int32)) for c in shapes.children))
+        n_chunks = size // chunk
+        live_chunk = jnp.any(pool.alive[:size].reshape(n_chunks, chunk), axis=1)
+        first_end = jnp.max(jnp.where(live_chunk, jnp.arange(1, n_chunks + 1, dtype=jnp.int32), 0))
+
+        def level(state):
+            k, cur, end, nxt, records, dropped = state
+            has_next = k + 1 < depth
+
+            def step(cs):
+                j, nxt, count, records = cs
+                at = j * chunk
+                it = jax.tree.map(lambda a: jax.lax.dynamic_slice_in_dim(a, at, chunk), cur)
+                sh = jax.lax.cond(jnp.any(it.alive), lambda: body(it, *consts),
+                                  lambda: zeros_like_shapes(shapes))
+                every = jnp.concatenate([c.ray.alive & has_next for c in sh.children])
+                pos = count + jnp.cumsum(every, dtype=jnp.int32) - 1
+                keep = every & (pos < size)
+                dest = jnp.where(keep, pos, size - 1)
+                order, _ = partition(every)  # the chunk's live children first, in order
+                block = jax.tree.map(lambda *xs: jnp.concatenate(xs)[order], *(c.ray for c in sh.children))
+                start = jnp.minimum(count, size)
+                nxt = jax.tree.map(lambda b, x: jax.lax.dynamic_update_slice_in_dim(b, x, start, 0), nxt,
+                                   block)
+
+                def put(buf, x):
+                    zeros = (jnp.int32(0),) * (x.ndim - 1)
+                    return jax.lax.dynamic_update_slice(buf, x[None], (k, at) + zeros)
+
+                links = []
+                for s, (c, link) in enumerate(zip(sh.children, records.links, strict=True)):
+                    part = slice(s * chunk, (s + 1) * chunk)
+                    links.append(Link(coef=put(link.coef, c.coef),
+                                      power=None if c.power is None else put(link.power, c.power),
+                                      alive=put(link.alive, keep[part]), dest=put(link.dest, dest[part])))
+                records = LevelRecord(local=put(records.local, sh.local), links=tuple(links))
+                return j + 1, nxt, count + jnp.sum(every, dtype=jnp.int32), records
+
+            _, nxt, count, records = jax.lax.while_loop(lambda cs: cs[0] < end, step,
+                                                        (jnp.int32(0), nxt, jnp.int32(0), records))
+            kept = jnp.minimum(count, size)
+            nxt = nxt._replace(alive=jnp.arange(spare) < kept)
+            return k + 1, nxt, (kept + chunk - 1) // chunk, cur, records, dropped + count - kept
+
+        state = (jnp.int32(0), pool, first_end, pool, records, jnp.int32(0))
+        used, _, _, _, records, dropped = jax.lax.while_loop(lambda st: st[2] > 0, level, state)
+
+        def combine(i, colour):
+            level_ = used - 1 - i
+            rec = jax.tree.map(lambda a: jax.lax.dynamic_index_in_dim(a, level_, keepdims=False), records)
+            return _combine(colour, rec)[0]
+
+        colour = jax.lax.fori_loop(0, used, combine, jnp.zeros((size, 3), pool.origin.dtype))
+        return colour[:n], dropped
+
+    @partial(run.defjvp, symbolic_zeros=True)
+    def _(primals, tangents):
+        return jvp_of_moving(
+            lambda pool, consts: _trace_scan(lambda r: body(r, *consts), jax.tree.map(lambda a: a[:n], pool),
+                                             depth=depth, branch=branch, chunk=chunk, capacity=capacity),
+            primals, tangents)
+
+    return run(pool, consts)

@@ -163,6 +163,51 @@ def test_a_forward_chunk_loop_stops_at_the_last_live_chunk_and_differentiates_as
     np.testing.assert_allclose(float(grad), want.sum(), rtol=1e-5)
 
 
+def test_a_compacted_tree_traced_forward_follows_its_live_rays_and_differentiates_as_the_scan():
+    """A compacted tree shaded in chunks is, forward, ``while_loop``s over the levels with a live
+    ray and the chunks up to the last live one (no ``scan``), each chunk appending its children
+    to the next pool. Its colours, its dropped count and its forward- and reverse-mode derivatives
+    are the closed form's (through the scan, which JAX can reverse). Roots: 12 of 16 live; each
+    ray sees ``theta·level`` and spawns two children of coefficient ½ down to level 3, so a live
+    root sees θ·(1 + 2·½·2 + 4·¼·3) = 6θ. With 3 slots per root every ray fits (level 3: 48 rays in
+    48 slots); with 2, level 3 keeps 32 and drops 16."""
+    n, depth = 16, 3
+
+    def shader(theta):
+        def shade_one(ray: Rays) -> Shading:
+            child = ray._replace(weight=ray.weight * 0.5, alive=ray.alive & (ray.level < depth),
+                                 level=ray.level + 1)
+            local = jnp.where(ray.alive, theta * ray.level, 0.0) * jnp.ones(3)
+            return Shading(local=local, children=tuple(Child(ray=child, coef=jnp.full(3, 0.5), power=None)
+                                                       for _ in range(2)))
+        return jax.vmap(shade_one)
+
+    live = jnp.arange(n) % 4 != 1
+
+    def tree(theta, capacity):
+        rays = roots(n)._replace(alive=live)
+        return trace_tree(shader(theta), rays, depth=depth, branch=2, chunk=4, capacity=capacity)
+
+    from jax.extend.core import jaxprs_in_params
+
+    def primitives(jaxpr):
+        return {name for e in jaxpr.eqns for name in
+                {e.primitive.name}.union(*(primitives(j) for j in jaxprs_in_params(e.params)))}
+
+    forward = primitives(jax.make_jaxpr(lambda t: tree(t, 3))(1.0).jaxpr)
+    assert "while" in forward and "scan" not in forward
+    colour, dropped = tree(0.7, 3)
+    want = np.where(np.asarray(live), 6 * 0.7, 0.0)
+    np.testing.assert_allclose(np.asarray(colour[:, 0]), want, rtol=1e-6)
+    assert int(dropped) == 0
+    _, dropped = tree(0.7, 2)
+    assert int(dropped) == 16
+    _, tangent = jax.jvp(lambda t: tree(t, 3)[0], (0.7,), (1.0,))
+    np.testing.assert_allclose(np.asarray(tangent[:, 1]), want / 0.7, rtol=1e-6)
+    grad = jax.grad(lambda t: jnp.sum(tree(t, 3)[0]))(0.7)
+    np.testing.assert_allclose(float(grad), 3 * want.sum() / 0.7, rtol=1e-6)
+
+
 def test_reverse_mode_of_a_deep_tree_with_costly_shading_keeps_each_levels_rays_not_its_intermediates(
         monkeypatch):
     """A pool shaded in one call keeps, per level of the scan, every intermediate reverse mode needs
