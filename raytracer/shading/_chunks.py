@@ -137,6 +137,7 @@ def closure(fn: Callable[[Any], Any], example):
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)(example)
     out_tree = jax.tree.structure(shapes)
 
+    @jax.jit
     def body(x, *consts):
         return jax.tree.unflatten(out_tree, jax.core.eval_jaxpr(closed.jaxpr, consts, *jax.tree.leaves(x)))
 

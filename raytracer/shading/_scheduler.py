@@ -1,24 +1,27 @@
-"""The ray scheduler: a tree of rays traced level by level, as one ``lax.scan``, then combined.
+"""The ray scheduler: a tree of rays traced level by level, then combined.
 
 It knows rays only as :class:`~._model.Rays` and hits only through one function,
 ``shade_rays(rays) -> Shading`` (for each ray of a batch, the local colour it sees and the
 children it spawns, each with the ``coef`` and ``power`` its colour comes back with). It knows
 nothing of lights, textures or surfaces. What it does:
 
-  * levels: each level of the ray tree lives in a pool of ray slots; one ``lax.scan`` step shades
-    the whole pool and writes the children into the next level's pool, so the shading body is
-    traced once and compile time does not grow with the depth;
-  * chunks: a pool is shaded in chunks, and chunks with no live ray are skipped with
-    ``lax.cond``, so the empty slots of the tree cost almost nothing. A compacted pool's live rays
-    are its first slots, so it is shaded where it is; the exact layout's are first moved to the
-    front;
+  * levels: each level of the ray tree lives in a pool of ray slots; one loop step shades the
+    pool and writes the children into the next level's pool, so the shading body is traced once
+    and compile time does not grow with the depth;
+  * chunks: a pool is shaded in chunks, and chunks with no live ray are skipped, so the empty
+    slots of the tree cost almost nothing. A compacted pool's live rays are its first slots, so it
+    is shaded where it is; the exact layout's are first moved to the front;
   * pools: either as wide as the tree's widest level (exact), or ``capacity`` slots per camera
     ray with the live children compacted into them (children that do not fit are counted);
-  * the combine: a reverse scan computes ``colour = local + Σ coef · colour(child)^power`` from
-    the deepest level up.
+  * the combine: from the deepest level up, ``colour = local + Σ coef · colour(child)^power``.
 
-Scan and cond differentiate like any JAX function (reverse mode included); nothing here is a
-``while_loop``.
+Two programs compute the same colours. :func:`_trace_scan` is a ``lax.scan`` over every level
+(each pool shaded, compacted and recorded whole, ``lax.cond`` skipping dead chunks) and a reverse
+scan for the combine: scan and cond differentiate like any JAX function, reverse mode included.
+:func:`_live_tree`, for a compacted tree shaded in chunks, is ``while_loop`` s whose work follows
+the live rays (the levels that hold one, the chunks up to the last live one, children appended
+chunk by chunk); a ``while_loop`` has no reverse mode, so it is what a render runs where nothing
+differentiates it, and its derivatives (``custom_jvp``) are those of the scan.
 """
 
 from __future__ import annotations
