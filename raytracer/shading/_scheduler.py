@@ -183,7 +183,7 @@ def _combine(colour_next, rec: LevelRecord):
 
 def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
                capacity: int | None = None) -> tuple[jax.Array, jax.Array]:
-    """Colours (N, 3) of the trees of N root rays, ``depth`` levels deep, one scan step per level.
+    """Colours (N, 3) of the trees of N root rays, ``depth`` levels deep, one loop step per level.
 
     Args:
         shade_rays: a batch of rays → their :class:`Shading`, ``branch`` children each (a static
@@ -244,7 +244,7 @@ def _trace_scan(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int
 
     _, (records, dropped) = jax.lax.scan(level, pool, jnp.arange(depth))
     colour, _ = jax.lax.scan(_combine, jnp.zeros((size, 3), rays.origin.dtype), records, reverse=True)
-    return colour[:n], jnp.sum(dropped)
+    return colour[:n], jnp.sum(dropped, dtype=jnp.int32)  # the live tree's int32 (float64 included)
 
 
 def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
@@ -256,9 +256,12 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     every level, and compacts, records and combines every pool slot of it, live or not (the
     Whitted scene at 1024×768: a pool of 2 slots per camera ray, 0.45 live rays per camera ray
     and level). A ``while_loop`` has no reverse mode: the derivatives (``custom_jvp``) are those
-    of :func:`_trace_scan`, the same values (the pools' order differs: a child of a chunk goes
-    after the children of the chunks before it, each chunk's first children first, where the
-    scan puts every ray's first child before any second one)."""
+    of :func:`_trace_scan`, the same values where no child is dropped (the pools' order differs:
+    a child of a chunk goes after the children of the chunks before it, each chunk's first
+    children first, where the scan puts every ray's first child before any second one). Where
+    the capacity is too small the two keep different children, so the forward image (and its
+    dropped count) differs from the one the derivatives are of: eager renders grow the room until
+    nothing drops (``render._with_room``); under ``jit`` a drop is warned of."""
     n = rays.origin.shape[0]
     size = n * slots_per_ray(branch, depth, capacity)
     spare = size + branch * chunk  # room for a chunk's whole block of children past the last slot
@@ -318,7 +321,8 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
             return k + 1, nxt, (kept + chunk - 1) // chunk, cur, records, dropped + count - kept
 
         state = (jnp.int32(0), pool, first_end, pool, records, jnp.int32(0))
-        used, _, _, _, records, dropped = jax.lax.while_loop(lambda st: st[2] > 0, level, state)
+        more = lambda st: (st[2] > 0) & (st[0] < depth)  # noqa: E731
+        used, _, _, _, records, dropped = jax.lax.while_loop(more, level, state)
 
         def combine(i, colour):
             level_ = used - 1 - i

@@ -6,8 +6,9 @@ and the refracted ray, combine — is two pieces joined at one function:
   * ``_model.shade_batch(ctx, rays)``: POV-Ray's shading model for a batch of rays (each one's hit,
     local lighting over the texture layers, shadows, and the children it spawns with their
     coefficients): ``shade(ctx, ray)`` vmapped, with adaptive area lights' shadows done per batch;
-  * ``_scheduler.trace_tree(shade_rays, rays, …)``: the tree of rays as a ``lax.scan`` over trace
-    levels (pools, chunk skipping, compaction) and the reverse combine ``local + coef · child``.
+  * ``_scheduler.trace_tree(shade_rays, rays, …)``: the tree of rays, level by level (pools, chunk
+    skipping, compaction; ``while_loop``s forward, a ``lax.scan`` where differentiated) and the
+    reverse combine ``local + coef · child``.
 
 Per-ray decisions are masks and weights: a child whose weight falls below ``adc_bailout`` (or that
 does not exist) is a dead slot and contributes nothing. This module joins the two for the renderer.
