@@ -98,15 +98,13 @@ def _live_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int, b
     wrote its zeros (the Whitted scene at 1024×768: 0.325 → 0.30 s). A ``while_loop`` has no
     reverse mode, so its derivative (``custom_jvp``) is that of ``_blocked_map``'s scan: forward
     and reverse mode run today's differentiated program, the same values."""
-    example = jax.tree.map(lambda a: jax.ShapeDtypeStruct((chunk,) + a.shape[1:], a.dtype), items)
-    body, consts, shapes = closure(fn, example)
+    body, consts, shapes = closure(fn, items, chunk)
 
     @jax.custom_jvp
     def run(items, live_chunk, consts):
         n_chunks = n // chunk
         blocked = jax.tree.map(lambda a: a.reshape((n_chunks, chunk) + a.shape[1:]), items)
-        # chunks up to the last live one (a compacted pool's live chunks are its first ones)
-        end = jnp.max(jnp.where(live_chunk, jnp.arange(1, n_chunks + 1, dtype=jnp.int32), 0))
+        end = last_live_end(live_chunk)
 
         def step(state):
             i, out = state
@@ -128,12 +126,20 @@ def _live_map(fn: Callable[[Any], Any], items, live_chunk, n: int, chunk: int, b
     return run(items, live_chunk, consts)
 
 
-def closure(fn: Callable[[Any], Any], example):
-    """``fn`` of one argument shaped as ``example`` (a tree of ``ShapeDtypeStruct``) as
+def last_live_end(live_chunk):
+    """One past the last chunk with a live item (0 if none): the chunks a loop must run (a
+    compacted pool's live chunks are its first ones)."""
+    n_chunks = live_chunk.shape[0]
+    return jnp.max(jnp.where(live_chunk, jnp.arange(1, n_chunks + 1, dtype=jnp.int32), 0))
+
+
+def closure(fn: Callable[[Any], Any], items, chunk: int):
+    """``fn`` of one chunk of ``items`` (a tree of arrays with a leading item axis) as
     ``body(x, *consts)`` with every array it closes over (the scene's, and the tracers of an
     enclosing trace) an argument, ``consts``, and the shapes of its result: a ``custom_jvp`` must take
     them as arguments to differentiate with respect to them (``jax.closure_convert`` hoists only the
     perturbed ones, and the others then leak out of the trace that made them)."""
+    example = jax.tree.map(lambda a: jax.ShapeDtypeStruct((chunk,) + a.shape[1:], a.dtype), items)
     closed, shapes = jax.make_jaxpr(fn, return_shape=True)(example)
     out_tree = jax.tree.structure(shapes)
 

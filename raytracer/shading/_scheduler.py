@@ -38,6 +38,7 @@ from ._chunks import (
     closure,
     intermediate_bytes,
     jvp_of_moving,
+    last_live_end,
     map_in_place,
     map_live,
     partition,
@@ -266,8 +267,7 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     size = n * slots_per_ray(branch, depth, capacity)
     spare = size + branch * chunk  # room for a chunk's whole block of children past the last slot
     pool = _pad(rays, spare)
-    example = jax.tree.map(lambda a: jax.ShapeDtypeStruct((chunk,) + a.shape[1:], a.dtype), pool)
-    body, consts, shapes = closure(shade_rays, example)
+    body, consts, shapes = closure(shade_rays, pool, chunk)
 
     def record(shape, dtype=None):
         return jnp.zeros((depth, size) + shape.shape[1:], dtype or shape.dtype)
@@ -277,9 +277,7 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
         records = LevelRecord(local=record(shapes.local), links=tuple(
             Link(coef=record(c.coef), power=None if c.power is None else record(c.power),
                  alive=record(c.ray.alive), dest=record(c.ray.level, jnp.int32)) for c in shapes.children))
-        n_chunks = size // chunk
-        live_chunk = jnp.any(pool.alive[:size].reshape(n_chunks, chunk), axis=1)
-        first_end = jnp.max(jnp.where(live_chunk, jnp.arange(1, n_chunks + 1, dtype=jnp.int32), 0))
+        first_end = last_live_end(jnp.any(pool.alive[:size].reshape(size // chunk, chunk), axis=1))
 
         def level(state):
             k, cur, end, nxt, records, dropped = state
@@ -320,8 +318,10 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
             nxt = nxt._replace(alive=jnp.arange(spare) < kept)
             return k + 1, nxt, (kept + chunk - 1) // chunk, cur, records, dropped + count - kept
 
+        def more(state):  # a level with a live ray, and not past the depth
+            return (state[2] > 0) & (state[0] < depth)
+
         state = (jnp.int32(0), pool, first_end, pool, records, jnp.int32(0))
-        more = lambda st: (st[2] > 0) & (st[0] < depth)  # noqa: E731
         used, _, _, _, records, dropped = jax.lax.while_loop(more, level, state)
 
         def combine(i, colour):
