@@ -347,25 +347,26 @@ def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: 
     tile, per_part, n_dev = _layout(scene_plan, width * height * k * k, k * k, n_parts, capacity)
     tiles = part * per_part + jnp.arange(per_part)
     stride = per_part * n_parts
+    return _sharded(packed, tiles, n_dev, lambda p, t: _trace_tiles(
+        p, scene_plan, t, width, height, k, tile=tile, stride=stride, capacity=capacity))
+
+
+def _sharded(packed: Packed, tiles, n_dev: int, trace):
+    """``trace(packed, tiles)`` → (colours, dropped) with the leading axis of ``tiles`` (a multiple
+    of ``n_dev``) sharded over ``n_dev`` local devices: tiles are independent (CPU devices with
+    --xla_force_host_platform_device_count, or GPUs). Returns the colours and the total dropped."""
     if n_dev > 1:
-        # tiles are independent: shard them over the devices (CPU devices with
-        # --xla_force_host_platform_device_count, or GPUs); the packed scene is replicated
-        # only the packed arrays cross the shard_map boundary; its static half (the skeleton,
-        # static tables) is closed over
+        # the packed scene is replicated; only its arrays cross the shard_map boundary, its
+        # static half (the skeleton, static tables) is closed over
         arrays, static = eqx.partition(packed, eqx.is_array)
-
-        def trace_shard(a, t):
-            return _trace_tiles(eqx.combine(a, static), scene_plan, t, width, height, k, tile=tile,
-                                stride=stride, capacity=capacity)
-
-        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.local_devices(),
+        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.local_devices()[:n_dev],
                              axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-        colours, dropped = jax.shard_map(trace_shard, mesh=mesh, in_specs=(replicated, spec),
-                                         out_specs=(spec, spec), check_vma=False)(arrays, tiles)
+        colours, dropped = jax.shard_map(lambda a, t: trace(eqx.combine(a, static), t), mesh=mesh,
+                                         in_specs=(replicated, spec), out_specs=(spec, spec),
+                                         check_vma=False)(arrays, tiles)
         return colours, jnp.sum(dropped)
-    colours, dropped = _trace_tiles(packed, scene_plan, tiles, width, height, k, tile=tile,
-                                    stride=stride, capacity=capacity)
+    colours, dropped = trace(packed, tiles)
     return colours, jnp.sum(dropped)
 
 
@@ -395,16 +396,23 @@ def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: in
 @eqx.filter_jit
 def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None):
     """Linear colours (M, 3) of the pixels ``pixels`` (M,) int, each the mean of its k×k grid, and
-    the rays dropped. M is a multiple of ``CHUNKS_PER_TILE`` (``_pixel_bucket``)."""
+    the rays dropped. M is a multiple of ``CHUNKS_PER_TILE`` × the devices (``_pixel_bucket``); the
+    pixels are split into as many tiles per device, which are sharded over the devices when M allows."""
     scene_plan = _plan_of(packed)
-    most = _tile_size(scene_plan, pixels.shape[0] * k * k, k * k, capacity) // (k * k)
     m = pixels.shape[0]
-    per_tile = min(m & -m, 1 << (most.bit_length() - 1))  # powers of two: divides M
-    tile = per_tile * k * k
+    devices = len(jax.local_devices())
+    n_dev = devices if m % (devices * CHUNKS_PER_TILE) == 0 else 1
+    share = m // n_dev
+    most = _tile_size(scene_plan, share * k * k, k * k, capacity) // (k * k)
+    # the largest tile that divides a device's share: a few large tiles shade a level's live rays in
+    # chunks, where tiles of a pool of at most UNCHUNKED_POOL slots shade every slot of every level
+    # (whitted.pov, +A0.3 +R2 at 96×72, per device: tiles of 512 pixels took 12 ms, one of 1,536 7 ms)
+    per_tile = next(d for d in range(min(share, most) // CHUNKS_PER_TILE * CHUNKS_PER_TILE, 0,
+                                     -CHUNKS_PER_TILE) if share % d == 0)
     rows = pixels.reshape(-1, per_tile)
-    colours, dropped = _trace_tiles(packed, scene_plan, rows, width, height, k, tile=tile, stride=0,
-                                    capacity=capacity)
-    return colours.reshape(-1, 3), jnp.sum(dropped)
+    colours, dropped = _sharded(packed, rows, n_dev, lambda p, r: _trace_tiles(
+        p, scene_plan, r, width, height, k, tile=per_tile * k * k, stride=0, capacity=capacity))
+    return colours.reshape(-1, 3), dropped
 
 
 @eqx.filter_jit
@@ -560,10 +568,11 @@ class Adaptive(NamedTuple):
 
 def _pixel_bucket(m: int, least: int) -> int:
     """Refined pixels are traced in a padded batch: ``m`` rounded up to a multiple of an eighth of
-    the next power of two (at least ``least``, a power of two), so that a new count of refined
-    pixels seldom compiles a new program and at most 1/8 of the batch is padding (the next power
-    of two wasted up to half: 5,000 refined pixels traced 8,192)."""
-    step = max(least, (1 << max(m - 1, 0).bit_length()) // 8)
+    the next power of two, itself rounded up to a multiple of ``least`` (the tiles times the
+    devices the batch is split into), so that a new count of refined pixels seldom compiles a new
+    program and at most 1/8 of the batch is padding once it is large (the next power of two
+    wasted up to half: 5,000 refined pixels traced 8,192)."""
+    step = -(-max(least, (1 << max(m - 1, 0).bit_length()) // 8) // least) * least
     return -(-m // step) * step
 
 
@@ -577,7 +586,6 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     key = _room_key(packed, width, height)
     centre = _with_room(lambda room: _render_packed(packed, width, height, 1, room, True), capacity,
                         key and key + ("centre",))
-    image = _output_transfer(centre, scene.settings)
     flag = _edges(centre, aa.threshold)  # a boolean output: concrete under eager grad
     n = aa.depth
     if isinstance(flag, jax.core.Tracer):
@@ -589,14 +597,30 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         return _output_transfer(jnp.where(flag[..., None], refined, centre), scene.settings)
     index = np.flatnonzero(np.asarray(flag))
     if index.size == 0:
-        return image
-    m = _pixel_bucket(index.size, CHUNKS_PER_TILE)
-    pixels = jnp.asarray(np.concatenate([index, np.full(m - index.size, index[0])]).astype(np.int32))
+        return _refined(centre, None, None, n, scene.settings)
+    m = _pixel_bucket(index.size, CHUNKS_PER_TILE * len(jax.local_devices()))
+    pad = m - index.size
+    pixels = jnp.asarray(np.concatenate([index, np.full(pad, index[0])]).astype(np.int32))
     grid = _with_room(lambda room: _render_pixels(packed, width, height, n, pixels, room), capacity,
                       key and key + (n, m))
+    # the padding's rows go nowhere (an index past the image, dropped)
+    dest = jnp.asarray(np.concatenate([index, np.full(pad, width * height)]).astype(np.int32))
+    return _refined(centre, dest, grid, n, scene.settings)
+
+
+@eqx.filter_jit
+def _refined(centre, dest, grid, n: int, settings):
+    """The adaptive image after the output transfer: ``centre`` (H, W, 3) with the pixels ``dest``
+    (M,) replaced by ``(centre + n² · grid) / (n² + 1)`` (``dest`` past the image: padding). One
+    program: a small image's dozen eager operations cost more than its refined pixels (seed.pov,
+    +A0.3 +R2 at 128×96: ~2.7 ms of 4.8)."""
+    if dest is None:
+        return _output_transfer(centre, settings)
+    height, width = centre.shape[:2]
     flat = centre.reshape(-1, 3)
-    refined = (flat[index] + n * n * grid[:index.size]) / (n * n + 1)
-    return _output_transfer(flat.at[index].set(refined).reshape(height, width, 3), scene.settings)
+    refined = (flat.at[dest].get(mode="fill", fill_value=0) + n * n * grid) / (n * n + 1)
+    flat = flat.at[dest].set(refined, mode="drop")
+    return _output_transfer(flat.reshape(height, width, 3), settings)
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,

@@ -1,6 +1,11 @@
 """Adaptive anti-aliasing (``render(…, adaptive=(threshold, depth))``, POV-Ray's method 1): the
 pixels it refines, their values, its gradient, and POV-Ray's own adaptive image."""
 
+import json
+import os
+import subprocess
+import sys
+import textwrap
 from pathlib import Path
 
 import equinox as eqx
@@ -61,6 +66,34 @@ def test_under_jit_every_pixel_is_refined_and_the_flagged_ones_kept(scene):
     eager = np.asarray(render(scene, width=W, height=H, adaptive=(0.3, 3)))
     jitted = np.asarray(jax.jit(lambda s: render(s, width=W, height=H, adaptive=(0.3, 3)))(scene))
     np.testing.assert_allclose(jitted, eager, rtol=1e-5, atol=1e-6)
+
+
+TWO_DEVICES = """
+import importlib, json, sys
+import jax, jax.numpy as jnp, numpy as np
+from raytracer import load_scene, render
+R = importlib.import_module("raytracer.render")
+scene = load_scene(sys.argv[1])
+image = render(scene, width={W}, height={H}, adaptive=(0.3, 3))
+pixels = jnp.arange(4 * len(jax.local_devices()), dtype=jnp.int32)
+program = R._render_pixels.lower(R.pack(scene), {W}, {H}, 3, pixels, 2).as_text()
+json.dump({{"devices": len(jax.local_devices()), "sharded": "manual_computation" in program,
+           "image": np.asarray(image).tolist()}}, open(sys.argv[2], "w"))
+"""
+
+
+@pytest.mark.slow
+def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, tmp_path):
+    path = tmp_path / "aa.pov"
+    path.write_text(SCENE)
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
+    run = subprocess.run([sys.executable, "-c", textwrap.dedent(TWO_DEVICES.format(W=W, H=H)), str(path),
+                          str(tmp_path / "out.json")], env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    got = json.loads((tmp_path / "out.json").read_text())
+    assert got["devices"] == 2 and got["sharded"]
+    want, _ = _expected(scene, 0.3, 3)  # this process: one device
+    np.testing.assert_allclose(np.asarray(got["image"]), want, rtol=1e-5, atol=1e-6)
 
 
 @pytest.mark.slow
