@@ -44,10 +44,16 @@ CHUNKS_PER_TILE = 4  # a tile's rays are a multiple of 4 (× samples): its pools
 # chunks of 2,048 / 512 / 256 / 128 rays 0.31 / 0.28 / 0.28 / 0.30 s; advanced/pawns at 160×120
 # (tiles of 4,800): chunks of 1,200 / 300 / 150 rays 0.37 / 0.34–0.35 / 0.33 s
 CHUNK_RAYS = 256
-# a tile's pool of at most this many slots is shaded in one vmap, unchunked: skipping its empty
-# chunks saves less than their branches cost (two ``lax.cond`` levels, linearized in reverse mode:
-# the chunked reverse program of an 8×6 glass scene took 56 s to trace and compile, unchunked 31 s)
+# differentiated, a tile's pool of at most this many slots is shaded in one vmap, unchunked:
+# skipping its empty chunks saves less than their branches cost (two ``lax.cond`` levels,
+# linearized in reverse mode: the chunked reverse program of an 8×6 glass scene took 56 s to trace
+# and compile, unchunked 31 s). Forward, pools of any size are shaded in chunks (the live tree
+# skips dead chunks without a branch): whitted.pov at 48×36 3.2 → 1.5 ms, 24×18 1.1 → 0.7 ms
 UNCHUNKED_POOL = 4096
+# camera rays per device, at least, for an image of fewer tiles than devices to be split over them
+# (a program sharded over two CPU devices costs ~0.5–1 ms more per call: whitted.pov at 16×12 /
+# 48×36 / 64×48 took 1.6 / 2.1 / 2.8 ms split, 0.5 / 1.5 / 2.1 ms on one device)
+MIN_SHARD_RAYS = 2048
 # live-ray slots per camera ray and level of a tile's ray tree (``capacity="auto"``):
 FIRST_CAPACITY = 2  # where a drop is seen (values, eager grad): grown fourfold if short, and remembered
 FORWARD_CAPACITY = 4  # under jit/vmap, where a drop is only warned of at run time
@@ -290,7 +296,8 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
                        dtype)
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
-    chunk = pool if pool <= UNCHUNKED_POOL else _chunk_size(tile)
+    chunk = _chunk_size(tile)
+    grad_chunk = pool if pool <= UNCHUNKED_POOL else chunk
     samples = k * k
     pixels = tile // samples
     media = initial_media(ctx, scene.camera.frame()[0])  # the interiors around the camera
@@ -302,7 +309,8 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
         pixel = t if t.ndim else t + stride * jnp.arange(pixels)
         ray = (pixel[:, None] * samples + jnp.arange(samples)[None, :]).reshape(tile)
         o, d = camera_rays(scene.camera, *sample_coords(ray, width, height, k, dtype))
-        colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity, media=media)
+        colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity, media=media,
+                                 grad_chunk=grad_chunk)
         return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
 
     if tiles.shape[0] == 1:
@@ -324,7 +332,12 @@ def _layout(scene_plan: Plan, n: int, samples: int, n_parts: int,
     rays for the 38 a 640×480 image needs)."""
     tile = _tile_size(scene_plan, -(-n // n_parts), samples, capacity)  # a small image: small tiles
     devices = len(jax.local_devices())  # a process's own (raytracer.distributed splits across processes)
-    n_dev = devices if math.ceil(n / tile) >= devices * n_parts else 1
+    # an image of fewer tiles than devices is split over them too where each gets enough work: a
+    # ray tree (whitted.pov at 80×60 / 96×72, one tile: 3.0 / 4.1 ms on one device, 2.6–2.9 / 3.0–3.3
+    # ms on two); camera rays alone cost less than the split (seed.pov 96×72: 1.0 → 1.5 ms)
+    enough = math.ceil(n / tile) >= devices * n_parts or (
+        scene_plan.effects.depth > 1 and n >= devices * n_parts * MIN_SHARD_RAYS)
+    n_dev = devices if enough else 1
     group = n_dev * n_parts
     tiles = -(-math.ceil(n / tile) // group) * group
     quantum = samples * CHUNKS_PER_TILE

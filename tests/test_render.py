@@ -534,3 +534,22 @@ def test_shadow_rays_skip_no_shadow_objects_without_their_crossings():
     view = candidate_view(geo, plan, lambda i: bool(visibility_bits(plan.prims[i]) & MASK_SHADOW))
     assert set(view.cand_prim.tolist()) == {0} and set(geo.cand_prim.tolist()) == {0, 1, 2}
     assert view.conditions is None  # the big sphere has no CSG condition
+
+
+def test_a_small_image_is_split_over_the_devices_only_where_its_rays_branch(monkeypatch):
+    """An image of one tile is split over two devices when its scene has a ray tree and each device
+    gets at least ``MIN_SHARD_RAYS`` camera rays; camera rays alone cost less than the split."""
+    import importlib
+
+    from raytracer._plan import make_plan
+
+    render_module = importlib.import_module("raytracer.render")  # ``rt.render`` is the function
+    mirror = rt.Finish(reflection=rt.Reflection(min=(0.3, 0.3, 0.3), max=(0.3, 0.3, 0.3)))
+    tree, flat = make_plan(sphere_scene(mirror)), make_plan(sphere_scene(rt.Finish()))
+    assert tree.effects.depth > 1 and flat.effects.depth == 1
+    monkeypatch.setattr(jax, "local_devices", lambda: [object(), object()])
+    least = 2 * render_module.MIN_SHARD_RAYS
+    assert render_module._layout(tree, 6912, 1, 1, 2) == (3456, 2, 2)
+    assert render_module._layout(flat, 6912, 1, 1, 2) == (6912, 1, 1)
+    assert render_module._layout(tree, least - 4, 1, 1, 2)[2] == 1
+    assert render_module._layout(tree, least, 1, 1, 2)[2] == 2

@@ -150,6 +150,22 @@ def closure(fn: Callable[[Any], Any], items, chunk: int):
     return body, tuple(closed.consts), shapes
 
 
+def resized(fn: Callable[[Any], Any], items, chunk: int, consts: tuple):
+    """``fn`` of ``chunk`` items as ``body(x, *consts)`` with the ``consts`` of another
+    :func:`closure` of ``fn`` (a jaxpr is traced for one size): the arrays it closes over are
+    matched to those by identity. None if it closes over a tracer that ``consts`` lacks."""
+    body, mine, _ = closure(fn, items, chunk)
+    where = {id(c): i for i, c in enumerate(consts)}
+    picks = [where.get(id(c)) for c in mine]
+    if any(i is None and isinstance(c, jax.core.Tracer) for i, c in zip(picks, mine, strict=True)):
+        return None
+
+    def other(x, *given):
+        return body(x, *(c if i is None else given[i] for i, c in zip(picks, mine, strict=True)))
+
+    return other
+
+
 def jvp_of_moving(fn: Callable[..., Any], primals, tangents):
     """A ``custom_jvp`` rule with symbolic zeros: ``jax.jvp`` of ``fn`` with respect to the inputs
     whose tangent is not a ``SymbolicZero``, the others held as constants (instantiated zero

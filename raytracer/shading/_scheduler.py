@@ -42,6 +42,7 @@ from ._chunks import (
     map_in_place,
     map_live,
     partition,
+    resized,
     zeros_like_shapes,
 )
 from ._model import Rays, Shading, dead_rays
@@ -128,12 +129,17 @@ def _pad(rays: Rays, size: int) -> Rays:
     return jax.tree.map(lambda a, b: jnp.concatenate([a, b]), rays, dead)
 
 
-def _compacted(children: tuple, live: list, size: int):
-    """The next pool with the live children packed, in slot order, into its first slots; where
-    each child went; whether it fit; and how many did not."""
+def _compacted(children: tuple, live: list, size: int, chunk: int):
+    """The next pool with the live children packed into its first slots; where each child went;
+    whether it fit; and how many did not. The order is :func:`_live_tree`'s, chunk by chunk of
+    ``chunk`` parents, and in a chunk every first child before any second: where children are
+    dropped, both keep the same ones (unchunked, ``chunk`` = ``size``: every first child first)."""
     every = jnp.concatenate(live)
-    count = jnp.cumsum(every.astype(jnp.int32))  # live children up to and including each
-    pos = count - 1
+    b, chunks = len(live), max(1, size // chunk)  # a pool shaded in one call (chunk ≥ size): one chunk
+    # live children up to and including each, counted in that order, laid out slot-major
+    major = every.reshape(b, chunks, -1).transpose(1, 0, 2).reshape(-1)
+    count = jnp.cumsum(major.astype(jnp.int32))
+    pos = (count - 1).reshape(chunks, b, -1).transpose(1, 0, 2).reshape(-1)
     keep = every & (pos < size)
     dest_all = jnp.where(keep, pos, size)  # size: out of range, the slot holds no child
     # where each slot's child comes from: one scatter of indices, then a gather per field (XLA's
@@ -183,7 +189,7 @@ def _combine(colour_next, rec: LevelRecord):
 
 
 def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
-               capacity: int | None = None) -> tuple[jax.Array, jax.Array]:
+               capacity: int | None = None, grad_chunk: int | None = None) -> tuple[jax.Array, jax.Array]:
     """Colours (N, 3) of the trees of N root rays, ``depth`` levels deep, one loop step per level.
 
     Args:
@@ -193,6 +199,9 @@ def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
         depth:     levels of the tree (1: only the root rays are shaded).
         branch:    child slots per ray.
         chunk:     rays shaded per ``shade_rays`` call; chunks without a live ray are skipped.
+        grad_chunk: rays per call of the program derivatives are taken through, if not ``chunk``
+                   (a small pool shaded in one call compiles faster in reverse mode; forward, its
+                   dead chunks cost nothing).
         capacity:  ``None`` (exact): the pool is as wide as the tree's widest level
                    (``N·branch^(depth-1)``) and the children of slot i go to slots i + width·s.
                    ``c``: the pool has ``N·c`` slots and the live children are compacted into it,
@@ -209,15 +218,19 @@ def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     n = rays.origin.shape[0]
     size = n * slots_per_ray(branch, depth, capacity)
     full = branch ** (depth - 1) if branch > 1 else 1
+    grad_chunk = chunk if grad_chunk is None else grad_chunk
     if capacity is not None and size < n * full and chunk < size and depth > 1:
-        return _live_tree(shade_rays, rays, depth=depth, branch=branch, chunk=chunk, capacity=capacity)
-    return _trace_scan(shade_rays, rays, depth=depth, branch=branch, chunk=chunk, capacity=capacity)
+        return _live_tree(shade_rays, rays, depth=depth, branch=branch, chunk=chunk, capacity=capacity,
+                          grad_chunk=grad_chunk)
+    return _trace_scan(shade_rays, rays, depth=depth, branch=branch, chunk=grad_chunk, capacity=capacity)
 
 
 def _trace_scan(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
-                capacity: int | None = None) -> tuple[jax.Array, jax.Array]:
+                capacity: int | None = None, order: int | None = None) -> tuple[jax.Array, jax.Array]:
     """:func:`trace_tree` as a ``lax.scan`` over every level, each shading its whole pool (dead
-    chunks skipped), compacting it and keeping its records: JAX differentiates it in both modes."""
+    chunks skipped), compacting it and keeping its records: JAX differentiates it in both modes.
+    ``order``: the chunk of :func:`_compacted`'s order (default ``chunk``), that of the live tree
+    this scan is the derivative of."""
     n = rays.origin.shape[0]
     size = n * slots_per_ray(branch, depth, capacity)
     # the full width is only compared here, never allocated (a 111-level tree's is 2^110 slots:
@@ -234,7 +247,7 @@ def _trace_scan(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int
         has_next = k + 1 < depth
         live = [c.ray.alive & has_next for c in children]
         if compact:
-            nxt, dest, live, dropped = _compacted(children, live, size)
+            nxt, dest, live, dropped = _compacted(children, live, size, order or chunk)
         else:
             width = n * jnp.power(len(children), k)  # slots this level uses: [0, width)
             nxt, dest = _full_width(children, live, width, has_next)
@@ -249,7 +262,7 @@ def _trace_scan(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int
 
 
 def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int, branch: int, chunk: int,
-               capacity: int) -> tuple[jax.Array, jax.Array]:
+               capacity: int, grad_chunk: int) -> tuple[jax.Array, jax.Array]:
     """:func:`trace_tree` of a compacted tree whose work follows its live rays: a ``while_loop``
     over the levels that stops at the first without a live ray, in each a ``while_loop`` over the
     chunks up to the last live one, each chunk appending its live children to the next pool and
@@ -257,12 +270,10 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     every level, and compacts, records and combines every pool slot of it, live or not (the
     Whitted scene at 1024×768: a pool of 2 slots per camera ray, 0.45 live rays per camera ray
     and level). A ``while_loop`` has no reverse mode: the derivatives (``custom_jvp``) are those
-    of :func:`_trace_scan`, the same values where no child is dropped (the pools' order differs:
-    a child of a chunk goes after the children of the chunks before it, each chunk's first
-    children first, where the scan puts every ray's first child before any second one). Where
-    the capacity is too small the two keep different children, so the forward image (and its
-    dropped count) differs from the one the derivatives are of: eager renders grow the room until
-    nothing drops (``render._with_room``); under ``jit`` a drop is warned of."""
+    of :func:`_trace_scan`, the same values. Both fill a pool in one order (a chunk's children
+    after those of the chunks before it, in a chunk every first child before any second:
+    ``_compacted``), so where the capacity is too small they keep the same children and drop the
+    same: the forward image under ``jit`` (a drop warned of) is the one the derivatives are of."""
     n = rays.origin.shape[0]
     size = n * slots_per_ray(branch, depth, capacity)
     spare = size + branch * chunk  # room for a chunk's whole block of children past the last slot
@@ -334,9 +345,14 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
 
     @partial(run.defjvp, symbolic_zeros=True)
     def _(primals, tangents):
+        # the body is a jaxpr of ``chunk`` rays: shading ``grad_chunk`` at a time needs another,
+        # traced only here, where something differentiates (None: it closes over other arrays)
+        other = None if grad_chunk == chunk else resized(shade_rays, pool, grad_chunk, consts)
+        shade, every = (body, chunk) if other is None else (other, grad_chunk)
         return jvp_of_moving(
-            lambda pool, consts: _trace_scan(lambda r: body(r, *consts), jax.tree.map(lambda a: a[:n], pool),
-                                             depth=depth, branch=branch, chunk=chunk, capacity=capacity),
+            lambda pool, consts: _trace_scan(lambda r: shade(r, *consts), jax.tree.map(lambda a: a[:n], pool),
+                                             depth=depth, branch=branch, chunk=every, capacity=capacity,
+                                             order=chunk),
             primals, tangents)
 
     return run(pool, consts)

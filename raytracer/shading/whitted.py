@@ -32,10 +32,11 @@ def slots_per_camera_ray(effects: Effects, capacity: int | None = None) -> int:
 
 
 def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None,
-          media=None) -> tuple[jax.Array, jax.Array]:
+          media=None, grad_chunk: int | None = None) -> tuple[jax.Array, jax.Array]:
     """Colours (N, 3) of N camera rays (origins and unit directions (N, 3)) that start inside the
     interiors ``media`` (``initial_media(ctx, eye)``; None: none), and the number of child rays
-    dropped for lack of ``capacity`` (0 without one): see ``_scheduler.trace_tree``."""
+    dropped for lack of ``capacity`` (0 without one), shaded ``chunk`` rays at a time (derivatives:
+    ``grad_chunk``): see ``_scheduler.trace_tree``."""
     eff = ctx.plan.effects
 
     # a function, not functools.partial(shade, ctx): JAX names traced functions after their source,
@@ -44,4 +45,4 @@ def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None,
         return shade_batch(ctx, rays)
 
     return trace_tree(shade_rays, camera_rays(o, d, media), depth=eff.depth,
-                      branch=child_slots(eff), chunk=chunk, capacity=capacity)
+                      branch=child_slots(eff), chunk=chunk, capacity=capacity, grad_chunk=grad_chunk)

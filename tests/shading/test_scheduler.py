@@ -208,6 +208,83 @@ def test_a_compacted_tree_traced_forward_follows_its_live_rays_and_differentiate
     np.testing.assert_allclose(float(grad), 3 * want.sum() / 0.7, rtol=1e-6)
 
 
+def test_derivatives_may_shade_whole_pools_where_the_forward_tree_shades_chunks():
+    """``grad_chunk``: forward, the live tree shades ``chunk`` rays at a time; differentiated, the
+    scan shades ``grad_chunk`` (here whole pools of 48 slots: a reverse-mode program without a loop
+    over chunks compiles faster). The shading is traced at each batch size it runs at, and the
+    colours and tangents are the closed form's (6θ per live root, as above)."""
+    n, depth = 16, 3
+    sizes = []
+
+    def shader(theta):
+        def shade(rays: Rays) -> Shading:
+            sizes.append(rays.alive.shape[0])
+            child = rays._replace(weight=rays.weight * 0.5, alive=rays.alive & (rays.level < depth),
+                                  level=rays.level + 1)
+            local = jnp.where(rays.alive, theta * rays.level, 0.0)[:, None] * jnp.ones((1, 3))
+            return Shading(local=local, children=tuple(
+                Child(ray=child, coef=jnp.full((rays.alive.shape[0], 3), 0.5), power=None) for _ in range(2)))
+        return shade
+
+    live = jnp.arange(n) % 4 != 1
+    want = np.where(np.asarray(live), 6.0, 0.0)
+
+    def tree(theta):
+        return trace_tree(shader(theta), roots(n)._replace(alive=live), depth=depth, branch=2, chunk=4,
+                          capacity=3, grad_chunk=48)[0]
+
+    np.testing.assert_allclose(np.asarray(tree(0.7)[:, 0]), 0.7 * want, rtol=1e-6)
+    assert set(sizes) == {4}
+    colour, tangent = jax.jvp(tree, (0.7,), (1.0,))
+    assert 48 in sizes
+    np.testing.assert_allclose(np.asarray(colour[:, 0]), 0.7 * want, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(tangent[:, 2]), want, rtol=1e-6)
+    np.testing.assert_allclose(float(jax.grad(lambda t: jnp.sum(tree(t)))(0.7)), 3 * want.sum(), rtol=1e-6)
+
+
+def test_with_too_little_room_the_forward_tree_and_its_derivative_keep_the_same_children():
+    """Roots 0…15 (every fourth dead) each see θ·(1 + x), x its id, and spawn two children
+    (coefficient ½; the second adds 100 to x) down to level 3: a whole tree sees θ·(153 + 3·id).
+    With 2 slots per root level 3 has room for 32 of its 48 children. Both the forward program and
+    the one its derivatives come from fill a pool chunk by chunk (4 parents), in a chunk every first
+    child before any second: level 2 is [f0 f2 f3 s0 s2 s3][f4 f6 f7 s4 s6 s7]…, and level 3 keeps the
+    children of its first 16 slots; roots 10 and 11 lose those of their second child
+    (¼·θ·(302 + 2·id)), roots 12, 14 and 15 all four grandchildren (θ·(101 + id)). The forward image,
+    its dropped count and the derivative's image and tangent are all that (they differed)."""
+    n, depth = 16, 3
+
+    def shader(theta):
+        def one(ray: Rays) -> Shading:
+            kids = tuple(Child(ray=ray._replace(origin=ray.origin.at[0].add(100.0 * s),
+                                                weight=ray.weight * 0.5, level=ray.level + 1,
+                                                alive=ray.alive & (ray.level < depth)),
+                               coef=jnp.full(3, 0.5), power=None) for s in range(2))
+            return Shading(local=jnp.where(ray.alive, theta * (1 + ray.origin[0]), 0.0) * jnp.ones(3),
+                           children=kids)
+        return jax.vmap(one)
+
+    ids = np.arange(n)
+    live = ids % 4 != 1
+
+    def tree(theta):
+        rays = roots(n)
+        rays = rays._replace(alive=jnp.asarray(live),
+                             origin=rays.origin.at[:, 0].set(jnp.asarray(ids, jnp.float32)))
+        return trace_tree(shader(theta), rays, depth=depth, branch=2, chunk=4, capacity=2)
+
+    want = 153.0 + 3 * ids
+    want[[10, 11]] -= 0.25 * (302 + 2 * ids[[10, 11]])
+    want[[12, 14, 15]] -= 101 + ids[[12, 14, 15]]
+    want = np.where(live, want, 0.0)
+    colour, dropped = jax.jit(tree)(0.5)
+    np.testing.assert_allclose(np.asarray(colour[:, 0]), 0.5 * want, rtol=1e-6)
+    assert int(dropped) == 16
+    (primal, dropped), (tangent, _) = jax.jvp(tree, (0.5,), (1.0,))
+    np.testing.assert_allclose(np.asarray(primal[:, 0]), 0.5 * want, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(tangent[:, 0]), want, rtol=1e-6)
+    assert int(dropped) == 16
+
+
 def test_a_compacted_tree_in_float64_differentiates_through_jit():
     """float64: the live tree's primal and the scan's (its derivative rule) agree in dtype, dropped
     count included (int64 from the scan made ``jax.jvp`` of a jitted render raise), and the
