@@ -92,6 +92,8 @@ def _parser() -> argparse.ArgumentParser:
                         "side of a colour difference of at least THRESHOLD get --aa-depth² more rays")
     r.add_argument("--aa-depth", type=_positive_int, default=3, metavar="N",
                    help="the grid of a refined pixel, N×N rays (POV-Ray's +R; default 3)")
+    r.add_argument("--aa-gamma", type=_positive_float, default=2.5, metavar="G",
+                   help="colours are compared raised to 1/G (POV-Ray's +AG, Antialias_Gamma; default 2.5)")
     r.add_argument("--all-frames", action="store_true",
                    help="render every frame of the --ini animation, to OUTPUT with the frame number "
                         "before its suffix (out.png: out01.png, out02.png, … as POV-Ray names them)")
@@ -335,7 +337,7 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
         from .render import render
 
         image = jax.block_until_ready(render(scene, width=args.width, height=args.height,
-                                             adaptive=(args.aa, args.aa_depth)))
+                                             adaptive=(args.aa, args.aa_depth, args.aa_gamma)))
         t_compile, t_render = 0.0, time.perf_counter() - t0
     else:
         progress = _Progress()

@@ -37,11 +37,13 @@ def scene(tmp_path):
 
 def _expected(scene, threshold, n):
     """Independently: centre samples, the n×n grid of every pixel (two whole-image renders), the
-    flag rule in numpy, POV-Ray's (centre + Σ grid) / (n² + 1) where flagged."""
+    flag rule in numpy (colours raised to 1/2.5 as POV-Ray compares them), POV-Ray's
+    (centre + Σ grid) / (n² + 1) where flagged."""
     centre = np.asarray(render(scene, width=W, height=H), np.float64)
     grid = np.asarray(render(scene, width=W, height=H, spp=n * n), np.float64)
-    left = np.abs(centre[:, 1:] - centre[:, :-1]).sum(-1) >= threshold
-    up = np.abs(centre[1:] - centre[:-1]).sum(-1) >= threshold
+    seen = np.maximum(centre, 0) ** (1 / 2.5)  # POV-Ray's Antialias_Gamma
+    left = np.abs(seen[:, 1:] - seen[:, :-1]).sum(-1) >= threshold
+    up = np.abs(seen[1:] - seen[:-1]).sum(-1) >= threshold
     flag = np.zeros((H, W), bool)
     flag[:, 1:] |= left
     flag[:, :-1] |= left
@@ -52,7 +54,7 @@ def _expected(scene, threshold, n):
 
 def test_refines_both_sides_of_each_difference_with_povray_weights(scene):
     want, flag = _expected(scene, 0.3, 3)
-    assert 0.02 < flag.mean() < 0.5  # edges of the sphere and the checker: some pixels, not all
+    assert 0.02 < flag.mean() < 0.8  # edges of the sphere and the checker: some pixels, not all
     got = np.asarray(render(scene, width=W, height=H, adaptive=(0.3, 3)))
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
     # threshold 0 refines every pixel: the POV-Ray +A0.0 image
@@ -137,3 +139,30 @@ def test_matches_povray_adaptive_image_of_the_seed_scene():
     # (render._edges); its centre samples alone are 37.8 dB from its adaptive image
     assert psnr(ours, pov) > 46.0
     assert psnr(ours, pov) > psnr(centres, pov) + 8.0
+
+
+STEP = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0, 0, -10> direction z up y*2 right x*8 }}
+box {{ <-10, -10, 0>, <0.25, 10, 1> pigment {{ rgb {a} }} finish {{ ambient 1 diffuse 0 }} }}
+box {{ <0.25, -10, 0>, <10, 10, 1> pigment {{ rgb {b} }} finish {{ ambient 1 diffuse 0 }} }}
+"""
+
+
+@pytest.mark.povray
+def test_colours_are_compared_as_povray_compares_them(tmp_path):
+    """Grey a left of grey b, the step a quarter into the pixel right of the centre line: that
+    pixel is refined (its grid sees a) when 3·(b^(1/2.5) − a^(1/2.5)) ≥ 0.3, POV-Ray's rule
+    (Antialias_Gamma 2.5), not when the plain sum 3·(b − a) is: the first two pairs fall on
+    opposite sides of the two rules, the last two on the same side. POV-Ray's image decides too."""
+    from validation.povray import run_povray
+
+    for i, (a, b) in enumerate([(0.5, 0.66), (0.05, 0.11), (0.5, 0.70), (0.05, 0.095)]):
+        want = 3 * (b ** 0.4 - a ** 0.4) >= 0.3
+        assert (want != (3 * (b - a) >= 0.3)) == (i < 2)
+        path = tmp_path / f"step{a}_{b}.pov"
+        path.write_text(STEP.format(a=a, b=b))
+        ours = np.asarray(render(load_scene(path), width=8, height=2, adaptive=(0.3, 3)))[0, 4, 0]
+        pov = run_povray(path, 8, 2, antialias=(0.3, 3)).image[0, 4, 0]
+        assert (abs(ours - b) > 1e-3) == want, (a, b, ours)
+        assert (abs(pov - b) > 1e-3) == want, (a, b, pov)

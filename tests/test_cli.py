@@ -201,9 +201,16 @@ def test_adaptive_antialiasing_from_the_command_line(tmp_path, capsys):
     out = tmp_path / "seed.exr"
     assert main(["render", str(SEED), "-o", str(out), "-W", "32", "-H", "24", "--aa", "0.3",
                  "--aa-depth", "2"]) == 0
-    want = rt.render(rt.load_scene(SEED, width=32, height=24), width=32, height=24, adaptive=(0.3, 2))
+    scene = rt.load_scene(SEED, width=32, height=24)
+    want = rt.render(scene, width=32, height=24, adaptive=(0.3, 2))
     np.testing.assert_allclose(rt.read_image(out), np.asarray(want), atol=1e-6)
     assert "times: parse" in capsys.readouterr().out
+    # POV-Ray's +AG: a plain sum of differences (gamma 1) refines other pixels of this image
+    assert main(["render", str(SEED), "-o", str(out), "-W", "32", "-H", "24", "--aa", "0.3",
+                 "--aa-depth", "2", "--aa-gamma", "1"]) == 0
+    linear = np.asarray(rt.render(scene, width=32, height=24, adaptive=(0.3, 2, 1.0)))
+    assert np.abs(linear - np.asarray(want)).max() > 1e-3
+    np.testing.assert_allclose(rt.read_image(out), linear, atol=1e-6)
 
 
 def test_render_command_sets_one_device_per_core_and_the_tuned_xla_flags(monkeypatch):
