@@ -428,26 +428,85 @@ def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capa
     return colours.reshape(-1, 3), dropped
 
 
+def _seen(image, gamma):
+    """Colours as POV-Ray's anti-aliasing compares them: raised to 1/``gamma`` (``Antialias_Gamma``)."""
+    return jnp.maximum(jax.lax.stop_gradient(image), 0) ** (1 / gamma)
+
+
 @eqx.filter_jit
 def _edges(image, threshold, gamma=2.5):
     """Pixels that differ from their left or upper neighbour by at least ``threshold``, and those
-    neighbours: both sides of an edge. The difference is POV-Ray's: the sum over R, G and B of the
-    absolute differences of the traced colours (before the output transfer) raised to 1/``gamma``
-    (``Antialias_Gamma``, +AG, 2.5 by default).
-
-    Measured, not taken from POV-Ray's manual (semantics §3.3): two flat colours a and b side by
-    side switch to refined where 3·(b^(1/2.5) − a^(1/2.5)) = 0.300 for grey a = 0.05 … 2.0 (the
-    plain sum switched between 0.16 and 1.20), and a red-only pair at 0.9. Against POV-Ray's
-    ``+A0.3 +AM1 +R3 -J`` images, this rule flags the pixels POV-Ray refines but for 4 of 287 (seed
-    scene, 128×96) and 56 of 1,503 (Whitted scene, 96×72), of those whose refined and centre values
-    differ; the plain sum missed 21 and 63."""
-    image = jax.lax.stop_gradient(image)
-    image = jnp.maximum(image, 0) ** (1 / gamma)
+    neighbours: both sides of an edge, from the centre samples alone (the first guess of
+    :func:`_scan_flags`, and the pixels to refine first). The difference is the sum over R, G and
+    B of the absolute differences of the colours raised to 1/``gamma``."""
+    image = _seen(image, gamma)
     left = jnp.sum(jnp.abs(image[:, 1:] - image[:, :-1]), axis=-1) >= threshold  # (H, W-1)
     up = jnp.sum(jnp.abs(image[1:] - image[:-1]), axis=-1) >= threshold  # (H-1, W)
     flag = jnp.zeros(image.shape[:2], bool)
     flag = flag.at[:, 1:].max(left).at[:, :-1].max(left)
     return flag.at[1:].max(up).at[:-1].max(up)
+
+
+def _chain(at0, at1):
+    """``s_x = f_x(s_{x-1})`` along the last axis from ``s_{-1} = 0``, for maps of one bit given by
+    their values ``at0``, ``at1`` (booleans, …×W): cumulative operations instead of a loop."""
+    index = jnp.arange(at0.shape[-1])
+    constant = at0 == at1
+    last = jax.lax.cummax(jnp.where(constant, index, -1), axis=at0.ndim - 1)  # -1: none yet, s = 0
+    base = jnp.where(last >= 0, jnp.take_along_axis(at0, jnp.maximum(last, 0), axis=-1), False)
+    flips = jnp.cumsum(at0 & ~at1, axis=-1, dtype=jnp.int32)  # negations up to and including x
+    since = flips - jnp.where(last >= 0, jnp.take_along_axis(flips, jnp.maximum(last, 0), axis=-1), 0)
+    return base ^ (since % 2 == 1)
+
+
+@eqx.filter_jit
+def _scan_flags(centre, refined, threshold, gamma=2.5):
+    """The pixels POV-Ray's method 1 refines, given the centre samples (H, W, 3) and the refined
+    values (H, W, 3) of the pixels it refines. In scan order (rows top to bottom, each left to
+    right) a pixel's centre is compared with its left and upper neighbours' values *as they are
+    then*: refined already or not. A difference of at least ``threshold`` (``_edges``' measure)
+    refines the pixel and that neighbour. So a refined pixel can set off its right neighbour (its
+    refined value differs from its centre), which can set off the next: POV-Ray's own rule, as far
+    as its images show it (semantics §3.3).
+
+    Where a refined value is not known yet (a pixel not traced on its grid), pass its centre:
+    the flags are then a guess to refine and call again with, until every flagged pixel's refined
+    value is known; they are then exact. Within a row the left-to-right dependence is a chain of
+    maps of one bit (refined or not), :func:`_chain`; across rows, a repetition to a fixed point."""
+    c, a = _seen(centre, gamma), _seen(refined, gamma)
+
+    def differs(x, y):
+        return jnp.sum(jnp.abs(x - y), axis=-1) >= threshold
+
+    none = jnp.zeros_like(c[:, :1, 0], bool)
+    plain = jnp.concatenate([none, differs(c[:, 1:], c[:, :-1])], axis=1)  # the left one not refined
+    fine = jnp.concatenate([none, differs(c[:, 1:], a[:, :-1])], axis=1)  # the left one refined
+    right = jnp.concatenate([plain[:, 1:], none], axis=1)  # a pixel set off by its right neighbour
+
+    def rows(kept):
+        """Every row at once from the rows above as ``kept`` has them: a row depends on the one
+        above only, so repeating this until nothing changes gives the scan-order result (row y is
+        right from the y-th repetition on; usually a handful of repetitions, each one fused
+        program over the image, where a scan over rows took ~6 µs a row)."""
+        above = jnp.where(kept[:-1, :, None], a[:-1], c[:-1])
+        up = jnp.concatenate([jnp.zeros_like(plain[:1]), differs(c[1:], above)])
+        # refined_x = f_x(refined_{x-1}), f_x(0) = up_x | plain_x, f_x(1) = up_x | fine_x, from
+        # refined_{-1} = 0: a map of one bit is a constant, the identity or a negation, so
+        # refined_x is the last constant's value before it, negated once per negation since
+        return _chain(up | plain, up | fine) | right, up
+
+    def changed(state):
+        return state[2]
+
+    def again(state):
+        kept, _, _ = state
+        new, up = rows(kept)
+        return new, up, jnp.any(new != kept)
+
+    start = jnp.zeros(c.shape[:2], bool)
+    kept, up, _ = jax.lax.while_loop(changed, again, (start, start, jnp.bool_(True)))
+    # the row below may set a pixel off too, once its own row is done
+    return kept | jnp.concatenate([up[1:], jnp.zeros_like(up[:1])])
 
 
 def _check(width: int, height: int, spp: int) -> int:
@@ -470,7 +529,7 @@ def _warn_dropped(dropped, capacity: int) -> None:
 
 @without_collections  # a trace makes few cycles (a reverse-mode one of glass.pov: 139 objects)
 def render(scene: Scene, *, width: int, height: int, spp: int = 1,
-           capacity: int | None | str = "auto", adaptive: tuple[float, int] | None = None) -> jax.Array:
+           capacity: int | None | str = "auto", adaptive: tuple | None = None) -> jax.Array:
     """Renders ``scene`` to a linear RGB image of shape (height, width, 3), row 0 at the top.
 
     One jit-compiled program (cached per scene structure, image size, spp and capacity);
@@ -497,8 +556,9 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
                 camera ray: only for shallow trees).
         adaptive: ``(threshold, depth[, gamma])`` (``Adaptive``): POV-Ray's adaptive
                 anti-aliasing, method 1 (``+A threshold +R depth +AG gamma -J``; gamma 2.5 as
-                POV-Ray's). A first pass traces pixel centres; the pixels on either side of a
-                colour difference (of colours raised to 1/gamma) of at least ``threshold`` get ``depth²`` more
+                POV-Ray's). A first pass traces pixel centres; the pixels POV-Ray's rule refines
+                (a colour difference of at least ``threshold`` with the left or upper neighbour,
+                in scan order, of colours raised to 1/gamma) get ``depth²`` more
                 rays on a grid. Deterministic; differentiable (which pixels are refined is chosen
                 from values, like a hit: piecewise constant). Under ``jit`` or ``vmap`` that choice
                 is known only at run time, so every pixel is refined and the flagged ones kept:
@@ -573,11 +633,12 @@ def _with_room(fn, capacity, key):
 
 
 class Adaptive(NamedTuple):
-    """POV-Ray's adaptive anti-aliasing, method 1 (``+A threshold +R depth +AG gamma -J``): a
-    pixel whose colour differs from its left or upper neighbour's by at least ``threshold`` (the sum
-    over R, G and B of the absolute differences of the traced colours, before the output transfer,
-    raised to 1/``gamma``), and that neighbour, are replaced by
-    ``(centre + Σ depth×depth grid) / (depth² + 1)`` (semantics §3.3)."""
+    """POV-Ray's adaptive anti-aliasing, method 1 (``+A threshold +R depth +AG gamma -J``): in
+    scan order, a pixel whose centre differs from its left or upper neighbour's colour as it is
+    then (refined or not) by at least ``threshold`` (the sum over R, G and B of the absolute
+    differences of the traced colours, before the output transfer, raised to 1/``gamma``), and
+    that neighbour, are replaced by ``(centre + Σ depth×depth grid) / (depth² + 1)`` (semantics
+    §3.3, ``_scan_flags``)."""
 
     threshold: float = 0.3
     depth: int = 3
@@ -604,41 +665,73 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     key = _room_key(packed, width, height)
     centre = _with_room(lambda room: _render_packed(packed, width, height, 1, room, True), capacity,
                         key and key + ("centre",))
-    flag = _edges(centre, aa.threshold, aa.gamma)  # a boolean output: concrete under eager grad
     n = aa.depth
+    flag = _edges(centre, aa.threshold, aa.gamma)  # a boolean output: concrete under eager grad
     if isinstance(flag, jax.core.Tracer):
         # under jit / vmap which pixels differ is known only when the program runs: refine every
-        # pixel and keep the refined value where it is flagged (the same image, no time saved)
+        # pixel and keep the refined value where POV-Ray's rule flags it (the same image, no
+        # time saved)
         grid = _with_room(lambda room: _render_packed(packed, width, height, n, room, True), capacity,
                           None)
         refined = (centre + n * n * grid) / (n * n + 1)
+        flag = _scan_flags(centre, refined, aa.threshold, aa.gamma)
         return _output_transfer(jnp.where(flag[..., None], refined, centre), scene.settings)
-    index = np.flatnonzero(np.asarray(flag))
-    if index.size == 0:
-        return _refined(centre, None, None, n, scene.settings)
-    m = _pixel_bucket(index.size, CHUNKS_PER_TILE * len(jax.local_devices()))
-    pad = m - index.size
-    pixels = jnp.asarray(np.concatenate([index, np.full(pad, index[0])]).astype(np.int32))
-    grid = _with_room(lambda room: _render_pixels(packed, width, height, n, pixels, room), capacity,
-                      key and key + (n, m))
-    # the padding's rows go nowhere (an index past the image, dropped)
-    dest = jnp.asarray(np.concatenate([index, np.full(pad, width * height)]).astype(np.int32))
-    return _refined(centre, dest, grid, n, scene.settings)
+    # the pixels on either side of a difference of centres first; then POV-Ray's scan-order rule
+    # with the refined values known so far, refining what it adds, until it adds nothing
+    flag = np.asarray(flag).ravel()
+    have = np.zeros_like(flag)
+    refined = centre  # the refined values where known, the centres elsewhere
+    passes = 0
+    while (todo := np.flatnonzero(flag & ~have)).size:
+        if passes:
+            # a pass past the first adds pixels set off by a refined left or upper neighbour, and
+            # each of those can set off the next: trace the two to the right and the one below
+            # too, so that a chain is not one pass per pixel (each pass ~1 ms of fixed cost)
+            todo = _with_chain_neighbours(todo, have, width, height)
+        m = _pixel_bucket(todo.size, CHUNKS_PER_TILE * len(jax.local_devices()))
+        pad = m - todo.size
+        pixels = jnp.asarray(np.concatenate([todo, np.full(pad, todo[0])]).astype(np.int32))
+        grid = _with_room(lambda room, p=pixels: _render_pixels(packed, width, height, n, p, room), capacity,
+                          key and key + (n, m))
+        # the padding's rows go nowhere (an index past the image, dropped)
+        dest = jnp.asarray(np.concatenate([todo, np.full(pad, width * height)]).astype(np.int32))
+        refined = _with_refined(refined, centre, dest, grid, n)
+        have[todo] = True
+        flag = np.asarray(_scan_flags(centre, refined, aa.threshold, aa.gamma)).ravel()
+        passes += 1
+    return _keep_flagged(centre, refined, None if passes == 0 else jnp.asarray(flag), scene.settings)
+
+
+def _with_chain_neighbours(todo, have, width: int, height: int):
+    """``todo`` (flat pixel indices) and the two pixels right of and the one below each, in the
+    image and not in ``have``."""
+    y, x = np.divmod(todo, width)
+    more = [todo]
+    for dy, dx in ((0, 1), (0, 2), (1, 0)):
+        inside = (y + dy < height) & (x + dx < width)
+        more.append(((y + dy) * width + x + dx)[inside])
+    every = np.unique(np.concatenate(more))
+    return every[~have[every]]
 
 
 @eqx.filter_jit
-def _refined(centre, dest, grid, n: int, settings):
-    """The adaptive image after the output transfer: ``centre`` (H, W, 3) with the pixels ``dest``
-    (M,) replaced by ``(centre + n² · grid) / (n² + 1)`` (``dest`` past the image: padding). One
-    program: a small image's dozen eager operations cost more than its refined pixels (seed.pov,
-    +A0.3 +R2 at 128×96: ~2.7 ms of 4.8)."""
-    if dest is None:
-        return _output_transfer(centre, settings)
+def _with_refined(refined, centre, dest, grid, n: int):
+    """``refined`` (H, W, 3) with the pixels ``dest`` (M,) (past the image: padding) set to
+    ``(centre + n² · grid) / (n² + 1)``, POV-Ray's refined value."""
     height, width = centre.shape[:2]
     flat = centre.reshape(-1, 3)
-    refined = (flat.at[dest].get(mode="fill", fill_value=0) + n * n * grid) / (n * n + 1)
-    flat = flat.at[dest].set(refined, mode="drop")
-    return _output_transfer(flat.reshape(height, width, 3), settings)
+    value = (flat.at[dest].get(mode="fill", fill_value=0) + n * n * grid) / (n * n + 1)
+    return refined.reshape(-1, 3).at[dest].set(value, mode="drop").reshape(height, width, 3)
+
+
+@eqx.filter_jit
+def _keep_flagged(centre, refined, flag, settings):
+    """The adaptive image after the output transfer: the refined values where ``flag`` (H·W,) is
+    set, the centres elsewhere. One program: a small image's dozen eager operations cost more
+    than its refined pixels (seed.pov, +A0.3 +R2 at 128×96: ~2.7 ms of 4.8)."""
+    if flag is None:
+        return _output_transfer(centre, settings)
+    return _output_transfer(jnp.where(flag.reshape(centre.shape[:2])[..., None], refined, centre), settings)
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,
