@@ -553,3 +553,24 @@ def test_a_small_image_is_split_over_the_devices_only_where_its_rays_branch(monk
     assert render_module._layout(flat, 6912, 1, 1, 2) == (6912, 1, 1)
     assert render_module._layout(tree, least - 4, 1, 1, 2)[2] == 1
     assert render_module._layout(tree, least, 1, 1, 2)[2] == 2
+
+
+def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable():
+    """``render`` keeps the packed scene's arrays on the device between calls (not copied from
+    NumPy on each), and on one device they stay uncommitted as NumPy inputs were: the image
+    combines with an array committed to any device."""
+    import importlib
+
+    render_module = importlib.import_module("raytracer.render")
+    scene = sphere_scene(rt.Finish())
+    first = np.asarray(rt.render(scene, width=4, height=3))
+    packed = render_module.pack(scene)
+    placed = render_module._placed(packed, 1)
+    assert render_module._placed(packed, 1) is placed
+    leaves = [x for x in jax.tree.leaves(placed) if hasattr(x, "shape")]
+    assert leaves and not any(isinstance(x, np.ndarray) for x in leaves)
+    image = rt.render(scene, width=4, height=3)
+    np.testing.assert_array_equal(np.asarray(image), first)
+    assert not image.committed
+    other = jax.device_put(jnp.ones((3, 4, 3)), jax.devices()[-1])
+    assert np.asarray(image + other).shape == (3, 4, 3)
