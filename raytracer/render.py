@@ -174,6 +174,7 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
 
 
 _PLACED: dict[tuple, tuple[Packed, Packed]] = {}  # the last few packed scenes placed on devices
+PLACED_BYTES = 1 << 26  # larger packed scenes are copied per call instead of kept on the devices
 
 
 def _placed(packed: Packed, n_dev: int) -> Packed:
@@ -188,6 +189,8 @@ def _placed(packed: Packed, n_dev: int) -> Packed:
     if hit is not None and hit[0] is packed:
         return hit[1]
     arrays, static = eqx.partition(packed, lambda x: isinstance(x, np.ndarray))
+    if sum(x.nbytes for x in jax.tree.leaves(arrays)) > PLACED_BYTES:
+        return packed  # its render costs far more than the copy: no second copy kept
     if n_dev > 1:
         mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.local_devices()[:n_dev],
                              axis_types=(jax.sharding.AxisType.Auto,))
