@@ -184,7 +184,7 @@ def _placed(packed: Packed, n_dev: int) -> Packed:
     were ~1.4 ms of a 7 ms render (seed.pov at 128×96). Kept for the last few packed scenes."""
     if is_traced(packed):  # inside a trace: the program's inputs are the trace's
         return packed
-    key = (id(packed), n_dev)
+    key = (id(packed), n_dev, jax.config.jax_enable_x64)  # placed arrays take the x64 setting's dtypes
     hit = _PLACED.get(key)
     if hit is not None and hit[0] is packed:
         return hit[1]
@@ -700,6 +700,8 @@ def _pixel_bucket(m: int, least: int) -> int:
 def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capacity):
     if aa.depth < 1 or type(aa.depth) is not int:
         raise ValueError(f"adaptive depth must be a positive int, got {aa.depth!r}")
+    if not (isinstance(aa.gamma, (int, float)) and 0 < aa.gamma < math.inf):
+        raise ValueError(f"adaptive gamma must be a positive number, got {aa.gamma!r}")
     scene_plan = make_plan(scene)
     if not any(prim.rendered for prim in scene_plan.prims):
         return _background_only(scene, width, height)
@@ -708,7 +710,7 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     centre = _with_room(lambda room: _render_packed(
         _image_placed(packed, scene_plan, width * height, 1, room), width, height, 1, room, True),
         capacity, key and key + ("centre",))
-    traced_on, centre = centre, _on_first_device(centre)
+    traced_on, centre = centre, _uncommitted(centre)
     n = aa.depth
     flag = _edges(centre, aa.threshold, aa.gamma)  # a boolean output: concrete under eager grad
     if isinstance(flag, jax.core.Tracer):
@@ -738,7 +740,7 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         placed = _placed(packed, _pixel_devices(m))
         grid = _with_room(lambda room, p=pixels, s=placed: _render_pixels(s, width, height, n, p, room),
                           capacity, key and key + (n, m))
-        grid = _on_first_device(grid)
+        grid = _uncommitted(grid)
         # the padding's rows go nowhere (an index past the image, dropped)
         dest = jnp.asarray(np.concatenate([todo, np.full(pad, width * height)]).astype(np.int32))
         refined = _with_refined(refined, centre, dest, grid, n)
@@ -752,14 +754,14 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     return jax.device_put(image, traced_on.sharding)
 
 
-def _on_first_device(x):
-    """``x`` on the first local device: the centres and the refined pixels come from programs
-    that read their scene from one or from all devices (``_placed``), and the programs that
-    combine them take arrays from one."""
-    if isinstance(x, jax.core.Tracer):
+def _uncommitted(x):
+    """``x`` uncommitted on the default device, as a NumPy input's result is: the centres and the
+    refined pixels come from programs sharded over one or all devices (``_placed``), and the
+    programs that combine them take arrays from one; an image committed to one device could not
+    be combined with one sharded over several."""
+    if isinstance(x, jax.core.Tracer) or not x.committed:
         return x
-    first = jax.local_devices()[0]
-    return x if x.devices() == {first} else jax.device_put(x, first)
+    return jax.device_put(np.asarray(x))
 
 
 def _with_chain_neighbours(todo, have, width: int, height: int):

@@ -85,13 +85,19 @@ scene = load_scene(sys.argv[1])
 image = render(scene, width={W}, height={H}, adaptive=(0.3, 3))
 pixels = jnp.arange(4 * len(jax.local_devices()), dtype=jnp.int32)
 program = R._render_pixels.lower(R.pack(scene), {W}, {H}, 3, pixels, 2).as_text()
+large = render(scene, width=128, height=96)  # two tiles: sharded over both devices, committed
+mixed = float(jnp.sum(large[:{H}, :{W}] + image))  # raised "incompatible devices" when the adaptive
+                                                   # image was committed to the first device only
 json.dump({{"devices": len(jax.local_devices()), "sharded": "manual_computation" in program,
+           "large_devices": len(large.devices()), "mixed": mixed,
            "image": np.asarray(image).tolist()}}, open(sys.argv[2], "w"))
 """
 
 
 @pytest.mark.slow
 def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, tmp_path):
+    """With two devices the refined pixels are traced on both, the image is the one-device image,
+    and it combines with an image sharded over both devices."""
     path = tmp_path / "aa.pov"
     path.write_text(SCENE)
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
@@ -99,7 +105,7 @@ def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, 
                           str(tmp_path / "out.json")], env=env, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     got = json.loads((tmp_path / "out.json").read_text())
-    assert got["devices"] == 2 and got["sharded"]
+    assert got["devices"] == 2 and got["sharded"] and got["large_devices"] == 2 and np.isfinite(got["mixed"])
     want, _ = _expected(scene, 0.3, 3)  # this process: one device
     np.testing.assert_allclose(np.asarray(got["image"]), want, rtol=1e-5, atol=1e-6)
 
@@ -173,3 +179,9 @@ def test_colours_are_compared_as_povray_compares_them(tmp_path):
         pov = run_povray(path, 8, 2, antialias=(0.3, 3)).image[0, 4, 0]
         assert (abs(ours - b) > 1e-3) == want, (a, b, ours)
         assert (abs(pov - b) > 1e-3) == want, (a, b, pov)
+
+
+@pytest.mark.parametrize("gamma", [0, -1.0, float("inf"), "2"])
+def test_a_bad_gamma_is_refused(scene, gamma):
+    with pytest.raises(ValueError, match="gamma"):
+        render(scene, width=W, height=H, adaptive=(0.3, 2, gamma))

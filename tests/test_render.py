@@ -574,3 +574,11 @@ def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable
     assert not image.committed
     other = jax.device_put(jnp.ones((3, 4, 3)), jax.devices()[-1])
     assert np.asarray(image + other).shape == (3, 4, 3)
+    # the placed arrays follow the x64 setting: a float64 scene rendered with x64 off, then on
+    # (the second render took the first one's float32 arrays: a float32 image)
+    with jax.enable_x64(True):
+        wide = sphere_scene(rt.Finish())
+        with jax.enable_x64(False):
+            narrow = np.asarray(rt.render(wide, width=4, height=3))
+        assert rt.render(wide, width=4, height=3).dtype == jnp.float64
+    np.testing.assert_allclose(narrow, first, rtol=1e-6)

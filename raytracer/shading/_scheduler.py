@@ -218,7 +218,7 @@ def trace_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
     n = rays.origin.shape[0]
     size = n * slots_per_ray(branch, depth, capacity)
     full = branch ** (depth - 1) if branch > 1 else 1
-    grad_chunk = chunk if grad_chunk is None else grad_chunk
+    grad_chunk = min(chunk if grad_chunk is None else grad_chunk, size)  # a pool at most
     if capacity is not None and size < n * full and chunk < size and depth > 1:
         return _live_tree(shade_rays, rays, depth=depth, branch=branch, chunk=chunk, capacity=capacity,
                           grad_chunk=grad_chunk)

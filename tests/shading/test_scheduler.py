@@ -240,6 +240,10 @@ def test_derivatives_may_shade_whole_pools_where_the_forward_tree_shades_chunks(
     np.testing.assert_allclose(np.asarray(colour[:, 0]), 0.7 * want, rtol=1e-6)
     np.testing.assert_allclose(np.asarray(tangent[:, 2]), want, rtol=1e-6)
     np.testing.assert_allclose(float(jax.grad(lambda t: jnp.sum(tree(t)))(0.7)), 3 * want.sum(), rtol=1e-6)
+    # a grad_chunk past the pool is the pool (it was traced at 1,000 rays and called with 48)
+    _, tangent = jax.jvp(lambda t: trace_tree(shader(t), roots(n)._replace(alive=live), depth=depth, branch=2,
+                                              chunk=4, capacity=3, grad_chunk=1000)[0], (0.7,), (1.0,))
+    np.testing.assert_allclose(np.asarray(tangent[:, 2]), want, rtol=1e-6)
 
 
 def test_with_too_little_room_the_forward_tree_and_its_derivative_keep_the_same_children():
