@@ -241,7 +241,7 @@ def _joined(parts, dtype) -> jax.Array:
     jnp concatenate of host arrays compiles a conversion for every new shape of a part)."""
     if any_traced(parts):
         return jnp.concatenate(parts).astype(dtype)
-    return jnp.asarray(np.concatenate([np.asarray(x) for x in parts]).astype(dtype))
+    return np.concatenate([np.asarray(x) for x in parts]).astype(dtype)
 
 
 def one_unit(n: int, dtype):
@@ -306,9 +306,14 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     program = np.zeros(1, np.int32)
     if csg is not None:
         n_csg = len(csg.units)
-        lo, hi = (sg(b)[csg.units] for b in unit_boxes)
-        boxes.append(jnp.concatenate([lo, hi], axis=-1))
-        params.append(jnp.zeros((n_csg, ITEM_PARAMS), dtype).at[:, 0].set(csg.offsets.astype(dtype)))
+        if any_traced(unit_boxes):
+            lo, hi = (sg(b)[csg.units] for b in unit_boxes)
+            boxes.append(jnp.concatenate([lo, hi], axis=-1))
+        else:  # on the host: each jnp operation compiled a program on a cold start
+            boxes.append(np.concatenate([np.asarray(b)[csg.units] for b in unit_boxes], axis=-1))
+        offsets = np.zeros((n_csg, ITEM_PARAMS), dtype)
+        offsets[:, 0] = csg.offsets
+        params.append(offsets)
         kinds.append(np.full(n_csg, KIND_CSG, np.int32))
         prims.append(np.zeros(n_csg, np.int32))  # (never named by a query: it names the member)
         masks = np.concatenate([masks, csg.masks])
@@ -330,7 +335,8 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         item_unit, unit_box, _ = one_unit(len(item_prim), dtype)
     else:
         item_unit = units
-        unit_box = jnp.concatenate([sg(unit_boxes[0]), sg(unit_boxes[1])], axis=-1).astype(dtype)
+        unit_box = (jnp.concatenate([sg(unit_boxes[0]), sg(unit_boxes[1])], axis=-1).astype(dtype)
+                    if any_traced(unit_boxes) else np.concatenate(unit_boxes, axis=-1).astype(dtype))
     tables = (node_box, node_info, order, np.concatenate(kinds), masks, _joined(params, dtype), item_unit,
               unit_box, program)
     if _hierarchy()[0] is _build:
@@ -341,9 +347,16 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
                   + tuple(pad_rows(x, items, 0) for x in tables[3:7]) + tables[7:8]
                   + (pad_rows(program, bucket(program.shape[0]), 0),))
         item_prim = pad_rows(item_prim, items, 0)
-    tables = tuple(map(jnp.asarray, tables))
-    return Accel(tuple(accel_groups), jnp.asarray(item_prim), tables, first,
-                 jnp.asarray(np.asarray(ranges, np.int32).reshape(-1, 2)))
+    tables = tuple(map(_array, tables))
+    return Accel(tuple(accel_groups), _array(item_prim), tables, first,
+                 np.asarray(ranges, np.int32).reshape(-1, 2))
+
+
+def _array(x):
+    """``x`` as the program takes it: a traced value as a JAX array, a concrete one as it is (a
+    NumPy array; ``jnp.asarray`` compiled a staging program for each new shape and dtype on a cold
+    start, ~10-20 ms each, 8-10 per sample scene's packing)."""
+    return jnp.asarray(x) if any_traced([x]) else np.asarray(x)
 
 
 def _relocate(csg: CsgUnits, member_base: int) -> np.ndarray:
