@@ -574,11 +574,17 @@ def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable
     assert not image.committed
     other = jax.device_put(jnp.ones((3, 4, 3)), jax.devices()[-1])
     assert np.asarray(image + other).shape == (3, 4, 3)
-    # the placed arrays follow the x64 setting: a float64 scene rendered with x64 off, then on
-    # (the second render took the first one's float32 arrays: a float32 image)
+    # the placed arrays follow the x64 setting: a float64 scene placed with x64 off, then on (the
+    # second took the first one's float32 arrays, and rendered a float32 image). Only placing is
+    # switched here: JAX reuses compiled programs across such switches in one process.
     with jax.enable_x64(True):
-        wide = sphere_scene(rt.Finish())
+        wide = render_module.pack(sphere_scene(rt.Finish()))
         with jax.enable_x64(False):
-            narrow = np.asarray(rt.render(wide, width=4, height=3))
-        assert rt.render(wide, width=4, height=3).dtype == jnp.float64
-    np.testing.assert_allclose(narrow, first, rtol=1e-6)
+            narrow = render_module._placed(wide, 1)
+        full = render_module._placed(wide, 1)
+
+    def dtypes(tree):
+        return {x.dtype for x in jax.tree.leaves(tree) if hasattr(x, "dtype") and x.dtype.kind == "f"}
+
+    assert full is not narrow and dtypes(narrow) == {np.dtype("float32")}
+    assert np.dtype("float64") in dtypes(full)
