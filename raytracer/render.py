@@ -743,9 +743,9 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         grid = _uncommitted(grid)
         # the padding's rows go nowhere (an index past the image, dropped)
         dest = jnp.asarray(np.concatenate([todo, np.full(pad, width * height)]).astype(np.int32))
-        refined = _with_refined(refined, centre, dest, grid, n)
+        refined, flag = _refine_step(refined, centre, dest, grid, n, aa.threshold, aa.gamma)
         have[todo] = True
-        flag = np.asarray(_scan_flags(centre, refined, aa.threshold, aa.gamma)).ravel()
+        flag = np.asarray(flag).ravel()
         passes += 1
     image = _keep_flagged(centre, refined, None if passes == 0 else jnp.asarray(flag), scene.settings)
     # where the centres were traced: an image placed as a plain render's combines with it
@@ -777,6 +777,13 @@ def _with_chain_neighbours(todo, have, width: int, height: int):
 
 
 @eqx.filter_jit
+def _refine_step(refined, centre, dest, grid, n: int, threshold, gamma):
+    """One pass's update and POV-Ray's rule on it, as one program: ``_with_refined``, then
+    ``_scan_flags`` of the result (a call less per pass)."""
+    refined = _with_refined(refined, centre, dest, grid, n)
+    return refined, _scan_flags(centre, refined, threshold, gamma)
+
+
 def _with_refined(refined, centre, dest, grid, n: int):
     """``refined`` (H, W, 3) with the pixels ``dest`` (M,) (past the image: padding) set to
     ``(centre + n² · grid) / (n² + 1)``, POV-Ray's refined value."""
