@@ -58,6 +58,7 @@ def _expected(scene, threshold, n):
     return value, flag
 
 
+@pytest.mark.slow  # ~4 s: two whole-image renders and the loop over every pixel
 def test_refines_in_scan_order_as_povray_does_with_its_weights(scene):
     want, flag = _expected(scene, 0.3, 3)
     assert 0.02 < flag.mean() < 0.8  # edges of the sphere and the checker: some pixels, not all
@@ -163,6 +164,7 @@ box {{ <0.25, -10, 0>, <10, 10, 1> pigment {{ rgb {b} }} finish {{ ambient 1 dif
 
 
 @pytest.mark.povray
+@pytest.mark.slow  # ~3 s: eight renders, four of them POV-Ray's
 def test_colours_are_compared_as_povray_compares_them(tmp_path):
     """Grey a left of grey b, the step a quarter into the pixel right of the centre line: that
     pixel is refined (its grid sees a) when 3·(b^(1/2.5) − a^(1/2.5)) ≥ 0.3, POV-Ray's rule
