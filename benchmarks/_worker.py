@@ -1,9 +1,10 @@
 """One measurement in a fresh process: ``python -m benchmarks._worker`` reads a job (JSON) on stdin and
 prints its result (JSON) as the last line of stdout.
 
-A fresh process per measurement makes the peak memory mean something: ``ru_maxrss`` is the
-high-water mark of resident memory of *this* process (our renderer, Mitsuba), or of its only child
-(POV-Ray, ``RUSAGE_CHILDREN``). It includes the Python interpreter and the imported libraries;
+A fresh process per measurement makes the peak memory mean something: ``VmHWM`` is the
+high-water mark of resident memory of *this* process (our renderer, Mitsuba; ``ru_maxrss`` would
+carry the parent's across ``exec``), ``ru_maxrss`` that of its only child (POV-Ray,
+``RUSAGE_CHILDREN``). It includes the Python interpreter and the imported libraries;
 ``base_mb`` is the high-water mark just before the measured work started.
 
 Jobs (all take ``scene`` (a .pov path), ``width``, ``height``, ``repeats`` and optionally ``image``,
@@ -108,6 +109,18 @@ def _animation_info(anim) -> dict | None:
 
 
 def _rss_mb(who=resource.RUSAGE_SELF) -> float:
+    """High-water mark of resident memory, MB. For this process, Linux's ``VmHWM`` (of this
+    program's memory since it started): ``ru_maxrss`` survives ``exec``, so a worker started by a
+    parent that had grown reported the parent's mark (979 MB for a 160×120 render, started after
+    the scaling benchmark had read 3840×2160 images). For the children (POV-Ray), ``ru_maxrss``."""
+    if who == resource.RUSAGE_SELF:
+        try:
+            with open("/proc/self/status") as f:
+                for line in f:
+                    if line.startswith("VmHWM:"):
+                        return int(line.split()[1]) / 1024.0  # kB
+        except OSError:
+            pass
     return resource.getrusage(who).ru_maxrss / 1024.0  # Linux: kilobytes
 
 
