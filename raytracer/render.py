@@ -469,20 +469,6 @@ def _seen(image, gamma):
     return jnp.maximum(jax.lax.stop_gradient(image), 0) ** (1 / gamma)
 
 
-@eqx.filter_jit
-def _edges(image, threshold, gamma=2.5):
-    """Pixels that differ from their left or upper neighbour by at least ``threshold``, and those
-    neighbours: both sides of an edge, from the centre samples alone (the first guess of
-    :func:`_scan_flags`, and the pixels to refine first). The difference is the sum over R, G and
-    B of the absolute differences of the colours raised to 1/``gamma``."""
-    image = _seen(image, gamma)
-    left = jnp.sum(jnp.abs(image[:, 1:] - image[:, :-1]), axis=-1) >= threshold  # (H, W-1)
-    up = jnp.sum(jnp.abs(image[1:] - image[:-1]), axis=-1) >= threshold  # (H-1, W)
-    flag = jnp.zeros(image.shape[:2], bool)
-    flag = flag.at[:, 1:].max(left).at[:, :-1].max(left)
-    return flag.at[1:].max(up).at[:-1].max(up)
-
-
 def _chain(at0, at1):
     """``s_x = f_x(s_{x-1})`` along the last axis from ``s_{-1} = 0``, for maps of one bit given by
     their values ``at0``, ``at1`` (booleans, …×W): cumulative operations instead of a loop."""
@@ -500,10 +486,12 @@ def _scan_flags(centre, refined, threshold, gamma=2.5):
     """The pixels POV-Ray's method 1 refines, given the centre samples (H, W, 3) and the refined
     values (H, W, 3) of the pixels it refines. In scan order (rows top to bottom, each left to
     right) a pixel's centre is compared with its left and upper neighbours' values *as they are
-    then*: refined already or not. A difference of at least ``threshold`` (``_edges``' measure)
-    refines the pixel and that neighbour. So a refined pixel can set off its right neighbour (its
-    refined value differs from its centre), which can set off the next: POV-Ray's own rule, as far
-    as its images show it (semantics §3.3).
+    then*: refined already or not. A difference of at least ``threshold`` (the sum over R, G and
+    B of the absolute differences of the colours raised to 1/``gamma``) refines the pixel and that
+    neighbour. So a refined pixel can set off its right neighbour (its refined value differs from
+    its centre), which can set off the next: POV-Ray's own rule, as far as its images show it
+    (semantics §3.3). With every refined value a centre, these are the pixels on either side of a
+    difference of centres.
 
     Where a refined value is not known yet (a pixel not traced on its grid), pass its centre:
     the flags are then a guess to refine and call again with, until every flagged pixel's refined
@@ -712,7 +700,9 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         capacity, key and key + ("centre",))
     traced_on, centre = centre, _uncommitted(centre)
     n = aa.depth
-    flag = _edges(centre, aa.threshold, aa.gamma)  # a boolean output: concrete under eager grad
+    # the first guess: the rule with every value a centre (the pixels on either side of a
+    # difference of centres); a boolean output, concrete under eager grad
+    flag = _scan_flags(centre, centre, aa.threshold, aa.gamma)
     if isinstance(flag, jax.core.Tracer):
         # under jit / vmap which pixels differ is known only when the program runs: refine every
         # pixel and keep the refined value where POV-Ray's rule flags it (the same image, no
@@ -722,8 +712,8 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         refined = (centre + n * n * grid) / (n * n + 1)
         flag = _scan_flags(centre, refined, aa.threshold, aa.gamma)
         return _output_transfer(jnp.where(flag[..., None], refined, centre), scene.settings)
-    # the pixels on either side of a difference of centres first; then POV-Ray's scan-order rule
-    # with the refined values known so far, refining what it adds, until it adds nothing
+    # refine the first guess; then POV-Ray's rule with the refined values known so far, refining
+    # what it adds, until it adds nothing
     flag = np.asarray(flag).ravel()
     have = np.zeros_like(flag)
     refined = centre  # the refined values where known, the centres elsewhere
