@@ -1,4 +1,5 @@
-"""Builds the native BVH (``raytracer/_native/bvh.cc``, called from JAX through XLA's FFI) at install.
+"""Builds the native BVH (``raytracer/_native/bvh.cc``) and POV-Ray's anti-aliasing rule
+(``antialias.cc``), called from JAX through XLA's FFI, at install.
 
 Everything else about the package is in ``pyproject.toml``. The extension is optional: without a
 C++ compiler the package still installs and renders with the pure-JAX path (``raytracer info``
@@ -26,7 +27,7 @@ setup(
     ext_modules=[
         Extension(
             "raytracer._native._bvh",
-            ["raytracer/_native/bvh.cc"],
+            ["raytracer/_native/bvh.cc", "raytracer/_native/antialias.cc"],
             language="c++",
             extra_compile_args=["-std=c++17", "-O3", "-fno-math-errno"],
             optional=True,

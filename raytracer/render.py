@@ -148,7 +148,7 @@ class Packed(NamedTuple):
 
 
 _WRITEABLE = operator.attrgetter("flags.writeable")
-_PACKED: dict[tuple, tuple[Scene, Packed]] = {}  # the last few concrete scenes packed (by identity)
+_PACKED: dict[tuple, tuple[Scene, Packed, Plan]] = {}  # the last few concrete scenes packed (by identity)
 
 
 @without_collections  # packing makes no cycles (raytracer/_gc.py)
@@ -164,13 +164,24 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
     types = set(map(type, leaves))
     if any(issubclass(t, jax.core.Tracer) for t in types):
         return _pack_traced(scene, _accel.mode())
-    packed = _pack(scene, make_plan(scene) if scene_plan is None else scene_plan, (leaves, treedef))
+    scene_plan = make_plan(scene) if scene_plan is None else scene_plan
+    packed = _pack(scene, scene_plan, (leaves, treedef))
     rest = packed.rest
     if not is_traced(rest) and types <= {np.ndarray} and not any(map(_WRITEABLE, leaves)):
         while len(_PACKED) >= 4:
             _PACKED.pop(next(iter(_PACKED)))
-        _PACKED[key] = (scene, packed)
+        _PACKED[key] = (scene, packed, scene_plan)
     return packed
+
+
+def _scene_plan(scene: Scene) -> Plan:
+    """``make_plan(scene)``, kept with the packed scene where ``pack`` keeps it: each render of
+    the same scene made its plan again (0.25 ms for seed.pov, 0.4 ms for whitted.pov: an adaptive
+    render at 128×96 takes a few ms)."""
+    cached = _PACKED.get((id(scene), _accel.mode()))
+    if cached is not None and cached[0] is scene:
+        return cached[2]
+    return make_plan(scene)
 
 
 _PLACED: dict[tuple, tuple[Packed, Packed]] = {}  # the last few packed scenes placed on devices
@@ -482,7 +493,7 @@ def _chain(at0, at1):
 
 
 @eqx.filter_jit
-def _scan_flags(centre, refined, threshold, gamma=2.5):
+def _scan_flags(centre, refined, threshold, gamma=2.5, native: bool | None = None):
     """The pixels POV-Ray's method 1 refines, given the centre samples (H, W, 3) and the refined
     values (H, W, 3) of the pixels it refines. In scan order (rows top to bottom, each left to
     right) a pixel's centre is compared with its left and upper neighbours' values *as they are
@@ -495,9 +506,25 @@ def _scan_flags(centre, refined, threshold, gamma=2.5):
 
     Where a refined value is not known yet (a pixel not traced on its grid), pass its centre:
     the flags are then a guess to refine and call again with, until every flagged pixel's refined
-    value is known; they are then exact. Within a row the left-to-right dependence is a chain of
-    maps of one bit (refined or not), :func:`_chain`; across rows, a repetition to a fixed point."""
-    c, a = _seen(centre, gamma), _seen(refined, gamma)
+    value is known; they are then exact. ``_rule`` computes them from the colours as compared."""
+    return _rule(_seen(centre, gamma), _seen(refined, gamma), threshold, native)
+
+
+def _rule(c, a, threshold, native: bool | None = None):
+    """``_scan_flags`` of the centres and refined values as POV-Ray compares them (``_seen``).
+
+    On the CPU with the native library built (``native=None``: where it can), the rule is the
+    plain loop over the pixels (``_native/antialias.cc``, called through XLA's FFI: ~25 µs a call
+    at 128×96). Elsewhere it is this program: within a row the left-to-right dependence is a chain
+    of maps of one bit (refined or not), :func:`_chain`; across rows, a repetition to a fixed
+    point (~0.4 ms a call on the CPU at 128×96, a fixed cost of every adaptive pass)."""
+    if native is None:
+        native = jax.default_backend() == "cpu"
+    if native and _accel.unavailable_reason() is None and c.dtype in (jnp.float32, jnp.float64):
+        suffix = "F64" if c.dtype == jnp.float64 else "F32"
+        loop = jax.ffi.ffi_call(f"raytracer_AaFlags{suffix}", jax.ShapeDtypeStruct(c.shape[:2], jnp.bool_),
+                                vmap_method="sequential")
+        return loop(c, a, jnp.asarray(threshold, c.dtype))
 
     def differs(x, y):
         return jnp.sum(jnp.abs(x - y), axis=-1) >= threshold
@@ -596,7 +623,7 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
         if spp != 1:
             raise ValueError("adaptive anti-aliasing starts from one ray per pixel centre: leave spp at 1")
         return _render_adaptive(scene, width, height, Adaptive(*adaptive), capacity)
-    scene_plan = make_plan(scene)
+    scene_plan = _scene_plan(scene)
     if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background
         return _background_only(scene, width, height)
     packed = pack(scene, scene_plan)
@@ -690,7 +717,7 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         raise ValueError(f"adaptive depth must be a positive int, got {aa.depth!r}")
     if not (isinstance(aa.gamma, (int, float)) and 0 < aa.gamma < math.inf):
         raise ValueError(f"adaptive gamma must be a positive number, got {aa.gamma!r}")
-    scene_plan = make_plan(scene)
+    scene_plan = _scene_plan(scene)
     if not any(prim.rendered for prim in scene_plan.prims):
         return _background_only(scene, width, height)
     packed = pack(scene, scene_plan)
@@ -698,11 +725,11 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     centre = _with_room(lambda room: _render_packed(
         _image_placed(packed, scene_plan, width * height, 1, room), width, height, 1, room, True),
         capacity, key and key + ("centre",))
-    traced_on, centre = centre, _uncommitted(centre)
+    traced_on, centre = centre, _on_one_device(centre)
     n = aa.depth
     # the first guess: the rule with every value a centre (the pixels on either side of a
-    # difference of centres); a boolean output, concrete under eager grad
-    flag = _scan_flags(centre, centre, aa.threshold, aa.gamma)
+    # difference of centres); outputs without a gradient, concrete under eager grad
+    seen_centre, flag = _first_guess(centre, aa.threshold, aa.gamma)
     if isinstance(flag, jax.core.Tracer):
         # under jit / vmap which pixels differ is known only when the program runs: refine every
         # pixel and keep the refined value where POV-Ray's rule flags it (the same image, no
@@ -717,6 +744,7 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     flag = np.asarray(flag).ravel()
     have = np.zeros_like(flag)
     refined = centre  # the refined values where known, the centres elsewhere
+    seen = seen_centre  # and as the rule compares them
     passes = 0
     while (todo := np.flatnonzero(flag & ~have)).size:
         if passes:
@@ -730,28 +758,39 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         placed = _placed(packed, _pixel_devices(m))
         grid = _with_room(lambda room, p=pixels, s=placed: _render_pixels(s, width, height, n, p, room),
                           capacity, key and key + (n, m))
-        grid = _uncommitted(grid)
+        grid = _on_one_device(grid)
         # the padding's rows go nowhere (an index past the image, dropped)
         dest = jnp.asarray(np.concatenate([todo, np.full(pad, width * height)]).astype(np.int32))
-        refined, flag = _refine_step(refined, centre, dest, grid, n, aa.threshold, aa.gamma)
+        refined, seen, flag = _refine_step(refined, seen, centre, seen_centre, dest, grid, n, aa.threshold,
+                                           aa.gamma)
         have[todo] = True
         flag = np.asarray(flag).ravel()
         passes += 1
     image = _keep_flagged(centre, refined, None if passes == 0 else jnp.asarray(flag), scene.settings)
-    # where the centres were traced: an image placed as a plain render's combines with it
-    if isinstance(traced_on, jax.core.Tracer) or not traced_on.committed:
+    # where the centres were traced (uncommitted, or on the devices a plain render's image is):
+    # an image placed as a plain render's combines with it
+    if isinstance(traced_on, jax.core.Tracer) or isinstance(image, jax.core.Tracer):
         return image
-    return jax.device_put(image, traced_on.sharding)
+    if not traced_on.committed:
+        return image if not image.committed else jax.device_put(np.asarray(image))
+    return image if image.sharding == traced_on.sharding else jax.device_put(image, traced_on.sharding)
 
 
-def _uncommitted(x):
-    """``x`` uncommitted on the default device, as a NumPy input's result is: the centres and the
-    refined pixels come from programs sharded over one or all devices (``_placed``), and the
-    programs that combine them take arrays from one; an image committed to one device could not
-    be combined with one sharded over several."""
-    if isinstance(x, jax.core.Tracer) or not x.committed:
+def _on_one_device(x):
+    """``x`` on the first local device where it is committed to several: the centres and the
+    refined pixels come from programs sharded over one or all local devices (``_placed``), and the
+    small programs that combine them run on one (on two, every step of a pass ran twice; a
+    program takes committed arrays of one set of devices only). A replicated array's copy there
+    is free; a sharded one is gathered by a copy between devices (the host round trip these
+    replace cost ~0.1 ms a pass at 128×96)."""
+    if isinstance(x, jax.core.Tracer) or not x.committed or len(x.sharding.device_set) == 1:
         return x
-    return jax.device_put(np.asarray(x))
+    first = jax.local_devices()[0]
+    if x.sharding.is_fully_replicated:
+        for shard in x.addressable_shards:
+            if shard.device == first:
+                return shard.data
+    return jax.device_put(x, jax.sharding.SingleDeviceSharding(first))
 
 
 def _with_chain_neighbours(todo, have, width: int, height: int):
@@ -767,20 +806,25 @@ def _with_chain_neighbours(todo, have, width: int, height: int):
 
 
 @eqx.filter_jit
-def _refine_step(refined, centre, dest, grid, n: int, threshold, gamma):
-    """One pass's update and POV-Ray's rule on it, as one program: ``_with_refined``, then
-    ``_scan_flags`` of the result (a call less per pass)."""
-    refined = _with_refined(refined, centre, dest, grid, n)
-    return refined, _scan_flags(centre, refined, threshold, gamma)
+def _first_guess(centre, threshold, gamma):
+    """The centres as POV-Ray's rule compares them (``_seen``: raised to 1/gamma once, not on every
+    pass) and the rule with every value a centre."""
+    seen = _seen(centre, gamma)
+    return seen, _rule(seen, seen, threshold)
 
 
-def _with_refined(refined, centre, dest, grid, n: int):
-    """``refined`` (H, W, 3) with the pixels ``dest`` (M,) (past the image: padding) set to
-    ``(centre + n² · grid) / (n² + 1)``, POV-Ray's refined value."""
-    height, width = centre.shape[:2]
-    flat = centre.reshape(-1, 3)
-    value = (flat.at[dest].get(mode="fill", fill_value=0) + n * n * grid) / (n * n + 1)
-    return refined.reshape(-1, 3).at[dest].set(value, mode="drop").reshape(height, width, 3)
+@eqx.filter_jit
+def _refine_step(refined, seen, centre, seen_centre, dest, grid, n: int, threshold, gamma):
+    """One pass's update and POV-Ray's rule on it, as one program: the pixels ``dest`` (M,) (past
+    the image: padding) of ``refined`` (H, W, 3) set to ``(centre + n² · grid) / (n² + 1)``,
+    POV-Ray's refined value, and of ``seen`` to that value as the rule compares it (the new
+    values only: the power of the whole image twice cost ~0.12 ms a pass at 128×96), then
+    ``_rule`` of the result (a call less per pass)."""
+    shape = centre.shape
+    value = (centre.reshape(-1, 3).at[dest].get(mode="fill", fill_value=0) + n * n * grid) / (n * n + 1)
+    refined = refined.reshape(-1, 3).at[dest].set(value, mode="drop").reshape(shape)
+    seen = seen.reshape(-1, 3).at[dest].set(_seen(value, gamma), mode="drop").reshape(shape)
+    return refined, seen, _rule(seen_centre, seen, threshold)
 
 
 @eqx.filter_jit

@@ -1,6 +1,7 @@
 """Adaptive anti-aliasing (``render(…, adaptive=(threshold, depth))``, POV-Ray's method 1): the
 pixels it refines, their values, its gradient, and POV-Ray's own adaptive image."""
 
+import importlib
 import json
 import os
 import subprocess
@@ -181,6 +182,43 @@ def test_colours_are_compared_as_povray_compares_them(tmp_path):
         pov = run_povray(path, 8, 2, antialias=(0.3, 3)).image[0, 4, 0]
         assert (abs(ours - b) > 1e-3) == want, (a, b, ours)
         assert (abs(pov - b) > 1e-3) == want, (a, b, pov)
+
+
+def test_native_and_jax_rules_are_the_plain_loop():
+    """The rule on random colours (flat patches, edges, refined values that differ from their
+    centres; a dozen images of 1×1 to 19×19; thresholds 0 to 0.6): the native loop (``_native/antialias.cc``)
+    and the JAX program both flag what a loop over the pixels in scan order flags, under jit too."""
+    render_module = importlib.import_module("raytracer.render")
+    rng = np.random.default_rng(27)
+
+    def plain(c, a, threshold):
+        h, w = c.shape[:2]
+        flag = np.zeros((h, w), bool)
+        for y in range(h):
+            for x in range(w):
+                for ny, nx in ((y, x - 1), (y - 1, x)):
+                    if min(ny, nx) >= 0:
+                        value = a[ny, nx] if flag[ny, nx] else c[ny, nx]
+                        if np.abs(c[y, x] - value).sum() >= threshold:
+                            flag[y, x] = flag[ny, nx] = True
+        return flag
+
+    flagged = 0
+    for _ in range(12):
+        h, w = rng.integers(1, 20, 2)
+        patches = np.round(rng.random((h, w, 3)) * 4) / 4  # flat colours: equal neighbours
+        c = (patches * (rng.random((h, w, 1)) > rng.random())).astype(np.float32)
+        a = np.where(rng.random((h, w, 1)) > 0.5, rng.random((h, w, 3)), c).astype(np.float32)
+        threshold = float(rng.choice([0.0, 0.1, 0.3, 0.6]))
+        want = plain(np.float64(c), np.float64(a), threshold)
+        flagged += want.sum()
+        for native in (True, False):
+            got = np.asarray(render_module._rule(c, a, threshold, native=native))
+            np.testing.assert_array_equal(got, want, err_msg=f"native={native}")
+    assert flagged > 150  # the cases flag pixels (and leave others)
+    c = rng.random((6, 7, 3)).astype(np.float32)
+    jitted = jax.jit(lambda c, a: render_module._rule(c, a, 0.3, native=True))
+    np.testing.assert_array_equal(jitted(c, c), plain(np.float64(c), np.float64(c), 0.3))
 
 
 @pytest.mark.parametrize("gamma", [0, -1.0, float("inf"), "2"])

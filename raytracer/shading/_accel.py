@@ -70,7 +70,8 @@ class AccelUnavailable(RuntimeError):
 
 @functools.cache
 def _library() -> str | None:
-    """Loads the native library and registers its FFI targets; the reason it failed otherwise."""
+    """Loads the native library and registers its FFI targets (the hierarchy's, and POV-Ray's
+    anti-aliasing rule, ``render._scan_flags``); the reason it failed otherwise."""
     folder = Path(__file__).resolve().parent.parent / "_native"
     found = sorted(folder.glob("_bvh*.so"))
     if not found:
@@ -79,7 +80,7 @@ def _library() -> str | None:
         lib = ctypes.cdll.LoadLibrary(str(found[0]))
     except OSError as e:
         return f"the native BVH library does not load: {e}"
-    for name in ("BvhBuild", "BvhClosest", "BvhAny", "BvhAll"):
+    for name in ("BvhBuild", "BvhClosest", "BvhAny", "BvhAll", "AaFlags"):
         for suffix in ("F32", "F64"):
             capsule = jax.ffi.pycapsule(getattr(lib, name + suffix))
             jax.ffi.register_ffi_target(f"raytracer_{name}{suffix}", capsule, platform="cpu")
