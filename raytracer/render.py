@@ -863,6 +863,12 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
         # tracing a large scene's program with the collector on: each full collection walks the
         # scene's objects (for 100,000 spheres ~2.5 s of collections in a 1.5 s trace)
         with paused():
+            if n_parts == 1:
+                # the image in one program, render's own: assembling the parts in another program
+                # compiled it on the first call (~20 ms: the first "warm" render of a 160×120
+                # sample scene took 24 ms, the next ones 3–4 ms)
+                return _render_packed.lower(pack(scene, scene_plan), width, height, k,
+                                            state["capacity"]).compile()
             return _render_part.lower(pack(scene, scene_plan), width, height, k, n_parts, jnp.asarray(0),
                                       state["capacity"]).compile()
 
@@ -870,6 +876,12 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
 
     def run(s: Scene) -> jax.Array:
         packed = pack(s)
+        while n_parts == 1:
+            image, lost = state["compiled"](packed, width, height, k, state["capacity"])
+            if state["capacity"] is None or int(lost) == 0:
+                return image
+            state["capacity"] *= 4  # as below: more room, compiled again
+            state["compiled"] = build()
         parts = []
         while len(parts) < n_parts:
             colours, lost = state["compiled"](packed, width, height, k, n_parts, jnp.asarray(len(parts)),

@@ -231,7 +231,7 @@ def test_auto_room_starts_small_grows_once_and_is_remembered(tmp_path, monkeypat
     assert rooms[3:] == [FORWARD_CAPACITY]
 
 
-def test_compiled_render_in_parts_grows_the_room_for_the_part_that_overflowed(tmp_path):
+def test_compiled_render_grows_the_room_for_the_part_that_overflowed(tmp_path):
     # compile_render (the CLI's path) with a progress bar renders in parts; a part that drops rays
     # is rendered again with four times the room, and the parts already done are kept: the image
     # is the exact full-width tree's, and progress counts every part once
@@ -245,6 +245,9 @@ def test_compiled_render_in_parts_grows_the_room_for_the_part_that_overflowed(tm
     exact = rt.render(scene, width=16, height=12, capacity=None)
     np.testing.assert_allclose(image, exact, rtol=1e-6, atol=1e-7)
     assert seen == [(i + 1, PROGRESS_PARTS) for i in range(PROGRESS_PARTS)]
+    # without a progress bar: the image in one program, grown the same way
+    whole = compile_render(scene, width=16, height=12, capacity=1)
+    np.testing.assert_allclose(whole(scene), exact, rtol=1e-6, atol=1e-7)
 
 
 def test_the_compiled_program_takes_the_plan_packing_made_and_only_for_the_same_scene(tmp_path, monkeypatch):
