@@ -7,7 +7,8 @@
 //
 // Items. An item is one primitive (a sphere, a box) or one triangle of a mesh. Each carries
 // ITEM_PARAMS numbers: its object_from_world affine map (3×4, row-major) and its shape in object
-// space (sphere: centre, radius; box: two corners; triangle: three vertices; torus: its radii; plane: normal,
+// space (sphere: centre, radius; box: two corners; triangle: three vertices; torus: its radii;
+// superellipsoid: e, n; plane: normal,
 // distance, only as a member of a CSG unit, below). The intersections
 // below are computed in double precision whatever the input type.
 //
@@ -52,6 +53,7 @@ constexpr int KIND_DISC = 4;     // centre, normal, radius, hole radius
 constexpr int KIND_TORUS = 5;    // major and minor radius (the x-z plane, the y axis through the hole)
 constexpr int KIND_PLANE = 6;    // unit normal, distance: a member of a CSG unit only (it is unbounded)
 constexpr int KIND_CSG = 7;      // a CSG unit: params[0] is its program's offset (see CSG units)
+constexpr int KIND_SUPERELLIPSOID = 8;  // e, n (the unit box; shapes/_superellipsoid.py)
 constexpr int MAX_CROSSINGS = 8; // crossings of one member a CSG unit looks at (a frustum has 4)
 constexpr int BINS = 16;
 constexpr int MAX_LEAF = 4;
@@ -362,6 +364,182 @@ inline double torus_hit(const double* q, const RayD& r, double tmin, double tmax
   return INFINITY;
 }
 
+// Superellipsoid <e, n> in the unit box: N(x) = ‖(‖(x, y)‖_{2/e}, z)‖_{2/n}, the surface N = 1
+// (shapes/_superellipsoid.py, where the JAX kernel computes the hit again). Each p-norm is scaled
+// by its larger argument, so no power overflows or underflows to a wrong value.
+constexpr double SE_EXPONENT_FLOOR = 1e-4;  // as EXPONENT_FLOOR there
+
+inline double se_pnorm(double a, double b, double p) {
+  const double m = std::max(a, b);
+  if (!(m > 0.0)) return 0.0;
+  return m * std::pow(std::pow(a / m, p) + std::pow(b / m, p), 1.0 / p);
+}
+
+// ‖(a, b)‖_p and its partial derivatives (a, b >= 0, p >= 1: the convex case only)
+inline double se_pnorm_grad(double a, double b, double p, double& da, double& db) {
+  const double m = std::max(a, b);
+  if (!(m > 0.0)) {
+    da = db = (p == 1.0) ? 1.0 : 0.0;
+    return 0.0;
+  }
+  const double ra = a / m, rb = b / m, sum = std::pow(ra, p) + std::pow(rb, p);
+  const double k = std::pow(sum, (1.0 - p) / p);  // (m / norm)^(p - 1)
+  da = std::pow(ra, p - 1.0) * k;
+  db = std::pow(rb, p - 1.0) * k;
+  return m * std::pow(sum, 1.0 / p);
+}
+
+struct SuperEll {
+  double ae, an;
+  explicit SuperEll(const double* q)
+      : ae(2.0 / std::max(q[0], SE_EXPONENT_FLOOR)), an(2.0 / std::max(q[1], SE_EXPONENT_FLOOR)) {}
+  double norm(const double* x) const {
+    return se_pnorm(se_pnorm(std::fabs(x[0]), std::fabs(x[1]), ae), std::fabs(x[2]), an);
+  }
+  // N and its derivative along d at x (convex exponents: ae, an >= 1)
+  double norm_slope(const double* x, const double* d, double& slope) const {
+    double dax, day, dnA, dnz;
+    const double A = se_pnorm_grad(std::fabs(x[0]), std::fabs(x[1]), ae, dax, day);
+    const double n = se_pnorm_grad(A, std::fabs(x[2]), an, dnA, dnz);
+    auto sgn = [](double v) { return (v > 0.0) - (v < 0.0); };
+    slope = dnA * (dax * sgn(x[0]) * d[0] + day * sgn(x[1]) * d[1]) + dnz * sgn(x[2]) * d[2];
+    return n;
+  }
+};
+
+// The crossings of the line with t in (tmin, tmax): the first, or INFINITY. They are found over the
+// line's whole span through the box, whatever tmin is, so asking again from a crossing finds the
+// same values and moves past it (a CSG object's members are asked crossing by crossing).
+//  * e, n <= 2: N is a norm, convex along the line, so the line crosses at most twice: Newton's
+//    method from the span's two ends converges to them without overshooting (the tangent of a
+//    convex function stays below it), and a slope that turns before a crossing is a miss.
+//  * otherwise as the JAX kernel: the span cut at the coordinate planes into pieces, each split at
+//    its extremum (golden section: N is concave there when e, n >= 2) and, for mixed exponents,
+//    into four parts more; a sign change in a part is a crossing, found by bisection.
+inline double superellipsoid_hit(const double* q, const RayD& r, double tmin, double tmax) {
+  const double len = std::sqrt(dot3(r.d, r.d));
+  if (!(len > 0.0)) return INFINITY;
+  double lo = -INFINITY, hi = INFINITY;
+  for (int k = 0; k < 3; ++k) {
+    if (r.d[k] == 0.0) {
+      if (std::fabs(r.o[k]) > 1.0) return INFINITY;
+      continue;
+    }
+    const double a = (-1.0 - r.o[k]) / r.d[k], b = (1.0 - r.o[k]) / r.d[k];
+    lo = std::max(lo, std::min(a, b));
+    hi = std::min(hi, std::max(a, b));
+  }
+  if (!(lo <= hi)) return INFINITY;
+  const double margin = 1e-3 / len;  // beyond the box, N > 1: both ends lie outside the solid
+  lo -= margin;
+  hi += margin;
+  if (!(lo < tmax) || !(hi > tmin)) return INFINITY;
+  const SuperEll se(q);
+  auto point = [&](double s, double* x) {
+    for (int k = 0; k < 3; ++k) x[k] = r.o[k] + s * r.d[k];
+  };
+  auto f = [&](double s) {
+    double x[3];
+    point(s, x);
+    return se.norm(x) - 1.0;
+  };
+  const double tiny = 1e-15 * (std::fabs(lo) + std::fabs(hi) + 1.0 / len);
+  if (se.ae >= 1.0 && se.an >= 1.0) {
+    double roots[2];
+    for (int side = 0; side < 2; ++side) {
+      double s = side == 0 ? lo : hi;
+      roots[side] = INFINITY;
+      for (int it = 0; it < 200; ++it) {
+        double x[3], slope;
+        point(s, x);
+        const double v = se.norm_slope(x, r.d, slope) - 1.0;
+        if (v <= 0.0) {
+          roots[side] = s;
+          break;
+        }
+        // entering from lo the slope must be negative, leaving towards hi positive
+        if (side == 0 ? !(slope < 0.0) : !(slope > 0.0)) break;
+        const double step = v / slope;
+        s -= step;
+        if (std::fabs(step) <= tiny) {
+          roots[side] = s;
+          break;
+        }
+      }
+      if (side == 0 && !(roots[0] < INFINITY)) return INFINITY;  // a miss
+    }
+    if (roots[0] > tmin && roots[0] < tmax) return roots[0];
+    if (roots[1] > tmin && roots[1] < tmax && roots[1] > roots[0]) return roots[1];
+    return INFINITY;
+  }
+  const bool concave = se.ae <= 1.0 && se.an <= 1.0;
+  const int parts = concave ? 1 : 4;
+  double knots[5];
+  int nk = 0;
+  knots[nk++] = lo;
+  double cuts[3];
+  int nc = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (r.d[k] == 0.0) continue;
+    const double c = -r.o[k] / r.d[k];
+    if (c > lo && c < hi) cuts[nc++] = c;
+  }
+  std::sort(cuts, cuts + nc);
+  for (int k = 0; k < nc; ++k) knots[nk++] = cuts[k];
+  knots[nk++] = hi;
+  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int piece = 0; piece + 1 < nk; ++piece) {
+    const double a = knots[piece], b = knots[piece + 1];
+    // the extremum: the maximum where N is concave, else the minimum (golden section)
+    const double sign = concave ? -1.0 : 1.0;
+    double x0 = a, x3 = b, x1 = b - phi * (b - a), x2 = a + phi * (b - a);
+    double f1 = sign * f(x1), f2 = sign * f(x2);
+    for (int it = 0; it < 60 && x3 - x0 > 1e-9 * (b - a); ++it) {
+      if (f1 < f2) {
+        x3 = x2;
+        x2 = x1;
+        f2 = f1;
+        x1 = x3 - phi * (x3 - x0);
+        f1 = sign * f(x1);
+      } else {
+        x0 = x1;
+        x1 = x2;
+        f1 = f2;
+        x2 = x0 + phi * (x3 - x0);
+        f2 = sign * f(x2);
+      }
+    }
+    const double c = 0.5 * (x0 + x3);
+    const double ends[3] = {a, c, b};
+    for (int h = 0; h < 2; ++h) {
+      double u = ends[h];
+      double fu = f(u);
+      for (int j = 1; j <= parts; ++j) {
+        const double v = ends[h] + (ends[h + 1] - ends[h]) * j / parts;
+        const double fv = f(v);
+        if ((fu < 0.0) != (fv < 0.0)) {
+          double p0 = u, p1 = v, f0 = fu;
+          for (int it = 0; it < 200 && p1 - p0 > tiny; ++it) {
+            const double mid = 0.5 * (p0 + p1), fm = f(mid);
+            if ((fm < 0.0) == (f0 < 0.0)) {
+              p0 = mid;
+              f0 = fm;
+            } else {
+              p1 = mid;
+            }
+          }
+          const double t = 0.5 * (p0 + p1);
+          if (t > tmin && t < tmax) return t;
+          if (t >= tmax) return INFINITY;
+        }
+        u = v;
+        fu = fv;
+      }
+    }
+  }
+  return INFINITY;
+}
+
 // The first crossing of the item with t in (tmin, tmax), or INFINITY.
 template <typename T>
 inline double item_hit(int32_t kind, const T* params, const double* o, const double* d, double tmin,
@@ -421,6 +599,8 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     return frustum_hit(q, r, tmin, tmax);
   } else if (kind == KIND_TORUS) {
     return torus_hit(q, r, tmin, tmax);
+  } else if (kind == KIND_SUPERELLIPSOID) {
+    return superellipsoid_hit(q, r, tmin, tmax);
   } else if (kind == KIND_DISC) {
     double n[3] = {q[3], q[4], q[5]};
     double nn = std::sqrt(dot3(n, n));
@@ -491,6 +671,7 @@ inline bool item_inside(int32_t kind, const T* params, const double* pw) {
     return a * b < 0.0;
   }
   if (kind == KIND_PLANE) return dot3(q, x) < q[3] * std::sqrt(dot3(q, q));
+  if (kind == KIND_SUPERELLIPSOID) return SuperEll(q).norm(x) < 1.0;
   return false;
 }
 

@@ -179,7 +179,8 @@ class AbstractShape(Record):
     def native_items(self) -> tuple[Float[Array, "k 12"], Float[Array, "k V 3"]]:
         """The shape as ``k`` items of ``native_kernel`` (object space): their parameters (k, 12)
         (sphere: centre, radius; box: two corners; triangle: three vertices; frustum: base, base
-        radius, cap, cap radius, open; disc: centre, normal, radius, hole radius; zero padded) and
+        radius, cap, cap radius, open; disc: centre, normal, radius, hole radius; superellipsoid: e,
+        n; zero padded) and
         points whose hull holds each item (k, V, 3) (its bounding box comes from them)."""
         raise NotImplementedError(f"{self.kind} has no native kernel")
 
@@ -194,6 +195,14 @@ class AbstractShape(Record):
         query evaluates it once for groups of them all (``shading/_accel._alike``). Works on a
         shape or a stack of them. Default ``(None, self)``: the shape's own ``sub_hits``."""
         return None, self
+
+    def near_hit(self, o: Float[Array, "3"], d: Float[Array, "3"], t0) -> tuple[Float[Array, " 1"], Float[Array, "1 3"]] | None:  # noqa: E501
+        """The crossing at ``t0`` (finite: the native hierarchy's own solver found it, in double
+        precision, without gradient), differentiable as ``hits`` is; or None (the default), when
+        the hierarchy's choice is computed again by ``sub_hits``. For shapes whose every crossing
+        costs a search (a superellipsoid's brackets: ~400 evaluations of its norm) and whose one
+        crossing, given, costs two Newton steps."""
+        return None
 
     def sub_hits(self, o: Float[Array, "3"], d: Float[Array, "3"], sub) -> tuple[Float[Array, " J"], Float[Array, "J 3"]]:  # noqa: E501
         """The crossings of native item ``sub`` (an index into ``native_items``): by default every
@@ -235,6 +244,7 @@ def read_arguments(cls: type[AbstractShape], args: ShapeArgs) -> dict:
 # the kernels of raytracer/_native/bvh.cc
 NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC, NATIVE_TORUS = 0, 1, 2, 3, 4, 5
 NATIVE_PLANE = 6  # unbounded: only a member of a CSG object the hierarchy holds (``_accel``)
+NATIVE_SUPERELLIPSOID = 8  # (7 is a CSG object: ``_accel.KIND_CSG``)
 
 
 def box_corners(lo, hi):
