@@ -54,6 +54,7 @@ constexpr int KIND_TORUS = 5;    // major and minor radius (the x-z plane, the y
 constexpr int KIND_PLANE = 6;    // unit normal, distance: a member of a CSG unit only (it is unbounded)
 constexpr int KIND_CSG = 7;      // a CSG unit: params[0] is its program's offset (see CSG units)
 constexpr int KIND_SUPERELLIPSOID = 8;  // e, n (the unit box; shapes/_superellipsoid.py)
+constexpr int KIND_QUADRIC = 9;  // A … J of Q(x) = 0 (shapes/_quadric.py): a member of a CSG unit only
 constexpr int MAX_CROSSINGS = 8; // crossings of one member a CSG unit looks at (a frustum has 4)
 constexpr int BINS = 16;
 constexpr int MAX_LEAF = 4;
@@ -540,6 +541,37 @@ inline double superellipsoid_hit(const double* q, const RayD& r, double tmin, do
   return INFINITY;
 }
 
+// Q(x) = xᵀ M x + g·x + J of a quadric's coefficients A … J (M symmetric: the cross terms halved)
+inline double quadric_value(const double* q, const double* x) {
+  return q[0] * x[0] * x[0] + q[1] * x[1] * x[1] + q[2] * x[2] * x[2] + q[3] * x[0] * x[1] + q[4] * x[0] * x[2] +
+         q[5] * x[1] * x[2] + q[6] * x[0] + q[7] * x[1] + q[8] * x[2] + q[9];
+}
+
+// The first crossing of a quadric with t in (tmin, tmax): the quadratic's roots without
+// cancellation, as its JAX kernel (kernels/_numerics.solve_quadratic) finds them, the far root
+// dropped where that kernel drops it in its own precision (|a| <= eps |q|: a ray along a
+// cylinder's axis), so both see the same crossings.
+inline double quadric_hit(const double* q, const RayD& r, double tmin, double tmax, double eps) {
+  const double* o = r.o;
+  const double* d = r.d;
+  const double md[3] = {q[0] * d[0] + 0.5 * q[3] * d[1] + 0.5 * q[4] * d[2],
+                        0.5 * q[3] * d[0] + q[1] * d[1] + 0.5 * q[5] * d[2],
+                        0.5 * q[4] * d[0] + 0.5 * q[5] * d[1] + q[2] * d[2]};
+  const double a = dot3(d, md);
+  const double b = 2.0 * dot3(o, md) + q[6] * d[0] + q[7] * d[1] + q[8] * d[2];
+  const double c = quadric_value(q, o);
+  const double disc = b * b - 4.0 * a * c;
+  if (!(disc >= 0.0)) return INFINITY;
+  const double sq = std::sqrt(disc);
+  const double qq = -0.5 * (b + (b < 0.0 ? -sq : sq));
+  const double far = std::fabs(a) > eps * std::fabs(qq) ? qq / a : INFINITY;
+  const double near = qq != 0.0 ? c / qq : far;
+  const double t0 = std::min(near, far), t1 = std::max(near, far);
+  if (t0 > tmin && t0 < tmax) return t0;
+  if (t1 > tmin && t1 < tmax) return t1;
+  return INFINITY;
+}
+
 // The first crossing of the item with t in (tmin, tmax), or INFINITY.
 template <typename T>
 inline double item_hit(int32_t kind, const T* params, const double* o, const double* d, double tmin,
@@ -601,6 +633,8 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     return torus_hit(q, r, tmin, tmax);
   } else if (kind == KIND_SUPERELLIPSOID) {
     return superellipsoid_hit(q, r, tmin, tmax);
+  } else if (kind == KIND_QUADRIC) {
+    return quadric_hit(q, r, tmin, tmax, static_cast<double>(std::numeric_limits<T>::epsilon()));
   } else if (kind == KIND_DISC) {
     double n[3] = {q[3], q[4], q[5]};
     double nn = std::sqrt(dot3(n, n));
@@ -672,6 +706,7 @@ inline bool item_inside(int32_t kind, const T* params, const double* pw) {
   }
   if (kind == KIND_PLANE) return dot3(q, x) < q[3] * std::sqrt(dot3(q, q));
   if (kind == KIND_SUPERELLIPSOID) return SuperEll(q).norm(x) < 1.0;
+  if (kind == KIND_QUADRIC) return quadric_value(q, x) < 0.0;
   return false;
 }
 

@@ -24,7 +24,7 @@ from .._packing import EYE4, bucket, inverse_affines, pad_rows, register_packed,
 from .._plan import InAll, InAny, InDiff, InPrim, InsideTree, Plan
 from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes import AbstractShape, world_bounds
-from ..shapes._base import NATIVE_PLANE
+from ..shapes._base import UNBOUNDED_KERNELS
 from . import _accel
 from ._accel import Accel
 
@@ -139,7 +139,7 @@ def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
     (``filter_query``: the native one); its interior's fade on shadow rays is computed over the
     query's crossings and the candidates' together (``_model._shadow_fade``)."""
     kernel = type(prim.obj.shape).native_kernel
-    if kernel is None or kernel == NATIVE_PLANE or (kernels is not None and kernel not in kernels):
+    if kernel is None or kernel in UNBOUNDED_KERNELS or (kernels is not None and kernel not in kernels):
         return False
     if not prim.rendered or prim.conditions:
         return False
@@ -229,7 +229,7 @@ def _bounded(tree: InsideTree, plan: Plan) -> bool:
     as one part that is not inverted has one, a union's or merge's when all parts' are, a
     difference's when its first part's is."""
     if isinstance(tree, InPrim):
-        return type(plan.prims[tree.prim].obj.shape).native_kernel != NATIVE_PLANE
+        return type(plan.prims[tree.prim].obj.shape).native_kernel not in UNBOUNDED_KERNELS
     if isinstance(tree, InAll):
         return any(_bounded(t, plan) and not t.inverse for t in tree.terms)
     if isinstance(tree, InAny):

@@ -245,6 +245,8 @@ def read_arguments(cls: type[AbstractShape], args: ShapeArgs) -> dict:
 NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC, NATIVE_TORUS = 0, 1, 2, 3, 4, 5
 NATIVE_PLANE = 6  # unbounded: only a member of a CSG object the hierarchy holds (``_accel``)
 NATIVE_SUPERELLIPSOID = 8  # (7 is a CSG object: ``_accel.KIND_CSG``)
+NATIVE_QUADRIC = 9  # unbounded, as a plane: only a member of a CSG object the hierarchy holds
+UNBOUNDED_KERNELS = frozenset({NATIVE_PLANE, NATIVE_QUADRIC})
 
 
 def box_corners(lo, hi):

@@ -9,9 +9,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .._dtype import as_float
 from ..kernels._common import masked_hits, points_at
 from ..kernels._numerics import as_float_arrays, safe_normalize, solve_quadratic
-from ._base import (
-    AbstractShape,
-)
+from ._base import NATIVE_QUADRIC, AbstractShape, native_params
 
 QUADRIC_K = 2
 
@@ -83,6 +81,14 @@ class Quadric(AbstractShape):
 
     def inside(self, p):
         return quadric_inside(self.coeffs, p)
+
+    # unbounded, as a plane: never an item of its own, only a member of a bounded CSG object (an
+    # intersection with a box, shapes.inc's Cylinder_X clipped by one); its crossings' choice is
+    # then the hierarchy's (``_accel``)
+    native_kernel: ClassVar[int] = NATIVE_QUADRIC
+
+    def native_items(self):
+        return native_params(self.coeffs), jnp.zeros((1, 1, 3), jnp.result_type(self.coeffs))
 
     @classmethod
     def parse_sdl(cls, keyword, args):
