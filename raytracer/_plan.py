@@ -239,6 +239,15 @@ def _made(cls, **fields):
 class _Flattener:
     def __init__(self):
         self.prims: list[Prim] = []
+        # the inside trees of the ``bounded_by`` objects of an object, by the id of its inside tree:
+        # primitives that are not rendered and that no condition names, only their box is used
+        # (``bounding_units``)
+        self.bounds: dict[int, tuple[InsideTree, ...]] = {}
+
+    def _with_bounds(self, tree: InsideTree, obj, chain, interior) -> InsideTree:
+        if obj.bounded_by:
+            self.bounds[id(tree)] = self._clip_trees(obj.bounded_by, chain, interior)
+        return tree
 
     def flatten(self, obj: AbstractObject, *, transforms, texture, interior, rendered, inverse,
                 conditions, flags) -> InsideTree:
@@ -257,7 +266,8 @@ class _Flattener:
                 interior=obj.interior if obj.interior is not None else interior,
                 rendered=rendered, inverse=obj_inverse, conditions=conditions + clip_conds,
                 flags=frozenset(flags)))
-            return _clipped(_made(InPrim, prim=index, inverse=obj_inverse), clip_trees)
+            return self._with_bounds(_clipped(_made(InPrim, prim=index, inverse=obj_inverse), clip_trees),
+                                     obj, chain, interior)
         if isinstance(obj, CSG):
             chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
             tex = obj.texture if obj.texture is not None else texture
@@ -287,7 +297,8 @@ class _Flattener:
                         p, conditions=p.conditions + conds, inverse=p.inverse != flip)
             node = {"union": InAny, "merge": InAny, "intersection": InAll,
                     "difference": InDiff}[obj.operation]
-            return _clipped(node(tuple(trees), inverse=obj_inverse), clip_trees)
+            return self._with_bounds(_clipped(node(tuple(trees), inverse=obj_inverse), clip_trees),
+                                     obj, chain, inter)
         raise SceneError(f"not a scene object: {type(obj).__name__}")
 
     @staticmethod
@@ -317,25 +328,33 @@ def _clipped(tree: InsideTree, clip_trees: tuple[InsideTree, ...]) -> InsideTree
     return InAll((tree, *clip_trees)) if clip_trees else tree
 
 
-def bounding_units(objects, roots, n_prims: int) -> tuple[tuple[InsideTree, ...], tuple[int, ...]]:
+def bounding_units(objects, roots, n_prims: int,
+                   bounds: dict | None = None) -> tuple[tuple[InsideTree, ...], tuple[int, ...]]:
     """The objects POV-Ray puts in its bounding hierarchy, each as its inside tree (from which
     its box follows: ``shading._geometry.unit_boxes``), and the unit of every primitive.
 
-    A top-level object is one unit, except that a ``union`` without ``inverse`` or
-    ``clipped_by`` is split into its children, recursively (POV-Ray's ``split_union``, on by
+    A top-level object is one unit, except that a ``union`` without ``inverse``, ``clipped_by``
+    or ``bounded_by`` is split into its children, recursively (POV-Ray's ``split_union``, on by
     default; measured with povray 3.7, semantics §4.4). ``merge``, ``intersection`` and
-    ``difference`` are never split. Clipping objects belong to the unit they clip."""
+    ``difference`` are never split. Clipping objects belong to the unit they clip. A unit with
+    ``bounded_by`` objects (``bounds``: their trees by the id of the unit's tree) is their overlap
+    with its own tree, for its box only: its objects' conditions do not name them (the bounds of
+    an object inside a unit only belong to it)."""
     units: list[InsideTree] = []
+    bounds = bounds or {}
 
     def split(obj, tree):
-        if isinstance(obj, CSG) and obj.operation == "union" and not obj.inverse and not obj.clipped_by:
+        if (isinstance(obj, CSG) and obj.operation == "union" and not obj.inverse and not obj.clipped_by
+                and not obj.bounded_by):
             for child, term in zip(obj.children, tree.terms, strict=True):
                 split(child, term)
+        elif id(tree) in bounds:
+            units.append(InAll((tree, *bounds[id(tree)])))
         else:
             units.append(tree)
 
     for obj, tree in zip(objects, roots, strict=True):
-        if type(tree) is InPrim:  # a primitive on its own (most objects of a large scene)
+        if type(tree) is InPrim and id(tree) not in bounds:  # a primitive on its own (most objects)
             units.append(tree)
         else:
             split(obj, tree)
@@ -347,6 +366,8 @@ def bounding_units(objects, roots, n_prims: int) -> tuple[tuple[InsideTree, ...]
         else:
             for term in tree.terms:
                 mark(term, u)
+        for bound in bounds.get(id(tree), ()):
+            mark(bound, u)
 
     for u, tree in enumerate(units):
         if type(tree) is InPrim:
@@ -424,6 +445,6 @@ def make_plan(scene: Scene) -> Plan:
         depth=depth,
         media_slots=_media_slots(prims, rendered) if refraction else 0,
     )
-    units, prim_unit = bounding_units(scene.objects, roots, len(prims))
+    units, prim_unit = bounding_units(scene.objects, roots, len(prims), fl.bounds)
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),
                 roots=roots, units=units, prim_unit=prim_unit)

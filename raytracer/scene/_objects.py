@@ -25,6 +25,8 @@ class Object(AbstractObject):
         texture:    its texture; None means "not given" (a CSG parent's texture, else POV's default).
         interior:   index of refraction and fading; None = default interior (ior 1).
         clipped_by: objects the surface is clipped to (only hits inside all of them are kept).
+        bounded_by: objects that hold it (POV-Ray's ``bounded_by``): their box bounds the object
+                    in the hierarchy where it has no finite box of its own (semantics §4.4).
         inverse:    static: inside and outside swapped.
         no_shadow, no_image, no_reflection, double_illuminate: static POV object flags.
     """
@@ -34,6 +36,7 @@ class Object(AbstractObject):
     texture: Texture | None = None
     interior: Interior | None = None
     clipped_by: tuple[AbstractObject, ...] = ()
+    bounded_by: tuple[AbstractObject, ...] = ()
     inverse: bool = eqx.field(static=True, default=False)
     no_shadow: bool = eqx.field(static=True, default=False)
     no_image: bool = eqx.field(static=True, default=False)
@@ -45,7 +48,8 @@ class CSG(AbstractObject):
     """``union``, ``intersection``, ``difference`` or ``merge`` of child objects.
 
     ``transform``, ``texture`` and ``interior`` apply to every child (a child's own texture wins;
-    the transform is applied after the child's own). Flags given here apply to every child.
+    the transform is applied after the child's own). Flags given here apply to every child;
+    ``clipped_by`` and ``bounded_by`` as for ``Object``.
     """
 
     operation: str = eqx.field(static=True)
@@ -54,6 +58,7 @@ class CSG(AbstractObject):
     texture: Texture | None = None
     interior: Interior | None = None
     clipped_by: tuple[AbstractObject, ...] = ()
+    bounded_by: tuple[AbstractObject, ...] = ()
     inverse: bool = eqx.field(static=True, default=False)
     no_shadow: bool = eqx.field(static=True, default=False)
     no_image: bool = eqx.field(static=True, default=False)

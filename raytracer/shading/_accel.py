@@ -10,8 +10,9 @@ by native code
 * ``closest``: the item a ray hits first, then its distance and normal computed again by the
   primitive's own JAX kernel (``sub_hits``; a superellipsoid refines the query's crossing with two
   Newton steps, ``near_hit``, where its own search costs ~400 evaluations of its norm): the
-  choice is piecewise constant (made on ``stop_gradient`` values), the hit is differentiable exactly as before — Mitsuba's split of a
-  preliminary intersection from a differentiable surface interaction;
+  choice is piecewise constant (made on ``stop_gradient`` values), the hit is differentiable
+  exactly as before — Mitsuba's split of a preliminary intersection from a differentiable surface
+  interaction;
 * ``blocked``: whether any opaque item (``MASK_SHADOW``) lies on a shadow segment (an any-hit
   query that stops at the first);
 * ``filtering``: the transparent shadow-casting items (``MASK_FILTER``) a shadow segment crosses,

@@ -82,3 +82,40 @@ intersection { plane { y, 0 } plane { x, 0 inverse } pigment { G } }
     # the hierarchy holds the five bounded ones (the inverted intersection too: its surface is the
     # intersection's, inside its box), not the unbounded one
     assert csg_units(plan, prim_bits(plan)) == (0, 1, 2, 3, 4)
+
+
+def test_bounded_by_bounds_an_object_without_a_box_of_its_own(monkeypatch):
+    """An intersection of planes (shapes2.inc's tetrahedron) has no box; its ``bounded_by``
+    sphere's box becomes its box, so the native hierarchy holds it (tested for the rays that enter
+    the box, as POV-Ray tests it for those that meet the sphere) with the image of the unbounded
+    one, tested by every ray. An object with a box of its own keeps it: the hint is ignored."""
+    import jax.numpy as jnp
+
+    import raytracer as rt
+    from raytracer._plan import make_plan
+    from raytracer.shading import _accel
+    from raytracer.shading._geometry import csg_units, pack_geometry, prim_bits, unit_boxes
+
+    tetra = """intersection { plane { -y, 1 } plane { -z, 1 rotate <19.47, 0, 0> }
+        plane { -z, 1 rotate <19.47, -120, 0> } plane { -z, 1 rotate <19.47, 120, 0> } %s
+        pigment { G } rotate <20, 30, 0> translate <-1, 0, 1> }"""
+    text = _HEAD + tetra + "\nsphere { <2, 0, 0>, 0.5 %s pigment { R } }\n"
+    bounded = rt.load_scene(text % ("bounded_by { sphere { 0, 3 } }", "bounded_by { box { -9, 9 } }"))
+    plain = rt.load_scene(text % ("", ""))
+    assert len(bounded.objects[0].bounded_by) == 1 and bounded.objects[1].bounded_by == ()
+    plan = make_plan(bounded)
+    geo = pack_geometry(plan, jnp.float64, accelerate=False)
+    lo, hi = unit_boxes(plan, geo, [np.linalg.inv(np.asarray(m)) for m in geo.object_from_world])
+    # the sphere's box, turned and moved with the tetrahedron: its corners' hull
+    corners = np.array([[(-3, 3)[(k >> a) & 1] for a in range(3)] for k in range(8)], float)
+    m = np.asarray(rt.load_scene(_HEAD + "box { -3, 3 rotate <20, 30, 0> translate <-1, 0, 1> }")
+                   .objects[0].transform.matrix)
+    world = corners @ m[:3, :3].T + m[:3, 3]
+    np.testing.assert_allclose(lo[0], world.min(0), atol=1e-9)
+    np.testing.assert_allclose(hi[0], world.max(0), atol=1e-9)
+    np.testing.assert_allclose(lo[1], [1.5, -0.5, -0.5], atol=1e-9)  # the sphere's own box
+    assert csg_units(plan, prim_bits(plan)) == (0,) and csg_units(make_plan(plain), prim_bits(plan)) == ()
+    monkeypatch.setattr(_accel, "MIN_ITEMS", 1)
+    images = [np.asarray(rt.render(s, width=48, height=36)) for s in (bounded, plain)]
+    assert (images[0] != images[0][0, 0]).any(axis=-1).mean() > 0.05  # the tetrahedron and the sphere
+    np.testing.assert_allclose(images[0], images[1], atol=1e-5)
