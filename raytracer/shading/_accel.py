@@ -218,6 +218,21 @@ def _group_items(shape, ofw, wfo):
 
 
 ITEMS_CHUNK = 256  # one-item shapes' items are computed in chunks of this many shapes (``_items``)
+# concrete groups of one-item shapes up to this size: numpy, shape by shape (a compiled program per
+# shape variant cost ~60 ms each of a cold start: advanced/lamppost's eight, 0.5 s of its packing)
+NUMPY_ITEMS_MAX = 256
+
+
+def _host_items(shape, ofw, wfo):
+    """``_group_items`` of a concrete group of one-item shapes on the host, shape by shape."""
+    n = ofw.shape[0]
+    items = [type(shape).native_items(jax.tree_util.tree_map(lambda a, j=j: a[j], shape)) for j in range(n)]
+    p = np.concatenate([np.asarray(q) for q, _ in items])  # (n, 12)
+    hull = np.concatenate([np.asarray(h) for _, h in items])  # (n, V, 3)
+    world = np.einsum("nij,nvj->nvi", wfo[:, :3, :3], hull.astype(wfo.dtype)) + wfo[:, None, :3, 3]
+    boxes = np.concatenate([world.min(axis=1), world.max(axis=1)], axis=-1)
+    params = np.concatenate([ofw[:, :3, :].reshape(n, 12), p.astype(ofw.dtype)], axis=-1)
+    return boxes, params
 
 
 def _items(shape, ofw, wfo):
@@ -232,6 +247,8 @@ def _items(shape, ofw, wfo):
         return _group_items(jax.tree_util.tree_map(sg, shape), sg(ofw), sg(wfo))
     host = jax.tree_util.tree_map(np.asarray, (shape, ofw, wfo))
     n = host[1].shape[0]
+    if n <= NUMPY_ITEMS_MAX:
+        return _host_items(*host)
     total = -(-n // ITEMS_CHUNK) * ITEMS_CHUNK
     host = jax.tree_util.tree_map(lambda x: pad_rows(x, total), host)
     parts = [_group_items(*jax.tree_util.tree_map(lambda x, s=start: x[s:s + ITEMS_CHUNK], host))

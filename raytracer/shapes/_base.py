@@ -256,9 +256,11 @@ def box_corners(lo, hi):
 
 
 def native_params(*parts):
-    """(1, 12): the parts (scalars and vectors) flattened and zero padded to 12 numbers."""
-    flat = jnp.concatenate([jnp.reshape(jnp.asarray(x), (-1,)) for x in parts])
-    return jnp.pad(flat, (0, 12 - flat.shape[0]))[None]
+    """(1, 12): the parts (scalars and vectors) flattened and zero padded to 12 numbers (numpy when
+    no part is a JAX array: ``_accel._items`` computes a small concrete group's items on the host)."""
+    xp = array_module(*parts)
+    flat = xp.concatenate([xp.reshape(xp.asarray(x), (-1,)) for x in parts])
+    return xp.pad(flat, (0, 12 - flat.shape[0]))[None]
 
 
 def disc_bounds(center, normal, radius):

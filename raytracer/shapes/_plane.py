@@ -15,6 +15,7 @@ from ._base import (
     AbstractShape,
     MitsubaShape,
     apply_point,
+    array_module,
     native_params,
     unit,
 )
@@ -74,7 +75,8 @@ class Plane(AbstractShape):
     native_kernel: ClassVar[int] = NATIVE_PLANE
 
     def native_items(self):
-        return native_params(self.normal, self.distance), jnp.zeros((1, 1, 3), jnp.result_type(self.normal))
+        xp = array_module(self.normal)
+        return native_params(self.normal, self.distance), xp.zeros((1, 1, 3), self.normal.dtype)
 
     @classmethod
     def parse_sdl(cls, keyword, args):

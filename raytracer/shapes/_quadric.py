@@ -9,7 +9,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .._dtype import as_float
 from ..kernels._common import masked_hits, points_at
 from ..kernels._numerics import as_float_arrays, safe_normalize, solve_quadratic
-from ._base import NATIVE_QUADRIC, AbstractShape, native_params
+from ._base import NATIVE_QUADRIC, AbstractShape, array_module, native_params
 
 QUADRIC_K = 2
 
@@ -88,7 +88,7 @@ class Quadric(AbstractShape):
     native_kernel: ClassVar[int] = NATIVE_QUADRIC
 
     def native_items(self):
-        return native_params(self.coeffs), jnp.zeros((1, 1, 3), jnp.result_type(self.coeffs))
+        return native_params(self.coeffs), array_module(self.coeffs).zeros((1, 1, 3), self.coeffs.dtype)
 
     @classmethod
     def parse_sdl(cls, keyword, args):

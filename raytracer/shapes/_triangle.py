@@ -126,7 +126,8 @@ class Triangle(AbstractShape):
     native_kernel: ClassVar[int] = NATIVE_TRIANGLE  # the smooth normal does not move the hit
 
     def native_items(self):
-        return native_params(self.p1, self.p2, self.p3), jnp.stack([self.p1, self.p2, self.p3])[None]
+        xp = array_module(self.p1, self.p2, self.p3)
+        return native_params(self.p1, self.p2, self.p3), xp.stack([self.p1, self.p2, self.p3])[None]
 
 
     def to_mitsuba(self, m, camera_origin):
@@ -169,7 +170,8 @@ class SmoothTriangle(AbstractShape):
     native_kernel: ClassVar[int] = NATIVE_TRIANGLE  # the smooth normal does not move the hit
 
     def native_items(self):
-        return native_params(self.p1, self.p2, self.p3), jnp.stack([self.p1, self.p2, self.p3])[None]
+        xp = array_module(self.p1, self.p2, self.p3)
+        return native_params(self.p1, self.p2, self.p3), xp.stack([self.p1, self.p2, self.p3])[None]
 
     @classmethod
     def parse_sdl(cls, keyword, args):

@@ -12,6 +12,7 @@ from raytracer import load_scene, render
 from raytracer._plan import make_plan
 from raytracer.shading import _accel
 from raytracer.shading._geometry import pack_geometry
+from raytracer.shapes._base import AbstractShape
 from raytracer.shapes._cone import frustum_form_hits
 
 # the hierarchy under test: the native one, or its JAX twin when the run has RAYTRACER_ACCEL=jax
@@ -572,6 +573,7 @@ def test_groups_of_any_size_compute_their_items_with_one_program(monkeypatch):
     group, bit for bit, for a group shorter than a chunk and one of several chunks."""
     monkeypatch.setenv("RAYTRACER_ACCEL", "native")
     monkeypatch.setattr(_accel, "ITEMS_CHUNK", 16)
+    monkeypatch.setattr(_accel, "NUMPY_ITEMS_MAX", 0)  # the compiled chunks, not the host
     before = _accel._group_items._cache_size()
     groups = []
     for n in (9, 16, 41):
@@ -588,3 +590,21 @@ def test_groups_of_any_size_compute_their_items_with_one_program(monkeypatch):
         whole = _accel._group_items(jax.tree_util.tree_map(jax.lax.stop_gradient, shape), ofw, wfo)
         for a, b in zip(whole, _accel._items(shape, ofw, wfo), strict=True):
             np.testing.assert_array_equal(np.asarray(a), b)
+
+
+def test_small_groups_compute_their_items_on_the_host(scene, monkeypatch):
+    """A concrete group of at most ``NUMPY_ITEMS_MAX`` one-item shapes computes its items with
+    numpy, shape by shape (no compiled program: ~60 ms a shape variant on a cold start): the
+    compiled program's items, for every kind the hierarchy holds (boxes, spheres, cylinders and
+    cones, discs, tori, superellipsoids, triangles, the differences' members)."""
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    geo = pack_geometry(make_plan(scene), jnp.float32)
+    kinds = set()
+    for group, shape, ofw in zip(geo.groups, geo.shapes, geo.object_from_world, strict=True):
+        if not group.accelerated or type(shape).n_native_items is not AbstractShape.n_native_items:
+            continue
+        kinds.add(group.kind)
+        host = jax.tree_util.tree_map(np.asarray, (shape, ofw, np.linalg.inv(np.asarray(ofw))))
+        for a, b in zip(_accel._group_items(*host), _accel._host_items(*host), strict=True):
+            np.testing.assert_allclose(np.asarray(a), b, rtol=1e-6, atol=1e-6)
+    assert {"box", "sphere", "cylinder", "cone", "disc", "torus", "superellipsoid", "triangle"} <= kinds
