@@ -39,9 +39,10 @@ def test_info_says_which_csg_objects_the_hierarchy_holds(tmp_path, capsys, monke
                      "intersection { sphere { 0, 1 } quadric { <1, 1, 0>, 0, 0, -0.5 } }\n")
     assert main(["info", str(scene)]) == 0
     out = capsys.readouterr().out
-    # 9 differences of 2 primitives (one item each); the plane and the quadric's intersection stay
-    assert "BVH over 18 of 21 primitives (9 items, 9 of them CSG objects of 18 primitives)" in out
-    assert "every ray tests the other 3" in out
+    # 9 differences of 2 primitives and the quadric's intersection (bounded by its sphere): one
+    # item each; the plane stays
+    assert "BVH over 20 of 21 primitives (10 items, 10 of them CSG objects of 20 primitives)" in out
+    assert "every ray tests the other 1" in out
 
 
 def test_scene_error_exits_2_with_location_and_no_traceback(tmp_path, capsys):
