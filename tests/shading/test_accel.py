@@ -642,19 +642,23 @@ def test_groups_of_any_size_compute_their_items_with_one_program(monkeypatch):
             np.testing.assert_array_equal(np.asarray(a), b)
 
 
-def test_small_groups_compute_their_items_on_the_host(scene, monkeypatch):
+def test_small_groups_compute_their_items_on_the_host(scene, tmp_path, monkeypatch):
     """A concrete group of at most ``NUMPY_ITEMS_MAX`` one-item shapes computes its items with
     numpy, shape by shape (no compiled program: ~60 ms a shape variant on a cold start): the
     compiled program's items, for every kind the hierarchy holds (boxes, spheres, cylinders and
     cones, discs, tori, superellipsoids, triangles, the differences' members)."""
     monkeypatch.setenv("RAYTRACER_ACCEL", "native")
-    geo = pack_geometry(make_plan(scene), jnp.float32)
+    monkeypatch.setattr(_accel, "MIN_ITEMS", 1)
+    path = tmp_path / "se.pov"
+    path.write_text(SUPERELLIPSOIDS)
     kinds = set()
-    for group, shape, ofw in zip(geo.groups, geo.shapes, geo.object_from_world, strict=True):
-        if not group.accelerated or type(shape).n_native_items is not AbstractShape.n_native_items:
-            continue
-        kinds.add(group.kind)
-        host = jax.tree_util.tree_map(np.asarray, (shape, ofw, np.linalg.inv(np.asarray(ofw))))
-        for a, b in zip(_accel._group_items(*host), _accel._host_items(*host), strict=True):
-            np.testing.assert_allclose(np.asarray(a), b, rtol=1e-6, atol=1e-6)
+    for s in (scene, load_scene(path)):
+        geo = pack_geometry(make_plan(s), jnp.float32)
+        for group, shape, ofw in zip(geo.groups, geo.shapes, geo.object_from_world, strict=True):
+            if not group.accelerated or type(shape).n_native_items is not AbstractShape.n_native_items:
+                continue
+            kinds.add(group.kind)
+            host = jax.tree_util.tree_map(np.asarray, (shape, ofw, np.linalg.inv(np.asarray(ofw))))
+            for a, b in zip(_accel._group_items(*host), _accel._host_items(*host), strict=True):
+                np.testing.assert_allclose(np.asarray(a), b, rtol=1e-6, atol=1e-6)
     assert {"box", "sphere", "cylinder", "cone", "disc", "torus", "superellipsoid", "triangle"} <= kinds
