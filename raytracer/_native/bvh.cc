@@ -314,6 +314,22 @@ inline int cubic_roots(double p, double q, double* out) {
   return 3;
 }
 
+// The sign change of f in [a, b] (f(a) = fa, f(b) of the other sign) by bisection, to a bracket
+// of width tol or `iterations` halvings: its midpoint.
+template <typename F>
+inline double bisect_sign(const F& f, double a, double b, double fa, double tol, int iterations) {
+  for (int it = 0; it < iterations && b - a > tol; ++it) {
+    const double mid = 0.5 * (a + b), fm = f(mid);
+    if ((fm < 0.0) == (fa < 0.0)) {
+      a = mid;
+      fa = fm;
+    } else {
+      b = mid;
+    }
+  }
+  return 0.5 * (a + b);
+}
+
 // The first crossing of a torus (major radius R, minor r, about the y axis) with t in (tmin, tmax).
 // Along the unit direction from the point of the line nearest the centre, the quartic in s is
 // s⁴ + a2 s² + a1 s + a0 (no cubic term) and every root has |s| ≤ R + r; its derivative's roots
@@ -349,15 +365,7 @@ inline double torus_hit(const double* q, const RayD& r, double tmin, double tmax
     } else if (fa * fb > 0.0) {
       continue;
     } else {
-      for (int it = 0; it < 100 && b - a > 1e-15 * bound; ++it) {
-        const double mid = 0.5 * (a + b), fm = f(mid);
-        if ((fm < 0.0) == (fa < 0.0)) {
-          a = mid;
-          fa = fm;
-        } else {
-          b = mid;
-        }
-      }
+      a = b = bisect_sign(f, a, b, fa, 1e-15 * bound, 100);
     }
     const double t = (s0 + 0.5 * (a + b)) / len;
     if (t > tmin && t < tmax) return t;
@@ -519,17 +527,7 @@ inline double superellipsoid_hit(const double* q, const RayD& r, double tmin, do
         const double v = ends[h] + (ends[h + 1] - ends[h]) * j / parts;
         const double fv = f(v);
         if ((fu < 0.0) != (fv < 0.0)) {
-          double p0 = u, p1 = v, f0 = fu;
-          for (int it = 0; it < 200 && p1 - p0 > tiny; ++it) {
-            const double mid = 0.5 * (p0 + p1), fm = f(mid);
-            if ((fm < 0.0) == (f0 < 0.0)) {
-              p0 = mid;
-              f0 = fm;
-            } else {
-              p1 = mid;
-            }
-          }
-          const double t = 0.5 * (p0 + p1);
+          const double t = bisect_sign(f, u, v, fu, tiny, 200);
           if (t > tmin && t < tmax) return t;
           if (t >= tmax) return INFINITY;
         }

@@ -356,18 +356,27 @@ def test_closest_query_finds_the_first_torus_crossing(x64):
     o = rng.uniform(-4, 4, (rays, 3))
     aim = np.linalg.inv(maps)[rng.integers(0, n, rays), :3, 3] + rng.normal(scale=0.3, size=(rays, 3))
     d = aim - o
+    _assert_closest_is_the_first_crossing(tables, o, d, lambda a, b: Torus(major=a, minor=b), major, minor,
+                                          maps)
+
+
+def _assert_closest_is_the_first_crossing(tables, o, d, shape_of, a, b, maps):
+    """The native closest-hit query's item and distance are those of the first positive crossing
+    of the shapes ``shape_of(a[i], b[i])`` placed by ``maps`` (object from world), by their own
+    JAX kernel, for the rays ``o + t d`` (float64); a third of the rays at least hit one."""
+    rays = len(o)
     item, t = _accel._closest_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(rays),
                                     jnp.full(rays, 1e7), jnp.ones(rays, jnp.int32))
 
-    def crossings(big, small, m, o, d):
-        return Torus(major=big, minor=small).hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d)[0]
+    def crossings(a, b, m, o, d):
+        return shape_of(a, b).hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d)[0]
 
     every = jax.vmap(jax.vmap(crossings, in_axes=(0, 0, 0, None, None)), in_axes=(None, None, None, 0, 0))
-    tt = np.asarray(jax.jit(every)(jnp.asarray(major), jnp.asarray(minor), jnp.asarray(maps),
-                                   jnp.asarray(o), jnp.asarray(d)))
+    tt = np.asarray(jax.jit(every)(jnp.asarray(a), jnp.asarray(b), jnp.asarray(maps), jnp.asarray(o),
+                                   jnp.asarray(d)))
     first = np.where(tt > 0, tt, np.inf).min(axis=2)
     want = np.where(np.isfinite(first.min(axis=1)), first.argmin(axis=1), -1)
-    assert (want >= 0).sum() > rays // 3  # the rays do hit tori
+    assert (want >= 0).sum() > rays // 3  # the rays do hit them
     np.testing.assert_array_equal(np.asarray(item), want)
     hit = want >= 0
     np.testing.assert_allclose(np.asarray(t)[hit], first.min(axis=1)[hit], rtol=1e-9)
@@ -405,21 +414,7 @@ def test_closest_query_finds_the_first_superellipsoid_crossing(x64, exponents):
     centres = np.linalg.inv(maps)[:, :3, 3]
     o[:40] = centres[rng.integers(0, n, 40)]  # inside one
     d = centres[rng.integers(0, n, rays)] + rng.normal(scale=0.3, size=(rays, 3)) - o
-    item, t = _accel._closest_query(tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(rays),
-                                    jnp.full(rays, 1e7), jnp.ones(rays, jnp.int32))
-
-    def crossings(e, nn, m, o, d):
-        return Superellipsoid(e=e, n=nn).hits(m[:3, :3] @ o + m[:3, 3], m[:3, :3] @ d)[0]
-
-    every = jax.vmap(jax.vmap(crossings, in_axes=(0, 0, 0, None, None)), in_axes=(None, None, None, 0, 0))
-    tt = np.asarray(jax.jit(every)(jnp.asarray(e), jnp.asarray(nn), jnp.asarray(maps), jnp.asarray(o),
-                                   jnp.asarray(d)))
-    first = np.where(tt > 0, tt, np.inf).min(axis=2)
-    want = np.where(np.isfinite(first.min(axis=1)), first.argmin(axis=1), -1)
-    assert (want >= 0).sum() > rays // 3  # the rays do hit them
-    np.testing.assert_array_equal(np.asarray(item), want)
-    hit = want >= 0
-    np.testing.assert_allclose(np.asarray(t)[hit], first.min(axis=1)[hit], rtol=1e-9)
+    _assert_closest_is_the_first_crossing(tables, o, d, lambda a, b: Superellipsoid(e=a, n=b), e, nn, maps)
 
 
 NO_TWIN_CSG = "the native hierarchy evaluates CSG objects; its JAX twin does not"
