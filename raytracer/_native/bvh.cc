@@ -384,7 +384,8 @@ inline double se_pnorm(double a, double b, double p) {
   return m * std::pow(std::pow(a / m, p) + std::pow(b / m, p), 1.0 / p);
 }
 
-// ‖(a, b)‖_p and its partial derivatives (a, b >= 0, p >= 1: the convex case only)
+// ‖(a, b)‖_p and its partial derivatives (a, b >= 0; an argument at 0 gets 0 where p < 1, whose
+// derivative there is infinite: it only decides a slope's sign, and its sign there is that of 0)
 inline double se_pnorm_grad(double a, double b, double p, double& da, double& db) {
   const double m = std::max(a, b);
   if (!(m > 0.0)) {
@@ -393,8 +394,9 @@ inline double se_pnorm_grad(double a, double b, double p, double& da, double& db
   }
   const double ra = a / m, rb = b / m, sum = std::pow(ra, p) + std::pow(rb, p);
   const double k = std::pow(sum, (1.0 - p) / p);  // (m / norm)^(p - 1)
-  da = std::pow(ra, p - 1.0) * k;
-  db = std::pow(rb, p - 1.0) * k;
+  auto part = [&](double r) { return r > 0.0 ? std::pow(r, p - 1.0) * k : (p == 1.0 ? k : 0.0); };
+  da = part(ra);
+  db = part(rb);
   return m * std::pow(sum, 1.0 / p);
 }
 
@@ -405,7 +407,7 @@ struct SuperEll {
   double norm(const double* x) const {
     return se_pnorm(se_pnorm(std::fabs(x[0]), std::fabs(x[1]), ae), std::fabs(x[2]), an);
   }
-  // N and its derivative along d at x (convex exponents: ae, an >= 1)
+  // N and its derivative along d at x
   double norm_slope(const double* x, const double* d, double& slope) const {
     double dax, day, dnA, dnz;
     const double A = se_pnorm_grad(std::fabs(x[0]), std::fabs(x[1]), ae, dax, day);
@@ -422,9 +424,12 @@ struct SuperEll {
 //  * e, n <= 2: N is a norm, convex along the line, so the line crosses at most twice: Newton's
 //    method from the span's two ends converges to them without overshooting (the tangent of a
 //    convex function stays below it), and a slope that turns before a crossing is a miss.
-//  * otherwise as the JAX kernel: the span cut at the coordinate planes into pieces, each split at
-//    its extremum (golden section: N is concave there when e, n >= 2) and, for mixed exponents,
-//    into four parts more; a sign change in a part is a crossing, found by bisection.
+//  * otherwise as the JAX kernel does it, step by step, so that both find the same crossings: the
+//    span cut at the coordinate planes into pieces, each split at its extremum (a sign change of
+//    the slope, by bisection between points a thousandth of the piece inside its ends; its middle
+//    where the slope keeps its sign), each half cut into four parts; a sign change in a part is a
+//    crossing, found by bisection (N is concave in a piece when e, n >= 2, so the halves are
+//    monotone; mixed exponents are neither, and a pair of crossings within one part is missed).
 inline double superellipsoid_hit(const double* q, const RayD& r, double tmin, double tmax) {
   const double len = std::sqrt(dot3(r.d, r.d));
   if (!(len > 0.0)) return INFINITY;
@@ -481,8 +486,6 @@ inline double superellipsoid_hit(const double* q, const RayD& r, double tmin, do
     if (roots[1] > tmin && roots[1] < tmax && roots[1] > roots[0]) return roots[1];
     return INFINITY;
   }
-  const bool concave = se.ae <= 1.0 && se.an <= 1.0;
-  const int parts = concave ? 1 : 4;
   double knots[5];
   int nk = 0;
   knots[nk++] = lo;
@@ -496,29 +499,32 @@ inline double superellipsoid_hit(const double* q, const RayD& r, double tmin, do
   std::sort(cuts, cuts + nc);
   for (int k = 0; k < nc; ++k) knots[nk++] = cuts[k];
   knots[nk++] = hi;
-  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  const int parts = 4;  // the JAX kernel's _SUBDIVISIONS
+  auto slope = [&](double s) {
+    double x[3], v;
+    point(s, x);
+    se.norm_slope(x, r.d, v);
+    return v;
+  };
   for (int piece = 0; piece + 1 < nk; ++piece) {
     const double a = knots[piece], b = knots[piece + 1];
-    // the extremum: the maximum where N is concave, else the minimum (golden section)
-    const double sign = concave ? -1.0 : 1.0;
-    double x0 = a, x3 = b, x1 = b - phi * (b - a), x2 = a + phi * (b - a);
-    double f1 = sign * f(x1), f2 = sign * f(x2);
-    for (int it = 0; it < 60 && x3 - x0 > 1e-9 * (b - a); ++it) {
-      if (f1 < f2) {
-        x3 = x2;
-        x2 = x1;
-        f2 = f1;
-        x1 = x3 - phi * (x3 - x0);
-        f1 = sign * f(x1);
-      } else {
-        x0 = x1;
-        x1 = x2;
-        f1 = f2;
-        x2 = x0 + phi * (x3 - x0);
-        f2 = sign * f(x2);
+    // the extremum: the slope's sign change (its bisection as _numerics._bisect does it, a fixed
+    // number of halvings), or the middle where the slope keeps its sign
+    double x0 = a + 1e-3 * (b - a), x3 = b - 1e-3 * (b - a);
+    const double s0 = slope(x0), s3 = slope(x3);
+    double c = 0.5 * (a + b);
+    if ((s0 <= 0.0) != (s3 < 0.0)) {
+      const bool neg = s0 < 0.0;
+      for (int it = 0; it < 56; ++it) {
+        const double mid = 0.5 * (x0 + x3);
+        if ((slope(mid) < 0.0) == neg) {
+          x0 = mid;
+        } else {
+          x3 = mid;
+        }
       }
+      c = s0 == 0.0 ? a + 1e-3 * (b - a) : s3 == 0.0 ? b - 1e-3 * (b - a) : 0.5 * (x0 + x3);
     }
-    const double c = 0.5 * (x0 + x3);
     const double ends[3] = {a, c, b};
     for (int h = 0; h < 2; ++h) {
       double u = ends[h];
