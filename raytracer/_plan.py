@@ -30,6 +30,7 @@ from .scene import (
 )
 from .scene._lights import light_effects
 from .scene._transform import compose
+from .shapes._base import UNBOUNDED_KERNELS
 
 # straight (ior 1) surfaces a ray path may cross beyond max_trace_level: as many as the scene's
 # straight-transmitting primitives can put on one line, up to this bound (the plan warns beyond it)
@@ -70,6 +71,21 @@ class InDiff:
 
 
 InsideTree = InPrim | InAll | InAny | InDiff
+
+
+def has_box(tree: InsideTree, prims) -> bool:
+    """Whether POV-Ray's box of the object ``tree`` (its primitives ``prims``) is finite
+    (semantics §4.4; ``shading._geometry.unit_boxes`` computes it): a primitive's unless its shape
+    is unbounded (a plane, a quadric), an intersection's as soon as one part that is not inverted
+    has one (a clipped object is the intersection with its clipping objects), a union's or
+    merge's when all parts' are, a difference's when its first part's is."""
+    if isinstance(tree, InPrim):
+        return type(prims[tree.prim].obj.shape).native_kernel not in UNBOUNDED_KERNELS
+    if isinstance(tree, InAll):
+        return any(has_box(t, prims) and not t.inverse for t in tree.terms)
+    if isinstance(tree, InAny):
+        return all(has_box(t, prims) for t in tree.terms)
+    return has_box(tree.terms[0], prims) and not tree.terms[0].inverse
 
 
 @dataclasses.dataclass(frozen=True)
@@ -239,13 +255,15 @@ def _made(cls, **fields):
 class _Flattener:
     def __init__(self):
         self.prims: list[Prim] = []
-        # the inside trees of the ``bounded_by`` objects of an object, by the id of its inside tree:
-        # primitives that are not rendered and that no condition names, only their box is used
-        # (``bounding_units``)
+        # the inside trees of the ``bounded_by`` objects of an object without a box of its own, by
+        # the id of its inside tree: primitives that are not rendered and that no condition names,
+        # only their box is used (``bounding_units``)
         self.bounds: dict[int, tuple[InsideTree, ...]] = {}
 
     def _with_bounds(self, tree: InsideTree, obj, chain, interior) -> InsideTree:
-        if obj.bounded_by:
+        """``tree``, its object's ``bounded_by`` objects kept where it has no box of its own: an
+        object with a box keeps it (the hint is a hint: no primitives added for it)."""
+        if obj.bounded_by and not has_box(tree, self.prims):
             self.bounds[id(tree)] = self._clip_trees(obj.bounded_by, chain, interior)
         return tree
 

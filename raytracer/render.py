@@ -156,9 +156,8 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
     """``scene`` packed for the compiled program (values stay differentiable: under ``jax.grad``
     the packing is traced with the rest). A concrete scene is immutable (read-only arrays), so the
     last few packed are kept: rendering one scene again does not pack it again."""
-    key = (id(scene), _accel.mode())
-    cached = _PACKED.get(key)
-    if cached is not None and cached[0] is scene:
+    cached = _kept(scene)
+    if cached is not None:
         return cached[1]
     leaves, treedef = jax.tree_util.tree_flatten(scene.objects)  # one walk of the objects
     types = set(map(type, leaves))
@@ -170,18 +169,22 @@ def pack(scene: Scene, scene_plan: Plan | None = None) -> Packed:
     if not is_traced(rest) and types <= {np.ndarray} and not any(map(_WRITEABLE, leaves)):
         while len(_PACKED) >= 4:
             _PACKED.pop(next(iter(_PACKED)))
-        _PACKED[key] = (scene, packed, scene_plan)
+        _PACKED[(id(scene), _accel.mode())] = (scene, packed, scene_plan)
     return packed
+
+
+def _kept(scene: Scene) -> tuple[Scene, Packed, Plan] | None:
+    """What ``pack`` keeps of this concrete scene (the scene, packed, its plan), or None."""
+    cached = _PACKED.get((id(scene), _accel.mode()))
+    return cached if cached is not None and cached[0] is scene else None
 
 
 def _scene_plan(scene: Scene) -> Plan:
     """``make_plan(scene)``, kept with the packed scene where ``pack`` keeps it: each render of
     the same scene made its plan again (0.25 ms for seed.pov, 0.4 ms for whitted.pov: an adaptive
     render at 128×96 takes a few ms)."""
-    cached = _PACKED.get((id(scene), _accel.mode()))
-    if cached is not None and cached[0] is scene:
-        return cached[2]
-    return make_plan(scene)
+    cached = _kept(scene)
+    return make_plan(scene) if cached is None else cached[2]
 
 
 _PLACED: dict[tuple, tuple[Packed, Packed]] = {}  # the last few packed scenes placed on devices

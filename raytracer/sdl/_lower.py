@@ -134,6 +134,9 @@ class Lowerer:
             interior=self.interior(rec.interior, layers),
             clipped_by=tuple(c for c in (self.obj(k, world, False) for k in rec.clipped_by)
                              if c is not None),
+            # the plan uses them where the object has no box of its own (``_plan.has_box``)
+            bounded_by=tuple(b for b in (self.obj(k, world, False) for k in rec.bounded_by)
+                             if b is not None),
             inverse=bool(rec.flags.get("inverse", False)),
             no_shadow=bool(rec.flags.get("no_shadow", False)),
             no_image=bool(rec.flags.get("no_image", False)),
@@ -146,48 +149,12 @@ class Lowerer:
             kids = [k for k in kids if k is not None]
             if not kids:
                 return None
-            obj = build(S.CSG, operation=rec.kind, children=tuple(kids), **common)
-            return self._bounded_by(rec, obj, world, lambda **c: build(S.CSG, operation=rec.kind,
-                                                                       children=tuple(kids), **c), common)
+            return build(S.CSG, operation=rec.kind, children=tuple(kids), **common)
         shape = lower_shape(rec)
         folded = None if rec.transform is None else shape.absorb_transform(rec.transform)
         if folded is not None:
             shape, common["transform"] = folded, None
-        obj = build(S.Object, shape=shape, **common)
-        return self._bounded_by(rec, obj, world, lambda **c: build(S.Object, shape=shape, **c), common)
-
-    def _bounded_by(self, rec, obj, world, rebuild, common):
-        """``obj`` with its ``bounded_by`` objects where it has no finite box of its own (an
-        intersection of planes: shapes2.inc's polyhedra, bounded by spheres): their box is then
-        its box in the hierarchy, which tests the object only for rays that enter it, as POV-Ray
-        tests it only for rays that meet the bound — instead of for every ray
-        (incdemo/shapes2.pov: 45x POV-Ray's time). An object with a box of its own keeps it
-        (``bounded_by`` is a hint); a bound that does not hold its object is what POV-Ray's manual
-        calls undefined (semantics §4.4)."""
-        if not rec.bounded_by or _has_box(obj):
-            return obj
-        bounds = tuple(b for b in (self.obj(k, world, False) for k in rec.bounded_by) if b is not None)
-        if not bounds:
-            return obj
-        return rebuild(**common, bounded_by=bounds)
-
-
-def _has_box(obj) -> bool:
-    """Whether POV-Ray's box of a lowered object is finite (``shading._geometry._bounded``'s
-    rule): a shape's when it has bounds, an intersection's as soon as a part that is not inverted
-    has one, a union's or merge's when all parts do, a difference's when its first part does; a
-    clipping object that is not inverted bounds the object it clips."""
-    if isinstance(obj, S.CSG):
-        kids = obj.children
-        if obj.operation == "intersection":
-            own = any(_has_box(k) and not k.inverse for k in kids)
-        elif obj.operation == "difference":
-            own = _has_box(kids[0]) and not kids[0].inverse
-        else:
-            own = all(_has_box(k) for k in kids)
-    else:
-        own = obj.shape.bounds() is not None
-    return own or any(_has_box(c) and not c.inverse for c in obj.clipped_by)
+        return build(S.Object, shape=shape, **common)
 
 
 def lower_shape(rec: ObjRec) -> S.AbstractShape:

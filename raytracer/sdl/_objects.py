@@ -226,7 +226,8 @@ def _clipped_by(p, rec):
 
 
 def _bounded_by(p, rec):
-    """bounded_by is only an acceleration hint: parsed, kept for clipped_by { bounded_by }."""
+    """bounded_by, an acceleration hint: the plan bounds by it an object without a box of its own
+    (``_plan.has_box``); kept for clipped_by { bounded_by } too."""
     p.expect_op("{")
     if p.accept_id("clipped_by"):
         p.expect_op("}")

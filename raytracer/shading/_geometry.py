@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._packing import EYE4, bucket, inverse_affines, pad_rows, register_packed, stack
-from .._plan import InAll, InAny, InDiff, InPrim, InsideTree, Plan
+from .._plan import InAll, InAny, InDiff, InPrim, InsideTree, Plan, has_box
 from ..kernels import matvec, safe_normalize, vecmat
 from ..shapes import AbstractShape, world_bounds
 from ..shapes._base import UNBOUNDED_KERNELS
@@ -224,19 +224,6 @@ def _height(tree: InsideTree) -> int:
     return 0 if isinstance(tree, InPrim) else 1 + max(map(_height, tree.terms))
 
 
-def _bounded(tree: InsideTree, plan: Plan) -> bool:
-    """Whether POV-Ray's box of the object (``unit_boxes``) is finite: an intersection's is as soon
-    as one part that is not inverted has one, a union's or merge's when all parts' are, a
-    difference's when its first part's is."""
-    if isinstance(tree, InPrim):
-        return type(plan.prims[tree.prim].obj.shape).native_kernel not in UNBOUNDED_KERNELS
-    if isinstance(tree, InAll):
-        return any(_bounded(t, plan) and not t.inverse for t in tree.terms)
-    if isinstance(tree, InAny):
-        return all(_bounded(t, plan) for t in tree.terms)
-    return _bounded(tree.terms[0], plan) and not tree.terms[0].inverse
-
-
 def prim_bits(plan: Plan) -> np.ndarray:
     """(P,) int32: ``visibility_bits`` of every primitive (read-only: kept with the plan, which
     packing, its signature and the trace each ask)."""
@@ -273,8 +260,8 @@ def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
         return type(shape).native_kernel is not None and type(shape).n_native_items(shape) == 1
 
     return tuple(u for u, tree in enumerate(plan.units)
-                 if not isinstance(tree, InPrim) and _bounded(tree, plan) and _height(tree) <= MAX_CSG_HEIGHT
-                 and all(member_ok(i) for i in members.get(u, [])))
+                 if not isinstance(tree, InPrim) and has_box(tree, plan.prims)
+                 and _height(tree) <= MAX_CSG_HEIGHT and all(member_ok(i) for i in members.get(u, [])))
 
 
 def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int],

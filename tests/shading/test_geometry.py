@@ -102,8 +102,10 @@ def test_bounded_by_bounds_an_object_without_a_box_of_its_own(monkeypatch):
     text = _HEAD + tetra + "\nsphere { <2, 0, 0>, 0.5 %s pigment { R } }\n"
     bounded = rt.load_scene(text % ("bounded_by { sphere { 0, 3 } }", "bounded_by { box { -9, 9 } }"))
     plain = rt.load_scene(text % ("", ""))
-    assert len(bounded.objects[0].bounded_by) == 1 and bounded.objects[1].bounded_by == ()
     plan = make_plan(bounded)
+    # the tetrahedron's four planes and its bound (not rendered); the sphere, whose box is its own
+    assert [p.kind for p in plan.prims] == ["plane"] * 4 + ["sphere"] * 2
+    assert [p.rendered for p in plan.prims] == [True] * 4 + [False, True]
     geo = pack_geometry(plan, jnp.float64, accelerate=False)
     lo, hi = unit_boxes(plan, geo, [np.linalg.inv(np.asarray(m)) for m in geo.object_from_world])
     # the sphere's box, turned and moved with the tetrahedron: its corners' hull
