@@ -358,16 +358,11 @@ inline double torus_hit(const double* q, const RayD& r, double tmin, double tmax
     if (crit[k] > cuts[0] && crit[k] < bound * (1.0 + 1e-9)) cuts[n++] = crit[k];
   cuts[n++] = bound * (1.0 + 1e-9);
   for (int k = 0; k + 1 < n; ++k) {
-    double a = cuts[k], b = cuts[k + 1];
-    double fa = f(a), fb = f(b);
-    if (fa == 0.0) {
-      b = a;
-    } else if (fa * fb > 0.0) {
-      continue;
-    } else {
-      a = b = bisect_sign(f, a, b, fa, 1e-15 * bound, 100);
-    }
-    const double t = (s0 + 0.5 * (a + b)) / len;
+    const double a = cuts[k], b = cuts[k + 1];
+    const double fa = f(a), fb = f(b);
+    if (fa != 0.0 && fa * fb > 0.0) continue;
+    const double root = fa == 0.0 ? a : bisect_sign(f, a, b, fa, 1e-15 * bound, 100);
+    const double t = (s0 + root) / len;
     if (t > tmin && t < tmax) return t;
   }
   return INFINITY;
