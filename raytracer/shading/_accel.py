@@ -411,27 +411,35 @@ def _chosen_members(accel: Accel, alike: list[int], shapes, object_from_world, i
     """For items ``item`` (any shape; < 0: none) of the groups ``alike`` (one of ``_alike``'s sets):
     whether each is one, whether it is a CSG member, its member's kernel arrays (the shape, or its
     form's arrays), object-from-world map and sub-item (leaves of ``item``'s shape in front; a first
-    member's where it is none)."""
+    member's where it is none). The set's groups' arrays are concatenated and gathered once by one
+    index (a gather and a select per group and leaf made ~15 % of a scene's program: lamppost)."""
     chosen = jnp.maximum(item, 0)
-    out = None
+    index = jnp.zeros_like(chosen)
+    sub = jnp.zeros_like(chosen)
+    found = is_csg = jnp.zeros(jnp.shape(item), bool)
+    offset = 0
+    arrays, maps = [], []
     for g in alike:
         ag = accel.groups[g]
         local = chosen - accel.ranges[g, 0]
         mine = (item >= 0) & (local >= 0) & (local < accel.ranges[g, 1])
-        local = jnp.where(mine, local, 0)
-        member = local // ag.per_member
-        arrays = shapes[ag.group].kernel_form()[1]
-        picked = (jax.tree_util.tree_map(lambda a, member=member: a[member], arrays),
-                  object_from_world[ag.group][member], local % ag.per_member)
-        if out is None:
-            out = (mine, mine & ag.csg) + picked
-            continue
-
-        def pick(a, b, mine=mine):
-            return jnp.where(mine.reshape(mine.shape + (1,) * (b.ndim - mine.ndim)), b, a)
-
-        out = (out[0] | mine, out[1] | (mine & ag.csg)) + jax.tree_util.tree_map(pick, out[2:], picked)
-    return out
+        if ag.per_member == 1:
+            member = local
+        else:
+            member, part = local // ag.per_member, local % ag.per_member
+            sub = jnp.where(mine, part, sub)
+        index = jnp.where(mine, offset + member, index)
+        found = found | mine
+        if ag.csg:
+            is_csg = is_csg | mine
+        arrays.append(shapes[ag.group].kernel_form()[1])
+        maps.append(object_from_world[ag.group])
+        offset += maps[-1].shape[0]
+    if len(alike) > 1:
+        arrays = [jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs), *arrays)]
+        maps = [jnp.concatenate(maps)]
+    picked = jax.tree_util.tree_map(lambda a: a[index], arrays[0])
+    return found, is_csg, picked, maps[0][index], sub
 
 
 def _kernel_hits(kernel, arrays, o, d, sub):
