@@ -53,7 +53,7 @@ from ..kernels import matvec, safe_pow
 from ..scene import Light, Settings
 from ..scene._lights import area_blocks, light_types, point_geometry
 from . import _accel, lighting
-from ._chunks import divisor_near, map_live
+from ._chunks import map_live
 from ._geometry import (
     CandidateView,
     PackedGeometry,
@@ -572,63 +572,93 @@ def _adaptive_plan(n1: int, n2: int, forced: int) -> _AdaptivePlan:
 SAMPLES_PER_CHUNK = 2048  # shadow rays traced per skippable chunk of adaptive area sampling
 
 
-def _adaptive_visibility(ctx: TraceContext, plan: _AdaptivePlan, positions, p_spawn, live, colour):
-    """The shadow filters (L·B, 3) of L area lights with the same grid and ``adaptive`` N (one
-    ``plan``; their sample ``positions`` (L, P, 3)) for a batch of B shading points each (``p_spawn``,
-    ``live``, ``colour``: (L·B, …), light by light): one traced shadow test serves them all, so a
-    scene's identical area lights do not each add a copy to the program. Each light is sampled
-    as POV-Ray samples it (semantics §2.5): the grid's recursion tree
-    (:func:`~raytracer.scene._lights.area_blocks`) is split N times everywhere; below that, a block
-    is split only where its corner samples differ (:func:`_differ`, on the arriving colours
-    ``colour`` times the filters), else its value is the mean of its corners.
+def _traced_samples(ctx: TraceContext, p_spawn, sets) -> list:
+    """The shadow filters of (point, light sample) pairs, in one traced shadow test for all
+    ``sets``: each ``(positions (L, P, 3), ks (K,), alive (L·B,))`` asks, for L lights' points
+    ``p_spawn`` (B, 3), the samples ``ks`` of each light's grid where ``alive`` → its (L·B, K, 3)
+    filters (zeros where not alive). The pairs of every set are traced together, the live ones
+    moved to the front and chunks of none skipped (``map_live``), so the program holds one
+    shadow test whatever the lights' grids (one per grid and phase was ~0.13 s of compile each:
+    advanced/lamppost's 5×5 and 4×4 lights)."""
+    b_size = p_spawn.shape[0]
+    ps, qs, alive, sizes = [], [], [], []
+    for positions, ks, live in sets:
+        n_lights, k = positions.shape[0], len(ks)
+        shape = (n_lights, b_size, k, 3)
+        ps.append(jnp.broadcast_to(p_spawn[None, :, None], shape).reshape(-1, 3))
+        qs.append(jnp.broadcast_to(positions[:, None, ks], shape).reshape(-1, 3))
+        alive.append(jnp.broadcast_to(live.reshape(n_lights, b_size, 1), shape[:3]).reshape(-1))
+        sizes.append(n_lights * b_size * k)
+    n = sum(sizes)
+    chunk = min(SAMPLES_PER_CHUNK, n)
+    pad = -n % chunk  # dead pairs (never traced unless in a chunk with live ones: a unit segment)
+    ps.append(jnp.zeros((pad, 3), p_spawn.dtype))
+    qs.append(jnp.ones((pad, 3), p_spawn.dtype))
+    alive.append(jnp.zeros(pad, bool))
 
-    What is traced, for the ``live`` points (lit, with a hit): the first N levels' corners for
-    every point, and the rest of the grid only for the points where the first block the rule
-    decides splits (a penumbra); the others' value is already decided. Each set is traced per
-    point, densely, with the live points moved to the front and chunks without one skipped
-    (``map_live``). The rule is then applied to the traced grid as selects, round by round (one
-    ``lax.scan``): a sample it never asks for is traced for a penumbra point but never read.
-    Partitioning points rather than (point, sample) pairs round by round costs up to about twice
-    the shadow rays in penumbrae (``lights/soft``) and much less compaction (session 13:
-    ``docs/performance.md``). The choice of blocks is piecewise constant (no gradient); the
-    samples' filters and the means differentiate as usual.
+    def trace(items):  # (chunk, 3) points and samples → (chunk, 3) filters
+        return jax.vmap(lambda p, q: _sample_filter(ctx, p, q))(*items)
+
+    out = map_live(trace, (jnp.concatenate(ps), jnp.concatenate(qs)), jnp.concatenate(alive), chunk)
+    ends = np.cumsum([0] + sizes)
+    return [out[lo:hi].reshape(-1, len(ks), 3)
+            for lo, hi, (_, ks, _) in zip(ends[:-1], ends[1:], sets, strict=True)]
+
+
+def _adaptive_visibility(ctx: TraceContext, groups, p_spawn) -> list:
+    """The shadow filters of area lights with ``adaptive`` sampling, for a batch of B shading
+    points ``p_spawn`` (B, 3). ``groups``: per plan (lights of one grid and ``adaptive`` N), ``(plan,
+    positions (L, P, 3), live (L·B,), colour (L·B, 3))``, the lights' sample positions and, light
+    by light, which points are lit with a hit and the colour arriving there → per group (L·B, 3).
+    One traced shadow test per phase serves them all (``_traced_samples``), so a scene's area
+    lights do not each add a copy to the program. Each light is sampled as POV-Ray samples it
+    (semantics §2.5): the grid's recursion tree (:func:`~raytracer.scene._lights.area_blocks`) is
+    split N times everywhere; below that, a block is split only where its corner samples differ
+    (:func:`_differ`, on the arriving colours ``colour`` times the filters), else its value is the
+    mean of its corners.
+
+    What is traced, for the ``live`` points: the first N levels' corners for every point, and the
+    rest of the grid only for the points where the first block the rule decides splits (a
+    penumbra); the others' value is already decided. The rule is then applied to the traced grid
+    as selects, round by round (one ``lax.scan``): a sample it never asks for is traced for a
+    penumbra point but never read. Two phases per point rather than a round of (point, sample)
+    pairs per level of the tree cost up to about twice the shadow rays in penumbrae
+    (``lights/soft``) and much less compaction (session 13: ``docs/performance.md``). The choice of
+    blocks is piecewise constant (no gradient); the samples' filters and the means differentiate
+    as usual.
     """
-    b_size = p_spawn.shape[0]  # L·B
-    light_of = jnp.repeat(jnp.arange(positions.shape[0], dtype=jnp.int32), b_size // positions.shape[0])
-    first = np.flatnonzero(plan.first)  # traced for every live point
-    rest = np.flatnonzero(~plan.first)  # traced where the first decision splits
-    back = np.argsort(np.concatenate([first, rest]))  # grid order from [first, rest]
-
-    def traced(ks, alive):
-        q = positions[:, ks]  # (L, K, 3)
-
-        def trace(items):  # (chunk, 3) points and their lights → (chunk, K, 3) filters
-            def one(p, light):
-                return jax.vmap(lambda q1: _sample_filter(ctx, p, q1))(q[light])
-            return jax.vmap(one)(*items)
-
-        chunk = divisor_near(b_size, max(1, SAMPLES_PER_CHUNK // len(ks)))
-        return map_live(trace, (p_spawn, light_of), alive, chunk)
-
-    def decide(cols):
+    def decide(colour, cols):
         def step(split, table):
             blocks, corners, parent, valid = table
             split_here = split[:, parent] & valid[None] & _differ(colour, cols[:, corners])  # (B, M)
             return split.at[:, blocks].set(split_here), split_here
         return step
 
-    tables = tuple(jnp.asarray(a) for a in (plan.blocks, plan.corners, plan.parent, plan.valid))
-    start = jnp.broadcast_to(jnp.asarray(plan.split0), (b_size, plan.split0.size))
-    ahead = traced(first, live)  # (L·B, |first|, 3)
-    # the first decision reads only corners in ``first`` (ascending): its corner table into ``ahead``
-    in_first = np.searchsorted(first, plan.corners[0])
-    round0 = (tables[0][0], jnp.asarray(in_first), tables[2][0], tables[3][0])
-    _, split_first = decide(ahead)(start, round0)
-    penumbra = live & jnp.any(split_first, axis=1)
-    cols = jnp.concatenate([ahead, traced(rest, penumbra)], axis=1)[:, back] if len(rest) else ahead[:, back]
-    split, _ = jax.lax.scan(decide(cols), start, tables)
-
-    return _block_means(plan, cols, split)
+    firsts = [np.flatnonzero(plan.first) for plan, *_ in groups]  # traced for every live point
+    rests = [np.flatnonzero(~plan.first) for plan, *_ in groups]  # where the first decision splits
+    ahead = _traced_samples(ctx, p_spawn, [(positions, first, live) for (_, positions, live, _), first
+                                           in zip(groups, firsts, strict=True)])
+    penumbrae, starts = [], []
+    for (plan, _, live, colour), first, cols in zip(groups, firsts, ahead, strict=True):
+        start = jnp.broadcast_to(jnp.asarray(plan.split0), (live.shape[0], plan.split0.size))
+        # the first decision reads only corners in ``first`` (ascending): its corner table there
+        round0 = tuple(jnp.asarray(a) for a in (plan.blocks[0], np.searchsorted(first, plan.corners[0]),
+                                                plan.parent[0], plan.valid[0]))
+        _, split_first = decide(colour, cols)(start, round0)
+        penumbrae.append(live & jnp.any(split_first, axis=1))
+        starts.append(start)
+    todo = [(g[1], rest, penumbra) for g, rest, penumbra in zip(groups, rests, penumbrae, strict=True)
+            if len(rest)]
+    behind = iter(_traced_samples(ctx, p_spawn, todo) if todo else ())
+    out = []
+    for (plan, _, _, colour), first, rest, cols, start in zip(groups, firsts, rests, ahead, starts,
+                                                            strict=True):
+        back = np.argsort(np.concatenate([first, rest]))  # grid order from [first, rest]
+        cols = jnp.concatenate([cols, next(behind)], axis=1)[:, back] if len(rest) else cols[:, back]
+        tables = tuple(jnp.asarray(a) for a in (plan.blocks, plan.corners, plan.parent, plan.valid))
+        split, _ = jax.lax.scan(decide(colour, cols), start, tables)
+        out.append(_block_means(plan, cols, split))
+    return out
 
 
 def _block_means(plan: _AdaptivePlan, cols, split):
@@ -1075,12 +1105,13 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list, layers: boo
 
 def _batch_visibility(ctx: TraceContext, s: _Surface, adaptive: list[bool]) -> list:
     """Per light, the batch's shadow filters where the light has adaptive area sampling, else None."""
-    grids: dict[tuple, list[int]] = {}  # lights with one plan share their traced shadow test
+    grids: dict[tuple, list[int]] = {}  # lights with one plan share their decisions
     for i, (light, batched) in enumerate(zip(ctx.lights, adaptive, strict=True)):
         if batched:
             grids.setdefault((light.area.size1, light.area.size2, light.area.adaptive), []).append(i)
     visibility: list = [None] * len(ctx.lights)
     b_size = s.p.shape[0]
+    groups = []
     for key, ids in grids.items():
         lives, colours, positions = [], [], []
         for i in ids:
@@ -1093,9 +1124,10 @@ def _batch_visibility(ctx: TraceContext, s: _Surface, adaptive: list[bool]) -> l
             lives.append(s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1))
             colours.append(c)
             positions.append(_shadow_sampler(light_types(light, ctx.plan.effects))(light, ctx.dtype)[0])
-        seen = _adaptive_visibility(ctx, _adaptive_plan(*key), jnp.stack(positions),
-                                    jnp.tile(s.p_out, (len(ids), 1)), jnp.concatenate(lives),
-                                    jnp.concatenate(colours))
-        for j, i in enumerate(ids):
-            visibility[i] = seen[j * b_size:(j + 1) * b_size]
+        groups.append((_adaptive_plan(*key), jnp.stack(positions), jnp.concatenate(lives),
+                       jnp.concatenate(colours)))
+    if groups:
+        for ids, seen in zip(grids.values(), _adaptive_visibility(ctx, groups, s.p_out), strict=True):
+            for j, i in enumerate(ids):
+                visibility[i] = seen[j * b_size:(j + 1) * b_size]
     return visibility

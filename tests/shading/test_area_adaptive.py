@@ -207,17 +207,20 @@ def test_block_means_follow_the_recursion():
                                    rtol=1e-6)
 
 
-def test_area_lights_of_one_grid_share_a_shadow_test_and_add_up():
-    """Two adaptive lights with the same grid are sampled by one traced shadow test over (point,
-    light) pairs. Light adds up: with no ambient, the image lit by both is the sum of the images
-    lit by each alone, which fails if a pair's samples came from the other light."""
+def test_area_lights_share_a_shadow_test_and_add_up():
+    """Adaptive lights, two with one grid and one with another, are sampled by one traced shadow
+    test per phase over (point, sample) pairs. Light adds up: with no ambient, the image lit by all
+    three is the sum of the images lit by each alone, which fails if a pair's samples or filters
+    came from another light or grid."""
     lights = ["light_source { <-3, 8, 1> color rgb 0.6 area_light <6, 0, 0>, <0, 0, 6>, 5, 5 adaptive 0 }",
               "light_source { <4, 6, -2> color rgb <0.3, 0.5, 0.9> area_light <4, 0, 0>, <0, 0, 4>, 5, 5 "
-              "adaptive 0 circular }"]
+              "adaptive 0 circular }",
+              "light_source { <1, 7, -4> color rgb <0.7, 0.4, 0.2> area_light <3, 0, 0>, <0, 0, 3>, 4, 4 "
+              "adaptive 0 }"]
     scene = [line for line in PENUMBRA.format(options="").splitlines() if not line.startswith("light_source")]
     scene.insert(2, "#default { finish { ambient 0 } }")  # after #version and global_settings
     body = "\n".join([*scene, ""]).replace("ambient 0.1", "ambient 0")
-    both, *alone = (np.asarray(rt.render(rt.load_scene(body + "\n".join(ls) + "\n"), width=40, height=30))
-                    for ls in (lights, lights[:1], lights[1:]))
-    np.testing.assert_allclose(both, alone[0] + alone[1], rtol=1e-5, atol=1e-6)
-    assert np.abs(alone[0] - alone[1]).max() > 0.1  # the two lights' shadows differ
+    every, *alone = (np.asarray(rt.render(rt.load_scene(body + "\n".join(ls) + "\n"), width=40, height=30))
+                     for ls in (lights, *([light] for light in lights)))
+    np.testing.assert_allclose(every, sum(alone), rtol=1e-5, atol=1e-6)
+    assert min(np.abs(a - b).max() for i, a in enumerate(alone) for b in alone[:i]) > 0.1  # shadows differ
