@@ -486,6 +486,12 @@ def _adaptive(ctx: TraceContext, light: Light) -> bool:
     return _adaptive_plan(light.area.size1, light.area.size2, light.area.adaptive).blocks.shape[0] > 0
 
 
+def _sampled(ctx: TraceContext, light: Light) -> bool:
+    """Whether the light's shadow is the weighted sum over samples of its type (an area light)."""
+    types = light_types(light, ctx.plan.effects)
+    return _casts_shadows(ctx, types) and _shadow_sampler(types) is not None
+
+
 ADAPTIVE_THRESHOLD = 0.1  # corner samples differ when colour·filter differs by more (see _differ)
 # the corners of a block are (u0,v0), (u0,v1), (u1,v0), (u1,v1) (AreaBlock.corners): its four edges
 _EDGES = ((0, 2), (1, 3), (0, 1), (2, 3))
@@ -605,17 +611,19 @@ def _traced_samples(ctx: TraceContext, p_spawn, sets) -> list:
             for lo, hi, (_, ks, _) in zip(ends[:-1], ends[1:], sets, strict=True)]
 
 
-def _adaptive_visibility(ctx: TraceContext, groups, p_spawn) -> list:
+def _adaptive_visibility(ctx: TraceContext, groups, p_spawn, full=()) -> tuple[list, list]:
     """The shadow filters of area lights with ``adaptive`` sampling, for a batch of B shading
     points ``p_spawn`` (B, 3). ``groups``: per plan (lights of one grid and ``adaptive`` N), ``(plan,
     positions (L, P, 3), live (L·B,), colour (L·B, 3))``, the lights' sample positions and, light
     by light, which points are lit with a hit and the colour arriving there → per group (L·B, 3).
     One traced shadow test per phase serves them all (``_traced_samples``), so a scene's area
-    lights do not each add a copy to the program. Each light is sampled as POV-Ray samples it
-    (semantics §2.5): the grid's recursion tree (:func:`~raytracer.scene._lights.area_blocks`) is
-    split N times everywhere; below that, a block is split only where its corner samples differ
-    (:func:`_differ`, on the arriving colours ``colour`` times the filters), else its value is the
-    mean of its corners.
+    lights do not each add a copy to the program; the first also traces the area lights sampled
+    in ``full`` (``(positions (L, P, 3), weights (P,), live (L·B,))`` each → (L·B, 3), their
+    weighted sums), so a scene's other area lights add none either. Each light is sampled as
+    POV-Ray samples it (semantics §2.5): the grid's recursion tree
+    (:func:`~raytracer.scene._lights.area_blocks`) is split N times everywhere; below that, a block
+    is split only where its corner samples differ (:func:`_differ`, on the arriving colours
+    ``colour`` times the filters), else its value is the mean of its corners.
 
     What is traced, for the ``live`` points: the first N levels' corners for every point, and the
     rest of the grid only for the points where the first block the rule decides splits (a
@@ -636,8 +644,12 @@ def _adaptive_visibility(ctx: TraceContext, groups, p_spawn) -> list:
 
     firsts = [np.flatnonzero(plan.first) for plan, *_ in groups]  # traced for every live point
     rests = [np.flatnonzero(~plan.first) for plan, *_ in groups]  # where the first decision splits
-    ahead = _traced_samples(ctx, p_spawn, [(positions, first, live) for (_, positions, live, _), first
-                                           in zip(groups, firsts, strict=True)])
+    sets = [(positions, first, live) for (_, positions, live, _), first in zip(groups, firsts, strict=True)]
+    sets += [(positions, np.arange(positions.shape[1]), live) for positions, _, live in full]
+    traced = _traced_samples(ctx, p_spawn, sets)
+    ahead = traced[:len(groups)]
+    sums = [jnp.sum(weights[None, :, None] * f, axis=1)
+            for (_, weights, _), f in zip(full, traced[len(groups):], strict=True)]
     penumbrae, starts = [], []
     for (plan, _, live, colour), first, cols in zip(groups, firsts, ahead, strict=True):
         start = jnp.broadcast_to(jnp.asarray(plan.split0), (live.shape[0], plan.split0.size))
@@ -658,7 +670,7 @@ def _adaptive_visibility(ctx: TraceContext, groups, p_spawn) -> list:
         tables = tuple(jnp.asarray(a) for a in (plan.blocks, plan.corners, plan.parent, plan.valid))
         split, _ = jax.lax.scan(decide(colour, cols), start, tables)
         out.append(_block_means(plan, cols, split))
-    return out
+    return out, sums
 
 
 def _block_means(plan: _AdaptivePlan, cols, split):
@@ -1021,7 +1033,11 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     s = jax.vmap(lambda r: _surface(ctx, r))(rays)
     visibility: list = [None] * len(ctx.lights)
     if any(adaptive):
-        visibility = _batch_visibility(ctx, s, adaptive)
+        # the other area lights' samples in the adaptive ones' shadow test (one in the program), but
+        # not where _batch_shadows computes their patterned filters for the batch
+        full = [not a and not by_pattern and _sampled(ctx, light) for a, light in zip(adaptive, ctx.lights,
+                                                                                       strict=True)]
+        visibility = _batch_visibility(ctx, s, adaptive, full)
     if by_pattern:
         visibility, pigments = _batch_shadows(ctx, s, visibility, layers=True)
         return jax.vmap(lambda r, s_, v, pig: shade(ctx, r, s_, v, pig))(rays, s, tuple(visibility), pigments)
@@ -1103,31 +1119,39 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list, layers: boo
     return out, (pig[start:].reshape(b_size, n_layers, 5) if layers else None)
 
 
-def _batch_visibility(ctx: TraceContext, s: _Surface, adaptive: list[bool]) -> list:
-    """Per light, the batch's shadow filters where the light has adaptive area sampling, else None."""
+def _batch_visibility(ctx: TraceContext, s: _Surface, adaptive: list[bool], full: list[bool]) -> list:
+    """Per light, the batch's shadow filters where the light has adaptive area sampling or is an
+    area light in ``full`` (every sample traced, in the same shadow test), else None."""
     grids: dict[tuple, list[int]] = {}  # lights with one plan share their decisions
     for i, (light, batched) in enumerate(zip(ctx.lights, adaptive, strict=True)):
         if batched:
             grids.setdefault((light.area.size1, light.area.size2, light.area.adaptive), []).append(i)
     visibility: list = [None] * len(ctx.lights)
     b_size = s.p.shape[0]
+
+    def lit(light):  # which points the light reaches before its shadow, the colour arriving there
+        def unshadowed(p, n):
+            return _unshadowed(ctx, light, p, n)
+
+        _, c, cos_nl, _ = jax.vmap(unshadowed)(s.p, s.n)
+        return s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1), c
+
+    def samples(light):
+        return _shadow_sampler(light_types(light, ctx.plan.effects))(light, ctx.dtype)
+
     groups = []
     for key, ids in grids.items():
-        lives, colours, positions = [], [], []
-        for i in ids:
-            light = ctx.lights[i]
-
-            def unshadowed(p, n, light=light):
-                return _unshadowed(ctx, light, p, n)
-
-            _, c, cos_nl, _ = jax.vmap(unshadowed)(s.p, s.n)
-            lives.append(s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1))
-            colours.append(c)
-            positions.append(_shadow_sampler(light_types(light, ctx.plan.effects))(light, ctx.dtype)[0])
-        groups.append((_adaptive_plan(*key), jnp.stack(positions), jnp.concatenate(lives),
-                       jnp.concatenate(colours)))
-    if groups:
-        for ids, seen in zip(grids.values(), _adaptive_visibility(ctx, groups, s.p_out), strict=True):
+        lives, colours = zip(*(lit(ctx.lights[i]) for i in ids), strict=True)
+        groups.append((_adaptive_plan(*key), jnp.stack([samples(ctx.lights[i])[0] for i in ids]),
+                       jnp.concatenate(lives), jnp.concatenate(colours)))
+    sampled = [i for i, f in enumerate(full) if f]
+    extra = [(positions[None], weights, lit(ctx.lights[i])[0])
+             for i in sampled for positions, weights in [samples(ctx.lights[i])]]
+    if groups or extra:
+        seen, sums = _adaptive_visibility(ctx, groups, s.p_out, extra)
+        for ids, vis in zip(grids.values(), seen, strict=True):
             for j, i in enumerate(ids):
-                visibility[i] = seen[j * b_size:(j + 1) * b_size]
+                visibility[i] = vis[j * b_size:(j + 1) * b_size]
+        for i, vis in zip(sampled, sums, strict=True):
+            visibility[i] = vis
     return visibility

@@ -209,14 +209,15 @@ def test_block_means_follow_the_recursion():
 
 def test_area_lights_share_a_shadow_test_and_add_up():
     """Adaptive lights, two with one grid and one with another, are sampled by one traced shadow
-    test per phase over (point, sample) pairs. Light adds up: with no ambient, the image lit by all
-    three is the sum of the images lit by each alone, which fails if a pair's samples or filters
-    came from another light or grid."""
+    test per phase over (point, sample) pairs, and an area light without ``adaptive`` by the first
+    phase's. Light adds up: with no ambient, the image lit by all four is the sum of the images lit
+    by each alone, which fails if a pair's samples or filters came from another light or grid."""
     lights = ["light_source { <-3, 8, 1> color rgb 0.6 area_light <6, 0, 0>, <0, 0, 6>, 5, 5 adaptive 0 }",
               "light_source { <4, 6, -2> color rgb <0.3, 0.5, 0.9> area_light <4, 0, 0>, <0, 0, 4>, 5, 5 "
               "adaptive 0 circular }",
               "light_source { <1, 7, -4> color rgb <0.7, 0.4, 0.2> area_light <3, 0, 0>, <0, 0, 3>, 4, 4 "
-              "adaptive 0 }"]
+              "adaptive 0 }",
+              "light_source { <-2, 9, -3> color rgb <0.2, 0.6, 0.3> area_light <2, 0, 0>, <0, 0, 2>, 3, 3 }"]
     scene = [line for line in PENUMBRA.format(options="").splitlines() if not line.startswith("light_source")]
     scene.insert(2, "#default { finish { ambient 0 } }")  # after #version and global_settings
     body = "\n".join([*scene, ""]).replace("ambient 0.1", "ambient 0")
