@@ -602,8 +602,19 @@ def _traced_samples(ctx: TraceContext, p_spawn, sets) -> list:
     qs.append(jnp.ones((pad, 3), p_spawn.dtype))
     alive.append(jnp.zeros(pad, bool))
 
+    by_pattern = _by_pattern(ctx)
+
     def trace(items):  # (chunk, 3) points and samples → (chunk, 3) filters
-        return jax.vmap(lambda p, q: _sample_filter(ctx, p, q))(*items)
+        if not by_pattern:
+            return jax.vmap(lambda p, q: _sample_filter(ctx, p, q))(*items)
+        # the chunk's patterned pigments together, each entry's own pattern where it is used (as
+        # _batch_shadows does; per pair, every pattern at every slot: gamma/gamma_showcase's
+        # shadow rays through T_Stone11 cost ~70 µs each)
+        fl = jax.vmap(lambda p, q: _sample_filters(ctx, p, q))(*items)
+        if fl.rows.shape[-1] == 0:
+            return fl.base
+        pig = pigments_at(ctx.mats, fl.rows.reshape(-1), fl.points.reshape(-1, 3), fl.use.reshape(-1))
+        return jax.vmap(_filtered)(fl, _rgb_filter(pig).reshape(fl.rows.shape + (3,)))
 
     out = map_live(trace, (jnp.concatenate(ps), jnp.concatenate(qs)), jnp.concatenate(alive), chunk)
     ends = np.cumsum([0] + sizes)
@@ -1027,7 +1038,7 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     patterned pigments of all the batch's shadow crossings together, each computing its own
     pattern and only where a crossing is). Everything else is one ray's computation, vmapped."""
     adaptive = [_adaptive(ctx, light) for light in ctx.lights]
-    by_pattern = ctx.plan.effects.filtered_shadows and costly_patterns(ctx.mats) and _many_filter_slots(ctx)
+    by_pattern = _by_pattern(ctx)
     if not any(adaptive) and not by_pattern:
         return jax.vmap(lambda r: shade(ctx, r))(rays)
     s = jax.vmap(lambda r: _surface(ctx, r))(rays)
@@ -1048,6 +1059,12 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
 # sample scenes with noise patterns, 160×120: 8–24 candidate slots 2.1–7× faster, 2–4 slots
 # 1.4× slower, the hierarchy's 16 items × crossings × layers 1.5–4.7× faster)
 MIN_FILTER_SLOTS = 8
+
+
+def _by_pattern(ctx: TraceContext) -> bool:
+    """Whether a batch computes its shadow rays' patterned pigments together (``pigments_at``):
+    transparent shadow casters with noise patterns or turbulence, and enough slots of them."""
+    return ctx.plan.effects.filtered_shadows and costly_patterns(ctx.mats) and _many_filter_slots(ctx)
 
 
 def _many_filter_slots(ctx: TraceContext) -> bool:

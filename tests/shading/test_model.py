@@ -100,8 +100,8 @@ sphere { 4, 1 pigment { bozo phase 0.5 color_map { [0 rgb 1] [1 rgb <0, 0.5, 1>]
 
 
 # transparent shadow casters with noise patterns: in the hierarchy (more than MIN_FILTER_ITEMS) and
-# candidates (an intersection), lit by two point lights of one structure, an area light and a
-# spotlight; a floor of two texture layers (the top one a noise pattern), so the others' second
+# candidates (an intersection), lit by two point lights of one structure, an area light, an
+# adaptive one and a spotlight; a floor of two texture layers (the top one a noise pattern), so the others' second
 # layer is absent
 SHADOWS = """
 #version 3.7;
@@ -110,6 +110,7 @@ camera { location <0, 5, -8> look_at <0, 0.5, 0> angle 55 }
 light_source { <-6, 10, -5> color rgb 0.7 }
 light_source { <5, 8, -3> color rgb 0.5 }
 light_source { <0, 9, 4> color rgb 0.4 area_light x, z, 3, 3 }
+light_source { <-3, 8, 5> color rgb 0.3 area_light 2 * x, 2 * z, 3, 3 adaptive 0 }
 light_source { <2, 7, -6> color rgb 0.6 spotlight point_at <0, 0.5, 0> radius 12 falloff 20 }
 plane { y, 0 texture { pigment { rgb 0.8 } }
   texture { pigment { bozo scale 0.7 color_map { [0 rgbt 1] [1 rgbf <0.2, 0.5, 0.9, 0.5>] } } } }
@@ -128,7 +129,8 @@ intersection { sphere { 0, 1 } box { -0.7, 0.7 } translate <1.5, 1.2, -1>
 def test_batch_shadows_through_noise_patterns_are_the_per_ray_shadows(monkeypatch):
     """Where transparent shadow casters have noise patterns, ``shade_batch`` computes the shadows of
     a chunk's rays together, each crossing's pattern only where the crossing is
-    (``_batch_shadows``), and in the same call the pigments of the hits' texture layers. The image
+    (``_batch_shadows``; an adaptive area light's samples likewise, chunk by chunk of (point,
+    sample) pairs), and in the same call the pigments of the hits' texture layers. The image
     is that of the per-ray shadows and surfaces, which compute every pattern at every slot of
     crossings and at every hit. (The derivatives of the pigments so computed are held to the per-ray
     ones above; the rest of the batch path is products and sums.)"""
