@@ -362,8 +362,10 @@ def every_kind_scene() -> rt.Scene:
         shape = case.make(*case.params)
         clip = () if shape.bounds() is not None else (rt.Object(rt.Sphere(case.aim, 1.2 * case.size)),)
         objects.append(rt.Object(shape, transform=place, texture=tex, clipped_by=clip))
-    centre = (0.0, 1.25 * (4 - -(-len(cases) // 4)), 0.0)
-    cam = rt.Camera(location=(centre[0], centre[1], -16.0), look_at=centre, right=(KIND_W / KIND_H, 0, 0),
+    rows = -(-len(cases) // 4)
+    centre = (0.0, 1.25 * (4 - rows), 0.0)
+    away = 16.0 * max(1.0, 1.1 * rows / 4)  # four rows fill the frame; more, farther
+    cam = rt.Camera(location=(centre[0], centre[1], -away), look_at=centre, right=(KIND_W / KIND_H, 0, 0),
                     angle_degrees=40.0)
     return rt.Scene(camera=cam, objects=tuple(objects), lights=(rt.Light(position=(-10, 15, -12)),),
                     settings=rt.Settings(max_trace_level=1, adc_bailout=0.0))

@@ -121,6 +121,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("disc", povray=POV_BAR),
     _example("torus", povray=POV_BAR),
     _example("superellipsoid", povray=POV_BAR),
+    _example("poly", povray=POV_BAR),
     _example("mesh", povray=POV_BAR),
     _example("csg_union_merge", povray=POV_BAR),
     _example("csg_intersection_difference", povray=POV_BAR),

@@ -232,6 +232,24 @@ def parse_vector_literal(p):
     comps = p.literal_components()
     if comps is not None:
         return Vec.of_floats(comps)
+    comps = _components(p, start, 5)
+    if not 2 <= len(comps) <= 5:
+        raise p.error(f"expected a vector of 2 to 5 components, found {len(comps)}", start.loc)
+    return Vec(comps)
+
+
+def parse_coefficients(p, count: int) -> tuple[float, ...]:
+    """``<A1, …, A_count>``: a shape's list of ``count`` coefficients (a polynomial's 35), a
+    vector of more components than an expression's value can have."""
+    start = p.expect_op("<")
+    comps = _components(p, start, count)
+    if len(comps) != count:
+        raise p.error(f"expected {count} coefficients, found {len(comps)}", start.loc)
+    return tuple(comps)
+
+
+def _components(p, start, limit: int) -> list:
+    """A vector's components after its '<', and its '>' (at most ``limit`` + 1 read)."""
     saved, p.in_parens = p.in_parens, False
     try:
         comps = [_component(p, parse_expr(p), start)]
@@ -239,14 +257,12 @@ def parse_vector_literal(p):
             if p.accept_op(",") and p.is_op(">"):
                 break  # a trailing comma
             comps.append(_component(p, parse_expr(p), start))
-            if len(comps) > 5:
+            if len(comps) > limit:
                 break
     finally:
         p.in_parens = saved
     p.expect_op(">", "'>' to close the vector")
-    if not 2 <= len(comps) <= 5:
-        raise p.error(f"expected a vector of 2 to 5 components, found {len(comps)}", start.loc)
-    return Vec(comps)
+    return comps
 
 
 def _component(p, v, start) -> float:

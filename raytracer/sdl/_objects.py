@@ -12,7 +12,16 @@ from ..scene._lights import (
 )
 from ..shapes import SDL_KEYWORDS
 from ._convert import as_int
-from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
+from ._expr import (
+    COLOR_KEYWORDS,
+    as_color,
+    as_float,
+    as_vector,
+    parse_coefficients,
+    parse_color,
+    parse_expr,
+    type_name,
+)
 from ._lexer import EOF, ID, OP
 from ._textures import (
     TRANSFORM_KEYWORDS,
@@ -276,6 +285,9 @@ class _ShapeArgs:
         if isinstance(v, Vec):
             return v.padded(size)
         return as_vector(p, v, size, first.loc)
+
+    def coefficients(self, count: int) -> tuple[float, ...]:
+        return parse_coefficients(self._p, count)
 
     def count(self, what: str) -> int:
         p = self._p

@@ -30,6 +30,10 @@ from ._mesh import Mesh as Mesh
 from ._plane import Plane as Plane
 from ._plane import plane_hits as plane_hits
 from ._plane import plane_inside as plane_inside
+from ._poly import Poly as Poly
+from ._poly import poly_hits as poly_hits
+from ._poly import poly_inside as poly_inside
+from ._poly import poly_value as poly_value
 from ._polygon import Polygon as Polygon
 from ._polygon import polygon_from_points as polygon_from_points
 from ._polygon import polygon_hits as polygon_hits
@@ -52,7 +56,7 @@ from ._triangle import triangle_hits as triangle_hits
 
 _SHAPES: tuple[type[AbstractShape], ...] = (
     Sphere, Plane, Box, Cylinder, Cone, Quadric, Torus, Disc, Triangle, SmoothTriangle, Polygon, Mesh,
-    Superellipsoid,
+    Superellipsoid, Poly,
 )
 
 REGISTRY: dict[str, type[AbstractShape]] = {cls.kind: cls for cls in _SHAPES}

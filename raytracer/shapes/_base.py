@@ -96,6 +96,9 @@ class ShapeArgs(Protocol):
     def vector(self, size: int = 3, *, allow_2d: bool = False) -> tuple[float, ...]:
         """A vector of ``size`` components; ``allow_2d`` also takes a 2-D vector (z = 0)."""
 
+    def coefficients(self, count: int) -> tuple[float, ...]:
+        """``<A1, …, A_count>``: exactly ``count`` numbers (more than a vector value holds)."""
+
     def count(self, what: str) -> int:
         """A non-negative whole number of ``what`` (bounded; an error names ``what``)."""
 

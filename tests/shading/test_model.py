@@ -101,8 +101,8 @@ sphere { 4, 1 pigment { bozo phase 0.5 color_map { [0 rgb 1] [1 rgb <0, 0.5, 1>]
 
 # transparent shadow casters with noise patterns: in the hierarchy (more than MIN_FILTER_ITEMS) and
 # candidates (an intersection), lit by two point lights of one structure, an area light, an
-# adaptive one and a spotlight; a floor of two texture layers (the top one a noise pattern), so the others' second
-# layer is absent
+# adaptive one and a spotlight; a floor of two texture layers (the top one a noise pattern), so the
+# others' second layer is absent
 SHADOWS = """
 #version 3.7;
 global_settings { assumed_gamma 1.0 }
