@@ -30,7 +30,6 @@ from .scene import (
 )
 from .scene._lights import light_effects
 from .scene._transform import compose
-from .shapes._base import UNBOUNDED_KERNELS
 
 # straight (ior 1) surfaces a ray path may cross beyond max_trace_level: as many as the scene's
 # straight-transmitting primitives can put on one line, up to this bound (the plan warns beyond it)
@@ -76,11 +75,11 @@ InsideTree = InPrim | InAll | InAny | InDiff
 def has_box(tree: InsideTree, prims) -> bool:
     """Whether POV-Ray's box of the object ``tree`` (its primitives ``prims``) is finite
     (semantics §4.4; ``shading._geometry.unit_boxes`` computes it): a primitive's unless its shape
-    is unbounded (a plane, a quadric), an intersection's as soon as one part that is not inverted
-    has one (a clipped object is the intersection with its clipping objects), a union's or
-    merge's when all parts' are, a difference's when its first part's is."""
+    is unbounded (a plane, a quadric, a polynomial), an intersection's as soon as one part that is
+    not inverted has one (a clipped object is the intersection with its clipping objects), a
+    union's or merge's when all parts' are, a difference's when its first part's is."""
     if isinstance(tree, InPrim):
-        return type(prims[tree.prim].obj.shape).native_kernel not in UNBOUNDED_KERNELS
+        return type(prims[tree.prim].obj.shape).bounded
     if isinstance(tree, InAll):
         return any(has_box(t, prims) and not t.inverse for t in tree.terms)
     if isinstance(tree, InAny):

@@ -146,6 +146,7 @@ class AbstractShape(Record):
     kind: ClassVar[str]
     crossings: ClassVar[int]
     solid: ClassVar[bool] = True
+    bounded: ClassVar[bool] = True  # False: ``bounds`` is None (planes, quadrics, polynomials)
 
     @property
     def line_crossings(self) -> int:

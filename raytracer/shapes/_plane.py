@@ -60,6 +60,7 @@ class Plane(AbstractShape):
     """``plane { normal, distance }``: the surface ``n̂·p = distance``; inside is ``n̂·p < distance``."""
 
     kind: ClassVar[str] = "plane"
+    bounded: ClassVar[bool] = False
     crossings: ClassVar[int] = PLANE_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("plane",)
     normal: Float[Array, "3"] = eqx.field(converter=as_float)

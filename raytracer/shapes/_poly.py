@@ -171,6 +171,7 @@ class Poly(AbstractShape):
     held as the 35 coefficients of a quartic. Unbounded in general (``bounds`` is None)."""
 
     kind: ClassVar[str] = "poly"
+    bounded: ClassVar[bool] = False
     crossings: ClassVar[int] = POLY_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("quartic", "cubic", "poly", "polynomial")
     coeffs: Float[Array, "35"] = eqx.field(converter=as_float)

@@ -72,6 +72,7 @@ class Quadric(AbstractShape):
     Unbounded in general (``bounds`` is None); POV-Ray users bound it with ``clipped_by``."""
 
     kind: ClassVar[str] = "quadric"
+    bounded: ClassVar[bool] = False
     crossings: ClassVar[int] = QUADRIC_K
     sdl_keywords: ClassVar[tuple[str, ...]] = ("quadric",)
     coeffs: Float[Array, "10"] = eqx.field(converter=as_float)

@@ -46,6 +46,8 @@ def _random_similarity(seed):
 def test_bounds_hold_every_hit_in_object_and_world_space(index):
     case = CASES[index]
     shape = case.make(*case.params)
+    # ``bounded`` (what the plan's boxes and ``bounded_by`` go by) says whether ``bounds`` is None
+    assert type(shape).bounded == (shape.bounds() is not None), case.name
     if shape.bounds() is None:
         assert shape.kind in ("plane", "quadric", "poly"), "only unbounded shapes may omit their bounds"
         return
