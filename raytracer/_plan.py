@@ -111,6 +111,9 @@ class Prim:
         conditions: CSG / clipping conditions a hit must satisfy.
         flags:      frozenset of POV object flags ("no_shadow", "no_image", "no_reflection",
                     "double_illuminate").
+        bounds:     per enclosing object without a box of its own that has ``bounded_by``, the
+                    primitives of its bounding objects: a ray sees the primitive only if it
+                    crosses one of each (POV-Ray's ``bounded_by``, semantics §4.4).
     """
 
     obj: Object
@@ -121,6 +124,7 @@ class Prim:
     inverse: bool
     conditions: tuple[Condition, ...]
     flags: frozenset[str]
+    bounds: tuple[tuple[int, ...], ...] = ()
 
     @property
     def kind(self) -> str:
@@ -259,11 +263,19 @@ class _Flattener:
         # only their box is used (``bounding_units``)
         self.bounds: dict[int, tuple[InsideTree, ...]] = {}
 
-    def _with_bounds(self, tree: InsideTree, obj, chain, interior) -> InsideTree:
+    def _with_bounds(self, tree: InsideTree, obj, chain, interior, start: int) -> InsideTree:
         """``tree``, its object's ``bounded_by`` objects kept where it has no box of its own: an
-        object with a box keeps it (the hint is a hint: no primitives added for it)."""
+        object with a box keeps it (the hint is a hint: no primitives added for it). Without one,
+        POV-Ray shows the object only to rays that cross its bound (measured: a ray that does
+        sees all of it, also where it leaves the bound), so its primitives (``start`` on) name
+        the bound's (``Prim.bounds``)."""
         if obj.bounded_by and not has_box(tree, self.prims):
-            self.bounds[id(tree)] = self._clip_trees(obj.bounded_by, chain, interior)
+            end = len(self.prims)
+            self.bounds[id(tree)] = trees = self._clip_trees(obj.bounded_by, chain, interior)
+            bound = tuple(sorted(set().union(*(_leaves(t) for t in trees))))
+            for k in range(start, end):
+                p = self.prims[k]
+                self.prims[k] = dataclasses.replace(p, bounds=p.bounds + (bound,))
         return tree
 
     def flatten(self, obj: AbstractObject, *, transforms, texture, interior, rendered, inverse,
@@ -284,11 +296,12 @@ class _Flattener:
                 rendered=rendered, inverse=obj_inverse, conditions=conditions + clip_conds,
                 flags=frozenset(flags)))
             return self._with_bounds(_clipped(_made(InPrim, prim=index, inverse=obj_inverse), clip_trees),
-                                     obj, chain, interior)
+                                     obj, chain, interior, index)
         if isinstance(obj, CSG):
             chain = ((obj.transform,) if obj.transform is not None else ()) + transforms
             tex = obj.texture if obj.texture is not None else texture
             inter = obj.interior if obj.interior is not None else interior
+            start = len(self.prims)
             clip_trees = self._clip_trees(obj.clipped_by, chain, inter)
             clip_conds = tuple(Condition(t, True) for t in clip_trees)
             # First pass: inside trees of every child (primitives are appended in order).
@@ -315,7 +328,7 @@ class _Flattener:
             node = {"union": InAny, "merge": InAny, "intersection": InAll,
                     "difference": InDiff}[obj.operation]
             return self._with_bounds(_clipped(node(tuple(trees), inverse=obj_inverse), clip_trees),
-                                     obj, chain, inter)
+                                     obj, chain, inter, start)
         raise SceneError(f"not a scene object: {type(obj).__name__}")
 
     @staticmethod
@@ -337,6 +350,13 @@ class _Flattener:
         return tuple(self.flatten(clip, transforms=chain, texture=Texture(), interior=interior,
                                   rendered=False, inverse=False, conditions=(), flags=frozenset())
                      for clip in clips)
+
+
+def _leaves(tree: InsideTree) -> set[int]:
+    """The primitives an inside tree tests."""
+    if isinstance(tree, InPrim):
+        return {tree.prim}
+    return set().union(*(_leaves(t) for t in tree.terms))
 
 
 def _clipped(tree: InsideTree, clip_trees: tuple[InsideTree, ...]) -> InsideTree:

@@ -52,6 +52,7 @@ class PackedGeometry:
     cand_prim: np.ndarray  # (C,) prim index of every flat candidate (groups not accelerated)
     n_candidates: int
     conditions: CSGConditions | None = None  # None when no hit has CSG / clipping conditions
+    bounds: "BoundChecks | None" = None  # None when no candidate has a bound to cross (``bounded_by``)
     accel: Accel | None = None  # the hierarchy of the accelerated groups
     prim_sign: np.ndarray | None = None  # (P,) -1.0 where a primitive's normals are inverted
     # ties between coincident surfaces (semantics §4.4): the bounding unit of every primitive and
@@ -141,7 +142,7 @@ def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
     kernel = type(prim.obj.shape).native_kernel
     if kernel is None or kernel in UNBOUNDED_KERNELS or (kernels is not None and kernel not in kernels):
         return False
-    if not prim.rendered or prim.conditions:
+    if not prim.rendered or prim.conditions or prim.bounds:
         return False
     if prim.transparent and "no_shadow" not in prim.flags:
         return filter_query
@@ -349,6 +350,7 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
     if plan.effects.csg:
         conditions = build_csg_conditions(geo, plan)
         geo = dataclasses.replace(geo, conditions=conditions if conditions.cand.size else None)
+    geo = dataclasses.replace(geo, bounds=build_bound_checks(geo, plan, geo.cand_prim))
     return _padded_to_bucket(geo, plan)
 
 
@@ -535,11 +537,13 @@ class CandidateView:
     members:    per group, the indices of its kept members (empty for an accelerated group).
     cand_prim:  (C',) the primitive of each slot, in ``all_crossings(…, members)`` order.
     conditions: the slots' CSG conditions, or None (no kept slot has any).
+    bounds:     the slots' bounds to cross, or None (no kept slot has any).
     """
 
     members: tuple
     cand_prim: np.ndarray
     conditions: CSGConditions | None
+    bounds: "BoundChecks | None" = None
 
 
 def candidate_view(geo: PackedGeometry, plan: Plan, keep) -> CandidateView:
@@ -557,7 +561,7 @@ def candidate_view(geo: PackedGeometry, plan: Plan, keep) -> CandidateView:
     conditions = build_csg_conditions(geo, plan, cand_prim) if geo.conditions is not None else None
     if conditions is not None and not conditions.cand.size:
         conditions = None
-    return CandidateView(tuple(members), cand_prim, conditions)
+    return CandidateView(tuple(members), cand_prim, conditions, build_bound_checks(geo, plan, cand_prim))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -706,6 +710,65 @@ def csg_mask(geo: PackedGeometry, conds: CSGConditions | None, o, d, t):
     return ~bad
 
 
+@dataclasses.dataclass(frozen=True)
+class BoundChecks:
+    """POV-Ray's ``bounded_by`` for candidate slots (``Prim.bounds``): a slot's crossings count
+    only if the ray crosses a primitive of each of its bounds beyond ``t_min``. The bounds'
+    primitives (never rendered, so never held by the hierarchy) are crossed by ``all_crossings``
+    with ``members``; slot ``j`` of that is bound primitive ``slot_prim[j]``; bound ``set_of[m]``
+    holds bound primitive ``set_prim[m]``; candidate slot ``cand[q]`` needs bound ``cand_set[q]``."""
+
+    members: tuple
+    slot_prim: np.ndarray
+    set_prim: np.ndarray
+    set_of: np.ndarray
+    cand: np.ndarray
+    cand_set: np.ndarray
+    n_prims: int
+    n_sets: int
+
+
+def build_bound_checks(geo: PackedGeometry, plan: Plan, cand_prim) -> BoundChecks | None:
+    """The bounds the candidate slots ``cand_prim`` need crossed, or None if none needs any."""
+    sets: dict[tuple[int, ...], int] = {}
+    cand, cand_set = [], []
+    for c, prim in enumerate(cand_prim):
+        for bound in plan.prims[int(prim)].bounds:
+            cand.append(c)
+            cand_set.append(sets.setdefault(bound, len(sets)))
+    if not cand:
+        return None
+    needed = set().union(*sets)
+    members, slot_prim, index = [], [], {}
+    for g in geo.groups:
+        kept = [] if g.accelerated else [j for j, i in enumerate(g.prims) if i in needed]
+        k = int(np.count_nonzero(geo.cand_prim == g.prims[0])) if kept else 0  # slots per member
+        for j in kept:
+            slot_prim.extend([index.setdefault(g.prims[j], len(index))] * k)
+        members.append(np.asarray(kept, np.int32))
+    set_prim, set_of = [], []
+    for bound, s in sets.items():
+        for i in bound:
+            if i in index:
+                set_prim.append(index[i])
+                set_of.append(s)
+    as_int = functools.partial(np.asarray, dtype=np.int32)
+    return BoundChecks(tuple(members), as_int(slot_prim), as_int(set_prim), as_int(set_of), as_int(cand),
+                       as_int(cand_set), len(index), len(sets))
+
+
+def bound_mask(geo: PackedGeometry, checks: BoundChecks | None, o, d, t_min, n_slots: int):
+    """(n_slots,) bool: candidate slots whose bounds (``checks``) the ray crosses beyond ``t_min``."""
+    if checks is None:
+        return jnp.ones(n_slots, bool)
+    t, _ = all_crossings(geo, jax.lax.stop_gradient(o), jax.lax.stop_gradient(d), checks.members)
+    crossed = jnp.zeros(checks.n_prims + 1, bool).at[checks.slot_prim].max(jnp.isfinite(t) & (t > t_min))
+    # a bound none of whose primitives is a candidate (held by the hierarchy) counts as crossed
+    held = np.setdiff1d(np.arange(checks.n_sets), checks.set_of)
+    ok = jnp.zeros(checks.n_sets, bool).at[checks.set_of].max(crossed[checks.set_prim]).at[held].set(True)
+    return ~jnp.zeros(n_slots, bool).at[checks.cand].max(~ok[checks.cand_set])
+
+
 def static_prim_mask(geo: PackedGeometry, predicate) -> np.ndarray:
     """(C,) numpy bool: ``predicate(prim_index)`` for every candidate slot."""
     return np.array([bool(predicate(int(i))) for i in geo.cand_prim], dtype=bool)
@@ -757,6 +820,7 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
         t, n = all_crossings(geo, o, d)
         ok = visible & (t > t_min) & jnp.isfinite(t) & (t < _accel.T_MAX)
         ok = ok & csg_mask(geo, geo.conditions, o, d, t)
+        ok = ok & bound_mask(geo, geo.bounds, o, d, t_min, t.shape[0])
         ts.append(jnp.where(ok, t, jnp.inf))
         ns.append(n)
         prims.append(jnp.asarray(geo.cand_prim))

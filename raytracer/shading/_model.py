@@ -58,6 +58,7 @@ from ._geometry import (
     CandidateView,
     PackedGeometry,
     all_crossings,
+    bound_mask,
     build_inside_circuit,
     candidate_view,
     closest_hit,
@@ -352,7 +353,8 @@ def _shadow_filters(ctx: TraceContext, o, l, dist) -> _Filters:
         return _filters(jnp.where(blocked, 0.0, 1.0) * base, requests, ctx.dtype)
     t, n = all_crossings(ctx.geo, o, l, view.members)
     ok = jnp.isfinite(t) & (t > scale) & (t < dist - scale)
-    ok = ok & csg_mask(ctx.geo, view.conditions, o, l, t)
+    ok = ok & csg_mask(ctx.geo, view.conditions, o, l, t) & bound_mask(ctx.geo, view.bounds, o, l, scale,
+                                                                        t.shape[0])
     if not ctx.plan.effects.filtered_shadows:
         return _filters(jnp.where(jnp.any(ok) | blocked, 0.0, 1.0) * base, requests, ctx.dtype)
     opaque = ok & ~jnp.asarray(ctx.transparent_cands)

@@ -121,3 +121,38 @@ def test_bounded_by_bounds_an_object_without_a_box_of_its_own(monkeypatch):
     images = [np.asarray(rt.render(s, width=48, height=36)) for s in (bounded, plain)]
     assert (images[0] != images[0][0, 0]).any(axis=-1).mean() > 0.05  # the tetrahedron and the sphere
     np.testing.assert_allclose(images[0], images[1], atol=1e-5)
+
+
+def test_bounded_by_shows_an_unbounded_object_to_the_rays_that_cross_its_bound():
+    """POV-Ray's ``bounded_by`` on an object without a box: a ray that crosses the bound sees all of
+    the object, also where it lies outside the bound, and a ray that does not sees none of it
+    (neither a clip nor a box). An orthographic camera looks along +z at a white wall (z = 3) through
+    a red plane z = 0 bounded by a sphere of radius 1.2 at z = -3: the plane is seen exactly where
+    the camera's ray crosses the sphere, x² + y² < 1.2², though the plane lies 3 from the sphere.
+    Made invisible to the camera (``no_image``), the same plane shades the wall from a light at
+    z = -10 where the shadow ray crosses the sphere: inside the cone from the light tangent to it."""
+    import raytracer as rt
+
+    head = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { orthographic location <0, 0, -5> look_at <0, 0, 0> right 8*x up 6*y }
+light_source { <0, 0, -10> color rgb 1 }
+plane { z, 3 pigment { rgb 1 } finish { ambient 0 diffuse 1 } }
+"""
+    bounded = "plane { z, 0 %s bounded_by { sphere { <0, 0, -3>, 1.2 } } pigment { rgb <1, 0, 0> } " \
+              "finish { ambient 1 diffuse 0 } }\n"
+    w, h = 32, 24
+    x = (np.arange(w) + 0.5) / w * 8 - 4
+    y = 3 - (np.arange(h) + 0.5) / h * 6
+    r = np.hypot(*np.meshgrid(x, y))  # (h, w) distance from the axis
+    edge = 0.25 * np.sqrt(2)  # a pixel's diagonal: pixels this close to a circle are not asked about
+
+    seen = np.asarray(rt.render(rt.load_scene(head + bounded % ""), width=w, height=h))
+    red = (seen[..., 0] > 0.5) & (seen[..., 1] < 0.1)
+    inside, outside = r < 1.2 - edge, r > 1.2 + edge
+    assert inside.sum() > 20 and red[inside].all() and not red[outside].any()
+
+    lit = np.asarray(rt.render(rt.load_scene(head + bounded % "no_image"), width=w, height=h))[..., 1]
+    shadow = 13 * 1.2 / np.sqrt(7**2 - 1.2**2)  # the tangent cone's radius on the wall
+    inside, outside = r < shadow - edge, r > shadow + edge
+    assert inside.sum() > 50 and (lit[inside] < 1e-6).all() and (lit[outside] > 0.05).all()
