@@ -19,7 +19,6 @@ with bounded shapes. POV-Ray's ``sturm`` (its more careful root solver) is accep
 effect: every root is bracketed here. Orders above 4 are parsed and left out with a warning.
 """
 
-from math import comb
 from typing import ClassVar
 
 import equinox as eqx
@@ -48,14 +47,7 @@ def povray_terms(order: int) -> tuple[tuple[int, int, int], ...]:
 
 
 TERMS = povray_terms(ORDER_MAX)  # 35
-_EXPONENTS = np.asarray(TERMS, np.int32)  # (35, 3)
 _INDEX = {term: n for n, term in enumerate(TERMS)}
-# (a + b s)^n = Σ_m C(n, m) a^(n-m) b^m s^m: the binomials and the power of a, for n, m <= 4
-_BINOMIAL = np.asarray([[comb(n, m) if m <= n else 0 for m in range(5)] for n in range(5)], np.float64)
-_A_POWER = np.asarray([[max(n - m, 0) for m in range(5)] for n in range(5)], np.int32)
-# one-hot of a + b + c = m (m <= 4): the product of three polynomials in s, truncated at s⁴
-_DEGREE = np.asarray([[[[float(a + b + c == m) for m in range(5)] for c in range(5)] for b in range(5)]
-                      for a in range(5)])
 
 
 def quartic_coefficients(order: int, values) -> np.ndarray:
@@ -67,28 +59,39 @@ def quartic_coefficients(order: int, values) -> np.ndarray:
     return out
 
 
-def _powers(v):
-    """(…, 5): ``v⁰ … v⁴``."""
-    v2 = v * v
-    return jnp.stack([jnp.ones_like(v), v, v2, v2 * v, v2 * v2], axis=-1)
+def _nested(coeffs, x, y, z, times, lift):
+    """``Σ_i x^i Σ_j y^j Σ_k c_ijk z^k`` by Horner's rule in z, then y, then x (static indices: no
+    gathers): ``times(p, v)`` multiplies by a variable, ``lift(c)`` makes a coefficient a value."""
+    total = None
+    for i in range(ORDER_MAX, -1, -1):
+        in_yz = None
+        for j in range(ORDER_MAX - i, -1, -1):
+            in_z = None
+            for k in range(ORDER_MAX - i - j, -1, -1):
+                c = lift(coeffs[_INDEX[(i, j, k)]])
+                in_z = c if in_z is None else times(in_z, z) + c
+            in_yz = in_z if in_yz is None else times(in_yz, y) + in_z
+        total = in_yz if total is None else times(total, x) + in_yz
+    return total
 
 
 def poly_value(coeffs: Float[ArrayLike, "35"], p: Float[ArrayLike, "3"]) -> Float[Array, ""]:
     """``P(p)``: negative inside, zero on the surface, positive outside."""
     coeffs, p = as_float_arrays(coeffs, p)
-    px, py, pz = _powers(p[0]), _powers(p[1]), _powers(p[2])
-    return jnp.sum(coeffs * px[_EXPONENTS[:, 0]] * py[_EXPONENTS[:, 1]] * pz[_EXPONENTS[:, 2]])
+    return _nested(coeffs, p[0], p[1], p[2], lambda a, v: a * v, lambda c: c)
 
 
 def _line_coefficients(coeffs, o, d):
-    """Coefficients (highest first) of the quartic in ``s`` of ``P(o + s d)``."""
-    def expansion(a, b):  # (5, 5): row n is (a + b s)^n, by powers of s
-        return jnp.asarray(_BINOMIAL, a.dtype) * _powers(a)[_A_POWER] * _powers(b)[None, :]
+    """Coefficients (highest first) of the quartic in ``s`` of ``P(o + s d)``: the same Horner
+    rule on polynomials in ``s`` (lowest first), each variable the line ``o_a + s d_a``."""
+    def times(p, line):  # p · (a + b s), truncated at s⁴ (the product's degree is at most 4)
+        a, b = line
+        return a * p + b * jnp.concatenate([jnp.zeros(1, p.dtype), p[:-1]])
 
-    ex, ey, ez = (expansion(o[axis], d[axis]) for axis in range(3))
-    c = jnp.einsum("t,ta,tb,tc,abcm->m", coeffs, ex[_EXPONENTS[:, 0]], ey[_EXPONENTS[:, 1]],
-                   ez[_EXPONENTS[:, 2]], jnp.asarray(_DEGREE, o.dtype))
-    return c[::-1]
+    def lift(c):
+        return jnp.zeros(ORDER_MAX + 1, o.dtype).at[0].set(c)
+
+    return _nested(coeffs, (o[0], d[0]), (o[1], d[1]), (o[2], d[2]), times, lift)[::-1]
 
 
 def _root_bound(c):
