@@ -151,7 +151,9 @@ class Lowerer:
                 return None
             return build(S.CSG, operation=rec.kind, children=tuple(kids), **common)
         shape = lower_shape(rec)
-        folded = None if rec.transform is None else shape.absorb_transform(rec.transform)
+        # (not with clipping or bounding objects: they move with the object's transform)
+        folded = (None if rec.transform is None or rec.clipped_by or rec.bounded_by
+                  else shape.absorb_transform(rec.transform))
         if folded is not None:
             shape, common["transform"] = folded, None
         return build(S.Object, shape=shape, **common)

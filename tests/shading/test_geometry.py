@@ -156,3 +156,28 @@ plane { z, 3 pigment { rgb 1 } finish { ambient 0 diffuse 1 } }
     shadow = 13 * 1.2 / np.sqrt(7**2 - 1.2**2)  # the tangent cone's radius on the wall
     inside, outside = r < shadow - edge, r > shadow + edge
     assert inside.sum() > 50 and (lit[inside] < 1e-6).all() and (lit[outside] > 0.05).all()
+
+
+@pytest.mark.parametrize("obj, band", [
+    # transforms before clipped_by do not move the clipping plane: the box [-2, 2]³ is cut at y = 0.5
+    ("box { -1, 1 rotate 90*x scale 2 clipped_by { plane { y, 0.5 } } }", (-2.0, 0.5)),
+    # transforms after it do, also for a sphere that folds its transform into its centre and radius
+    ("sphere { 0, 1 clipped_by { plane { y, 0.5 } } translate <0, 1, 0> }", (0.0, 1.5)),
+])
+def test_clipping_objects_move_with_the_transforms_given_after_them(obj, band):
+    """POV-Ray moves a ``clipped_by`` (and ``bounded_by``) object with the transforms its object is
+    given after it only (measured with POV-Ray 3.7). An orthographic view along +z of a white
+    object: it covers exactly the rows of the band of heights ``band``."""
+    import raytracer as rt
+
+    text = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { orthographic location <0, 0, -10> look_at 0 right 8*x up 8*y }
+light_source { <0, 0, -20> color rgb 1 }
+""" + obj[:-1] + "pigment { rgb 1 } finish { ambient 1 diffuse 0 } }\n"
+    image = np.asarray(rt.render(rt.load_scene(text), width=40, height=40))[..., 0]
+    y = 4 - (np.arange(40) + 0.5) / 5  # the rows' heights
+    seen = (image > 0.5).any(axis=1)
+    lo, hi = band
+    np.testing.assert_array_equal(seen[(y > lo + 0.2) & (y < hi - 0.2)], True)
+    np.testing.assert_array_equal(seen[(y < lo - 0.2) | (y > hi + 0.2)], False)
