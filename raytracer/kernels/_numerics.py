@@ -291,6 +291,19 @@ def solve_quartic(
     return jnp.where(has_root, roots, jnp.inf), has_root
 
 
+def centred_line(o: Array, d: Array):
+    """The line ``o + t d`` for a root search: ``(moving, inv_len, d_hat, t_c, o_c)``, whether
+    ``|d|`` is above the tiniest normal number, ``1/|d|``, the unit direction, and the point
+    ``o_c = o + t_c d`` of the line closest to the origin: a well-scaled origin, whatever the
+    distance of the ray (``t = t_c + s / |d|`` for ``s`` along ``d_hat``)."""
+    d_len_sq = jnp.dot(d, d)
+    moving = d_len_sq > jnp.finfo(d.dtype).tiny
+    inv_len = safe_mask(moving, lax.rsqrt, d_len_sq)
+    d_hat = d * inv_len
+    t_c = -jnp.dot(o, d_hat) * inv_len
+    return moving, inv_len, d_hat, t_c, o + t_c * d
+
+
 def differentiable_root(f: Callable[[Array], Array], t_star: ArrayLike) -> Array:
     """Attaches implicit-function-theorem derivatives to a root found without gradients.
 

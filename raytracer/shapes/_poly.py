@@ -30,7 +30,13 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .._dtype import as_float
 from ..kernels._common import masked_hits
-from ..kernels._numerics import as_float_arrays, differentiable_root, safe_mask, safe_normalize, solve_quartic
+from ..kernels._numerics import (
+    as_float_arrays,
+    centred_line,
+    differentiable_root,
+    safe_normalize,
+    solve_quartic,
+)
 from ._base import AbstractShape
 
 ORDER_MAX = 4
@@ -131,12 +137,7 @@ def poly_hits(
         normals (``∇P / |∇P|``).
     """
     coeffs, o, d = as_float_arrays(coeffs, o, d)
-    d_len_sq = jnp.dot(d, d)
-    moving = d_len_sq > jnp.finfo(d.dtype).tiny
-    inv_len = safe_mask(moving, lax.rsqrt, d_len_sq)
-    d_hat = d * inv_len
-    t_c = -jnp.dot(o, d_hat) * inv_len  # the point closest to the origin: a well-scaled origin
-    o_c = o + t_c * d
+    moving, inv_len, d_hat, t_c, o_c = centred_line(o, d)
 
     sg = lax.stop_gradient
     a, o0, d0 = sg(coeffs), sg(o_c), sg(d_hat)

@@ -43,8 +43,8 @@ from ..kernels._common import masked_hits
 from ..kernels._numerics import (
     _bisect,
     as_float_arrays,
+    centred_line,
     differentiable_root,
-    safe_mask,
     safe_normalize,
     safe_pow,
     solve_linear,
@@ -155,12 +155,7 @@ def superellipsoid_hits(
         normals (the normalised gradient of the implicit function).
     """
     e, n, o, d = as_float_arrays(e, n, o, d)
-    d_len_sq = jnp.dot(d, d)
-    moving = d_len_sq > jnp.finfo(d.dtype).tiny
-    inv_len = safe_mask(moving, lax.rsqrt, d_len_sq)
-    d_hat = d * inv_len
-    t_c = -jnp.dot(o, d_hat) * inv_len  # the point closest to the centre: a well-scaled origin
-    o_c = o + t_c * d
+    moving, inv_len, d_hat, t_c, o_c = centred_line(o, d)
 
     sg = lax.stop_gradient
     lo, hi, valid, level = _brackets(sg(e), sg(n), sg(o_c), sg(d_hat))

@@ -17,7 +17,13 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .._dtype import as_float
 from ..kernels._common import masked_hits
-from ..kernels._numerics import as_float_arrays, differentiable_root, safe_mask, safe_normalize, solve_quartic
+from ..kernels._numerics import (
+    as_float_arrays,
+    centred_line,
+    differentiable_root,
+    safe_normalize,
+    solve_quartic,
+)
 from ._base import (
     NATIVE_TORUS,
     AbstractShape,
@@ -101,12 +107,7 @@ def torus_hits(
         (the normalised gradient of the quartic).
     """
     major, minor, o, d = as_float_arrays(major, minor, o, d)
-    d_len_sq = jnp.dot(d, d)
-    moving = d_len_sq > jnp.finfo(d.dtype).tiny
-    inv_len = safe_mask(moving, lax.rsqrt, d_len_sq)
-    d_hat = d * inv_len
-    t_c = -jnp.dot(o, d_hat) * inv_len  # parameter of the point closest to the centre
-    o_c = o + t_c * d
+    moving, inv_len, d_hat, t_c, o_c = centred_line(o, d)
     bound = (jnp.abs(major) + jnp.abs(minor)) * 1.001
 
     sg = lax.stop_gradient
