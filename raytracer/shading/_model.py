@@ -1034,22 +1034,23 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
 
 def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     """:func:`shade` for a batch of rays (a leading axis). Computed for the batch at once: the
-    shadows of lights with adaptive area sampling (:func:`_adaptive_visibility`: the full grid only
-    for points in a penumbra; lights of one grid together), and, where transparent shadow casters
+    shadows of area lights (:func:`_adaptive_visibility`: with adaptive sampling the full grid only
+    for points in a penumbra; every light's samples in one shadow test, for the points it lights),
+    and, where transparent shadow casters
     have noise patterns or turbulence, the other lights' shadows (:func:`_batch_shadows`: the
     patterned pigments of all the batch's shadow crossings together, each computing its own
     pattern and only where a crossing is). Everything else is one ray's computation, vmapped."""
     adaptive = [_adaptive(ctx, light) for light in ctx.lights]
     by_pattern = _by_pattern(ctx)
-    if not any(adaptive) and not by_pattern:
+    # the other area lights' samples in the same shadow test (one in the program; only the points
+    # they light traced), but not where _batch_shadows computes their patterned filters
+    full = [not a and not by_pattern and _sampled(ctx, light) for a, light in zip(adaptive, ctx.lights,
+                                                                                   strict=True)]
+    if not any(adaptive) and not any(full) and not by_pattern:
         return jax.vmap(lambda r: shade(ctx, r))(rays)
     s = jax.vmap(lambda r: _surface(ctx, r))(rays)
     visibility: list = [None] * len(ctx.lights)
-    if any(adaptive):
-        # the other area lights' samples in the adaptive ones' shadow test (one in the program), but
-        # not where _batch_shadows computes their patterned filters for the batch
-        full = [not a and not by_pattern and _sampled(ctx, light) for a, light in zip(adaptive, ctx.lights,
-                                                                                       strict=True)]
+    if any(adaptive) or any(full):
         visibility = _batch_visibility(ctx, s, adaptive, full)
     if by_pattern:
         visibility, pigments = _batch_shadows(ctx, s, visibility, layers=True)

@@ -225,3 +225,21 @@ def test_area_lights_share_a_shadow_test_and_add_up():
                      for ls in (lights, *([light] for light in lights)))
     np.testing.assert_allclose(every, sum(alone), rtol=1e-5, atol=1e-6)
     assert min(np.abs(a - b).max() for i, a in enumerate(alone) for b in alone[:i]) > 0.1  # shadows differ
+
+
+def test_area_lights_without_adaptive_give_the_per_ray_image_in_the_batch(monkeypatch):
+    """An area light without ``adaptive`` is sampled by the batch's shadow test, its (point,
+    sample) pairs traced only where it lights a hit: the image (penumbra, a transparent caster) is
+    the one of every ray tracing every sample (``shade`` per ray)."""
+    import jax
+
+    from raytracer.shading import _model
+
+    scene = rt.load_scene(PENUMBRA.format(options=""))
+    batched = np.asarray(rt.render(scene, width=40, height=30))
+    monkeypatch.setattr(_model, "_sampled", lambda ctx, light: False)
+    jax.clear_caches()
+    per_ray = np.asarray(rt.render(scene, width=40, height=30))
+    np.testing.assert_allclose(batched, per_ray, rtol=1e-6, atol=1e-6)
+    grey = batched[..., 1]
+    assert ((grey > 0.05) & (grey < 0.6)).sum() > 20  # a penumbra between light and shadow
