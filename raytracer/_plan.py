@@ -272,7 +272,7 @@ class _Flattener:
         if obj.bounded_by and not has_box(tree, self.prims):
             end = len(self.prims)
             self.bounds[id(tree)] = trees = self._clip_trees(obj.bounded_by, chain, interior)
-            bound = tuple(sorted(set().union(*(_leaves(t) for t in trees))))
+            bound = tuple(sorted(set().union(*(leaf_prims(t) for t in trees))))
             for k in range(start, end):
                 p = self.prims[k]
                 self.prims[k] = dataclasses.replace(p, bounds=p.bounds + (bound,))
@@ -352,11 +352,11 @@ class _Flattener:
                      for clip in clips)
 
 
-def _leaves(tree: InsideTree) -> set[int]:
+def leaf_prims(tree: InsideTree) -> set[int]:
     """The primitives an inside tree tests."""
     if isinstance(tree, InPrim):
         return {tree.prim}
-    return set().union(*(_leaves(t) for t in tree.terms))
+    return set().union(*(leaf_prims(t) for t in tree.terms))
 
 
 def _clipped(tree: InsideTree, clip_trees: tuple[InsideTree, ...]) -> InsideTree:

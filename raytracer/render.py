@@ -25,11 +25,11 @@ import numpy as np
 
 from ._gc import paused, without_collections
 from ._packing import Frozen, is_traced, keyed, skeleton, with_field
-from ._plan import InPrim, Plan, make_plan
+from ._plan import InPrim, Plan, leaf_prims, make_plan
 from ._xla import warn_if_untuned
 from .scene import Scene
 from .shading import _accel
-from .shading._geometry import PackedGeometry, hierarchy_filters, leaf_prims, pack_geometry, prim_bits
+from .shading._geometry import PackedGeometry, hierarchy_filters, pack_geometry, prim_bits
 from .shading._materials import PackedMaterials, pack_materials
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace

@@ -149,13 +149,6 @@ def _accelerable(prim, filter_query: bool, kernels=None) -> bool:
     return True
 
 
-def leaf_prims(tree: InsideTree) -> set[int]:
-    """The primitives an inside tree tests."""
-    if isinstance(tree, InPrim):
-        return {tree.prim}
-    return set().union(*(leaf_prims(t) for t in tree.terms))
-
-
 def medium_ids(prims) -> np.ndarray:
     """Primitives whose interior is one record (the children of a CSG given one ``interior``) are
     one medium, named by the first of them: a ray that enters a hollow glass ``difference``
@@ -762,7 +755,7 @@ def bound_mask(geo: PackedGeometry, checks: BoundChecks | None, o, d, t_min, n_s
     if checks is None:
         return jnp.ones(n_slots, bool)
     t, _ = all_crossings(geo, jax.lax.stop_gradient(o), jax.lax.stop_gradient(d), checks.members)
-    crossed = jnp.zeros(checks.n_prims + 1, bool).at[checks.slot_prim].max(jnp.isfinite(t) & (t > t_min))
+    crossed = jnp.zeros(checks.n_prims, bool).at[checks.slot_prim].max(jnp.isfinite(t) & (t > t_min))
     # a bound none of whose primitives is a candidate (held by the hierarchy) counts as crossed
     held = np.setdiff1d(np.arange(checks.n_sets), checks.set_of)
     ok = jnp.zeros(checks.n_sets, bool).at[checks.set_of].max(crossed[checks.set_prim]).at[held].set(True)

@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._plan import Effects, InPrim, Plan
+from .._plan import Effects, InPrim, Plan, leaf_prims
 from ..kernels import matvec, safe_pow
 from ..scene import Light, Settings
 from ..scene._lights import area_blocks, light_types, point_geometry
@@ -65,7 +65,6 @@ from ._geometry import (
     csg_mask,
     evaluate_inside,
     hierarchy_filters,
-    leaf_prims,
     leaf_values_of,
     prim_bits,
     solo_prims,
@@ -1036,10 +1035,10 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     """:func:`shade` for a batch of rays (a leading axis). Computed for the batch at once: the
     shadows of area lights (:func:`_adaptive_visibility`: with adaptive sampling the full grid only
     for points in a penumbra; every light's samples in one shadow test, for the points it lights),
-    and, where transparent shadow casters
-    have noise patterns or turbulence, the other lights' shadows (:func:`_batch_shadows`: the
-    patterned pigments of all the batch's shadow crossings together, each computing its own
-    pattern and only where a crossing is). Everything else is one ray's computation, vmapped."""
+    and, where transparent shadow casters have noise patterns or turbulence, the other lights'
+    shadows (:func:`_batch_shadows`: the patterned pigments of all the batch's shadow crossings
+    together, each computing its own pattern and only where a crossing is). Everything else is one
+    ray's computation, vmapped."""
     adaptive = [_adaptive(ctx, light) for light in ctx.lights]
     by_pattern = _by_pattern(ctx)
     # the other area lights' samples in the same shadow test (one in the program; only the points

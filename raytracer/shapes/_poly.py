@@ -31,9 +31,11 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .._dtype import as_float
 from ..kernels._common import masked_hits
 from ..kernels._numerics import (
+    _horner,
     as_float_arrays,
     centred_line,
     differentiable_root,
+    safe_div,
     safe_normalize,
     solve_quartic,
 )
@@ -132,13 +134,6 @@ def _root_bound(c):
     return jnp.minimum(bound, S_MAX)
 
 
-def _horner(c, s):
-    acc = jnp.zeros_like(s)
-    for k in range(c.shape[0]):
-        acc = acc * s + c[k]
-    return acc
-
-
 def poly_hits(
     coeffs: Float[ArrayLike, "35"], o: Float[ArrayLike, "3"], d: Float[ArrayLike, "3"]
 ) -> tuple[Float[Array, "4"], Float[Array, "4 3"]]:
@@ -169,8 +164,7 @@ def poly_hits(
     s0 = jnp.where(found, s_star, 0.0)
     for _ in range(_POLISH_STEPS):
         value, der = _horner(c, s0), _horner(slope, s0)
-        step = jnp.where(der != 0, value / jnp.where(der != 0, der, 1.0), 0.0)
-        step = jnp.clip(step, -resolution, resolution)
+        step = jnp.clip(safe_div(value, der), -resolution, resolution)
         better = jnp.abs(_horner(c, s0 - step)) < jnp.abs(value)
         s0 = jnp.where(better, s0 - step, s0)
     s = jax.vmap(lambda si: differentiable_root(lambda x: poly_value(coeffs, o_c + x * d_hat), si))(s0)
