@@ -55,6 +55,8 @@ constexpr int KIND_PLANE = 6;    // unit normal, distance: a member of a CSG uni
 constexpr int KIND_CSG = 7;      // a CSG unit: params[0] is its program's offset (see CSG units)
 constexpr int KIND_SUPERELLIPSOID = 8;  // e, n (the unit box; shapes/_superellipsoid.py)
 constexpr int KIND_QUADRIC = 9;  // A … J of Q(x) = 0 (shapes/_quadric.py): a member of a CSG unit only
+constexpr int KIND_POLY = 10;    // 35 coefficients, two rows (see polynomial): a member of a CSG unit only
+constexpr int MEMBER_INTS = 4;  // a CSG member's entry in its unit's program (see CSG units)
 constexpr int MAX_CROSSINGS = 8; // crossings of one member a CSG unit looks at (a frustum has 4)
 constexpr int BINS = 16;
 constexpr int MAX_LEAF = 4;
@@ -571,6 +573,174 @@ inline double quadric_hit(const double* q, const RayD& r, double tmin, double tm
   return INFINITY;
 }
 
+// ------------------------------------------------------------------------------------ polynomial
+// P(x, y, z) = Σ c_ijk x^i y^j z^k of order <= 4 (shapes/_poly.py): 35 coefficients in POV-Ray's
+// order (i, then j, then k descending), inside where P < 0. They do not fit an item's 12 numbers:
+// a polynomial item takes two rows of parameters, its map and c[0..11] then c[12..34] (and one
+// zero); the second row is never named by a program or the hierarchy.
+constexpr int POLY_TERMS = 35;
+
+// P at x by Horner's rule in z, then y, then x (the order of the coefficients).
+inline double poly_at(const double* c, const double* x) {
+  int n = 0;
+  double total = 0.0;
+  for (int i = 4; i >= 0; --i) {
+    double in_yz = 0.0;
+    for (int j = 4 - i; j >= 0; --j) {
+      double in_z = 0.0;
+      for (int k = 4 - i - j; k >= 0; --k) in_z = in_z * x[2] + c[n++];
+      in_yz = in_yz * x[1] + in_z;
+    }
+    total = total * x[0] + in_yz;
+  }
+  return total;
+}
+
+// The coefficients (lowest first) of P(o + s u) as a polynomial in s: the same Horner rule on
+// polynomials, each variable the line o_a + s u_a (products truncated at s⁴: P is of order <= 4).
+inline void poly_line(const double* c, const double* o, const double* u, double* out) {
+  auto times = [](double* p, double a, double b) {
+    for (int k = 4; k > 0; --k) p[k] = a * p[k] + b * p[k - 1];
+    p[0] *= a;
+  };
+  int n = 0;
+  double total[5] = {0, 0, 0, 0, 0};
+  for (int i = 4; i >= 0; --i) {
+    double in_yz[5] = {0, 0, 0, 0, 0};
+    for (int j = 4 - i; j >= 0; --j) {
+      double in_z[5] = {0, 0, 0, 0, 0};
+      for (int k = 4 - i - j; k >= 0; --k) {
+        times(in_z, o[2], u[2]);
+        in_z[0] += c[n++];
+      }
+      times(in_yz, o[1], u[1]);
+      for (int m = 0; m < 5; ++m) in_yz[m] += in_z[m];
+    }
+    times(total, o[0], u[0]);
+    for (int m = 0; m < 5; ++m) total[m] += in_yz[m];
+  }
+  for (int m = 0; m < 5; ++m) out[m] = total[m];
+}
+
+inline double horner1(const double* c, int n, double s) {  // c lowest first, degree n
+  double v = c[n];
+  for (int k = n - 1; k >= 0; --k) v = v * s + c[k];
+  return v;
+}
+
+// The root of c (degree n) in [a, b], where it is monotonic and changes sign (f(a) = fa): Newton's
+// method kept inside the shrinking bracket (a bisection step where Newton's leaves it), to a bracket
+// or a step of width tol.
+inline double newton_bisect(const double* c, int n, double a, double b, double fa, double tol) {
+  double x = 0.5 * (a + b);
+  for (int it = 0; it < 200; ++it) {
+    double f = c[n], df = 0.0;
+    for (int k = n - 1; k >= 0; --k) {
+      df = df * x + f;
+      f = f * x + c[k];
+    }
+    if (f == 0.0) return x;
+    if ((f < 0.0) == (fa < 0.0)) {
+      a = x;
+    } else {
+      b = x;
+    }
+    double next = df != 0.0 ? x - f / df : 0.5 * (a + b);
+    if (!(next > a && next < b)) next = 0.5 * (a + b);
+    if (std::fabs(next - x) <= tol || b - a <= tol) return next;
+    x = next;
+  }
+  return x;
+}
+
+// The real roots in [lo, hi] of the polynomial c (lowest first) of degree <= n, ascending; returns
+// how many. The roots of its derivative (found the same way, down to a quadratic's closed form)
+// split [lo, hi] into pieces where it is monotonic; a sign change in a piece is a root, found by
+// bisection to the last bits. A double root (a tangent ray) that does not change the sign is
+// missed, as by the JAX kernel.
+inline int poly_roots(const double* c, int n, double lo, double hi, double* out) {
+  while (n > 0 && c[n] == 0.0) --n;
+  if (n == 0 || !(lo <= hi)) return 0;
+  if (n == 1) {
+    const double r = -c[0] / c[1];
+    if (r >= lo && r <= hi) {
+      out[0] = r;
+      return 1;
+    }
+    return 0;
+  }
+  double crit[4];
+  int m = 0;
+  if (n == 2) {
+    crit[m++] = -0.5 * c[1] / c[2];  // the vertex: the pieces below then hold one root each
+  } else {
+    double dc[4];
+    for (int k = 1; k <= n; ++k) dc[k - 1] = k * c[k];
+    m = poly_roots(dc, n - 1, lo, hi, crit);
+  }
+  double a = lo, fa = horner1(c, n, lo);
+  int count = 0;
+  const double tol = 4.0 * std::numeric_limits<double>::epsilon() * std::max(std::fabs(lo), std::fabs(hi));
+  for (int piece = 0; piece <= m; ++piece) {
+    const double b = piece < m ? std::min(std::max(crit[piece], a), hi) : hi;
+    const double fb = horner1(c, n, b);
+    if (fa == 0.0) {
+      if (count == 0 || out[count - 1] < a) out[count++] = a;
+    } else if ((fa < 0.0) != (fb < 0.0) && fb != 0.0) {
+      out[count++] = newton_bisect(c, n, a, b, fa, tol);
+    }
+    a = b;
+    fa = fb;
+  }
+  if (fa == 0.0 && (count == 0 || out[count - 1] < a)) out[count++] = a;
+  return count;
+}
+
+// Fujiwara's bound on the moduli of the roots of c (lowest first, degree n, c[n] != 0).
+inline double fujiwara(const double* c, int n) {
+  double bound = 0.0;
+  for (int k = 1; k < n; ++k) bound = std::max(bound, std::pow(std::fabs(c[n - k] / c[n]), 1.0 / k));
+  bound = std::max(bound, std::pow(std::fabs(c[0] / (2.0 * c[n])), 1.0 / n));
+  return 2.0 * bound;
+}
+
+// The first crossing of P = 0 with t in (tmin, tmax): the roots along the unit direction from the
+// point of the line nearest the object's origin (the JAX kernel's well-scaled frame), all of them
+// within Fujiwara's bound (at most S_MAX, as there), whatever tmin is: the crossings a CSG unit
+// walks through one by one come out the same each time.
+// Every crossing t of P = 0 (ascending, at most 4; see poly_hit); returns how many.
+inline int poly_crossings(const double* c, const RayD& r, double* ts) {
+  constexpr double S_MAX = 1e7;  // as shapes/_poly.S_MAX
+  const double len = std::sqrt(dot3(r.d, r.d));
+  if (!(len > 0.0)) return 0;
+  const double u[3] = {r.d[0] / len, r.d[1] / len, r.d[2] / len};
+  const double s0 = -dot3(r.o, u);
+  const double oc[3] = {r.o[0] + s0 * u[0], r.o[1] + s0 * u[1], r.o[2] + s0 * u[2]};
+  double line[5];
+  poly_line(c, oc, u, line);
+  int n = 4;
+  while (n > 0 && line[n] == 0.0) --n;
+  if (n == 0) return 0;
+  const double bound = std::min(fujiwara(line, n) * 1.001, S_MAX);
+  const int count = poly_roots(line, n, -bound, bound, ts);
+  for (int k = 0; k < count; ++k) ts[k] = (s0 + ts[k]) / len;
+  return count;
+}
+
+inline double poly_hit(const double* c, const RayD& r, double tmin, double tmax) {
+  double ts[4];
+  const int count = poly_crossings(c, r, ts);
+  for (int k = 0; k < count; ++k)
+    if (ts[k] > tmin && ts[k] < tmax) return ts[k];
+  return INFINITY;
+}
+
+// The 35 coefficients of a polynomial item (its two rows: see above), in double.
+template <typename T>
+inline void poly_coefficients(const T* params, double* c) {
+  for (int k = 0; k < POLY_TERMS; ++k) c[k] = static_cast<double>(params[12 + k]);
+}
+
 // The first crossing of the item with t in (tmin, tmax), or INFINITY.
 template <typename T>
 inline double item_hit(int32_t kind, const T* params, const double* o, const double* d, double tmin,
@@ -578,6 +748,11 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
   double p[ITEM_PARAMS];
   for (int k = 0; k < ITEM_PARAMS; ++k) p[k] = static_cast<double>(params[k]);
   RayD r = to_object(p, o, d);
+  if (kind == KIND_POLY) {
+    double c[POLY_TERMS];
+    poly_coefficients(params, c);
+    return poly_hit(c, r, tmin, tmax);
+  }
   const double* q = p + 12;
   double t0 = INFINITY, t1 = INFINITY;
   if (kind == KIND_SPHERE) {
@@ -706,6 +881,11 @@ inline bool item_inside(int32_t kind, const T* params, const double* pw) {
   if (kind == KIND_PLANE) return dot3(q, x) < q[3] * std::sqrt(dot3(q, q));
   if (kind == KIND_SUPERELLIPSOID) return SuperEll(q).norm(x) < 1.0;
   if (kind == KIND_QUADRIC) return quadric_value(q, x) < 0.0;
+  if (kind == KIND_POLY) {
+    double c[POLY_TERMS];
+    poly_coefficients(params, c);
+    return poly_at(c, x) < 0.0;
+  }
   return false;
 }
 
@@ -741,33 +921,53 @@ inline bool slab(const double* box_lo, const double* box_hi, const double* o, co
 // crossing of a member counts (the rule of _plan: a crossing of a member counts where the point is
 // inside or outside other parts of the object, semantics §4.2):
 //
-//   [n_members, then per member: its item, its first condition, its number of conditions]
+//   [n_members, then per member: its item, its first condition, its number of conditions, its
+//    bounds' node (0: none)]
 //   a condition: [node, want] (the node's inside test must equal want)
 //   a node: [op, inverse, a, b]: op 0 a member's inside test (a: its item), 1 all, 2 any,
 //           3 difference (the first and none of the others) of the b nodes listed from offset a
+//   the bounds' node: the same tree of the bounding objects' members, a leaf true where the ray
+//           crosses that member beyond tmin; false: the member is not seen by the ray at all
 //
 // Every offset is absolute. The query visits a member's item with its first counted crossing, so
 // the closest hit names the member, whose JAX kernel computes the hit again.
-template <typename T>
-bool node_inside(const Scene<T>& s, int32_t node, const double* p) {
+// A node's value, its leaves' (a member's item) given by leaf(item).
+template <typename T, typename Leaf>
+bool node_value(const Scene<T>& s, int32_t node, const Leaf& leaf) {
   const int32_t* n = s.program + node;
   bool v;
   if (n[0] == 0) {
-    v = item_inside(s.kind[n[2]], s.params + ITEM_PARAMS * static_cast<int64_t>(n[2]), p);
+    v = leaf(n[2]);
   } else {
     const int32_t* kids = s.program + n[2];
     if (n[0] == 1) {
       v = true;
-      for (int32_t j = 0; j < n[3] && v; ++j) v = node_inside(s, kids[j], p);
+      for (int32_t j = 0; j < n[3] && v; ++j) v = node_value(s, kids[j], leaf);
     } else if (n[0] == 2) {
       v = false;
-      for (int32_t j = 0; j < n[3] && !v; ++j) v = node_inside(s, kids[j], p);
+      for (int32_t j = 0; j < n[3] && !v; ++j) v = node_value(s, kids[j], leaf);
     } else {
-      v = n[3] > 0 && node_inside(s, kids[0], p);
-      for (int32_t j = 1; j < n[3] && v; ++j) v = !node_inside(s, kids[j], p);
+      v = n[3] > 0 && node_value(s, kids[0], leaf);
+      for (int32_t j = 1; j < n[3] && v; ++j) v = !node_value(s, kids[j], leaf);
     }
   }
   return v != (n[1] != 0);
+}
+
+template <typename T>
+bool node_inside(const Scene<T>& s, int32_t node, const double* p) {
+  return node_value(s, node, [&](int32_t it) {
+    return item_inside(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), p);
+  });
+}
+
+// Whether the ray crosses the node's leaves beyond tmin, as its tree combines them (a member's
+// bounds: POV-Ray's bounded_by on an object without a box of its own, semantics §4.4).
+template <typename T>
+bool node_crossed(const Scene<T>& s, int32_t node, const double* o, const double* d, double tmin) {
+  return node_value(s, node, [&](int32_t it) {
+    return item_hit(s.kind[it], s.params + ITEM_PARAMS * static_cast<int64_t>(it), o, d, tmin, INFINITY) < INFINITY;
+  });
 }
 
 // What a visitor of a CSG unit's counted crossings asks next (csg_crossings).
@@ -782,13 +982,28 @@ bool csg_crossings(const Scene<T>& s, int32_t item, const double* o, const doubl
                    int32_t want, const Visit& visit) {
   const int32_t* prog = s.program + static_cast<int64_t>(s.params[ITEM_PARAMS * static_cast<int64_t>(item)]);
   for (int32_t m = 0; m < prog[0]; ++m) {
-    const int32_t* mem = prog + 1 + 3 * m;
+    const int32_t* mem = prog + 1 + MEMBER_INTS * m;
     const int32_t it = mem[0];
     if ((s.mask[it] & want) == 0) continue;
+    if (mem[3] > 0 && !node_crossed(s, mem[3], o, d, tmin)) continue;  // its bounds missed
     const T* params = s.params + ITEM_PARAMS * static_cast<int64_t>(it);
     double t = tmin;
+    // a polynomial's crossings, found once (each search finds them all)
+    double roots[4];
+    int n_roots = -1, next_root = 0;
     for (int k = 0; k < MAX_CROSSINGS; ++k) {
-      t = item_hit(s.kind[it], params, o, d, t, limit);
+      if (s.kind[it] == KIND_POLY) {
+        if (n_roots < 0) {
+          double p[ITEM_PARAMS], c[POLY_TERMS];
+          for (int j = 0; j < ITEM_PARAMS; ++j) p[j] = static_cast<double>(params[j]);
+          poly_coefficients(params, c);
+          n_roots = poly_crossings(c, to_object(p, o, d), roots);
+        }
+        while (next_root < n_roots && !(roots[next_root] > t)) ++next_root;
+        t = next_root < n_roots && roots[next_root] < limit ? roots[next_root] : INFINITY;
+      } else {
+        t = item_hit(s.kind[it], params, o, d, t, limit);
+      }
       if (!(t < limit)) break;
       const double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
       bool counts = true;

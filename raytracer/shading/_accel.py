@@ -58,6 +58,10 @@ T_MAX = 1e7  # crossings beyond are ignored (the hierarchy's queries and ``_geom
 MASK_CAMERA, MASK_REFLECT, MASK_SHADOW, MASK_FILTER = 1, 2, 4, 8
 JAX_TWIN_KERNELS = frozenset(range(5))  # the kernels ``_accel_jax`` has (sphere … disc: no torus)
 KIND_CSG = 7  # an item that is a CSG object (bvh.cc's CSG units: its members and program)
+MEMBER_INTS = 4  # a CSG member's entry in its object's program (bvh.cc's CSG units)
+# the box of a CSG object without one (``_geometry.csg_units``): holds every point within T_MAX of
+# a ray's origin in any scene of sizes below ~1e7 (the build's centroids and areas stay finite)
+UNBOUNDED = 1e8
 MAX_PROGRAM = 1 << 24  # the program's offsets travel in the items' parameters: exact in float32
 FILTER_ITEMS = 16  # transparent items a filtered shadow segment keeps (the nearest; see ``filtering``)
 # transparent shadow casters of fewer items than this stay candidates (with the CSG objects they are
@@ -208,12 +212,13 @@ register_packed(Accel, ("item_prim", "tables", "ranges"))
 def _group_items(shape, ofw, wfo):
     """World boxes (n·k, 6) and parameters (n·k, ITEM_PARAMS) of the items of one stacked group: one
     compiled program per group signature (op by op, a cold start compiled every operation)."""
-    p, hull = jax.vmap(lambda s: type(s).native_items(s))(shape)  # (n, k, 12), (n, k, V, 3)
+    p, hull = jax.vmap(lambda s: type(s).native_items(s))(shape)  # (n, k, 12 r - 12), (n, k, V, 3)
     n, k = p.shape[:2]
     world = jnp.einsum("nij,nkvj->nkvi", wfo[:, :3, :3], hull) + wfo[:, None, None, :3, 3]
     boxes = jnp.concatenate([world.min(axis=2), world.max(axis=2)], axis=-1).reshape(n * k, 6)
     m = jnp.broadcast_to(ofw[:, None, :3, :].reshape(n, 1, 12), (n, k, 12))
-    params = jnp.concatenate([m, p.astype(ofw.dtype)], axis=-1).reshape(n * k, ITEM_PARAMS)
+    # an item of r rows (``native_rows``) continues its parameters on the next rows
+    params = jnp.concatenate([m, p.astype(ofw.dtype)], axis=-1).reshape(-1, ITEM_PARAMS)
     return boxes, params
 
 
@@ -232,7 +237,7 @@ def _host_items(shape, ofw, wfo):
     world = np.einsum("nij,nvj->nvi", wfo[:, :3, :3], hull.astype(wfo.dtype)) + wfo[:, None, :3, 3]
     boxes = np.concatenate([world.min(axis=1), world.max(axis=1)], axis=-1)
     params = np.concatenate([ofw[:, :3, :].reshape(n, 12), p.astype(ofw.dtype)], axis=-1)
-    return boxes, params
+    return boxes, params.reshape(-1, ITEM_PARAMS)  # (an item of r rows continues on the next rows)
 
 
 def _items(shape, ofw, wfo):
@@ -254,7 +259,7 @@ def _items(shape, ofw, wfo):
     parts = [_group_items(*jax.tree_util.tree_map(lambda x, s=start: x[s:s + ITEMS_CHUNK], host))
              for start in range(0, total, ITEMS_CHUNK)]
     return (np.concatenate([np.asarray(b) for b, _ in parts])[:n],
-            np.concatenate([np.asarray(p) for _, p in parts])[:n])
+            np.concatenate([np.asarray(p) for _, p in parts])[:n * type(shape).native_rows])
 
 
 def _joined(parts, dtype) -> jax.Array:
@@ -308,7 +313,7 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         nonlocal first
         b, p = _items(shapes[g], object_from_world[g], world_from_object[g])
         n = len(prim_ids)
-        k = p.shape[0] // n
+        k = p.shape[0] // n  # rows of a member: its items', each of native_rows rows
         if not is_csg:
             boxes.append(b)
         params.append(p)
@@ -327,11 +332,13 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
     program = np.zeros(1, np.int32)
     if csg is not None:
         n_csg = len(csg.units)
+        # (an object without a box: a box of everything, ``UNBOUNDED``)
         if any_traced(unit_boxes):
             lo, hi = (sg(b)[csg.units] for b in unit_boxes)
-            boxes.append(jnp.concatenate([lo, hi], axis=-1))
+            boxes.append(jnp.clip(jnp.concatenate([lo, hi], axis=-1), -UNBOUNDED, UNBOUNDED))
         else:  # on the host: each jnp operation compiled a program on a cold start
-            boxes.append(np.concatenate([np.asarray(b)[csg.units] for b in unit_boxes], axis=-1))
+            boxes.append(np.clip(np.concatenate([np.asarray(b)[csg.units] for b in unit_boxes], axis=-1),
+                                 -UNBOUNDED, UNBOUNDED))
         offsets = np.zeros((n_csg, ITEM_PARAMS), dtype)
         offsets[:, 0] = csg.offsets
         params.append(offsets)
@@ -343,7 +350,9 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         member_base = first  # the members' items follow the objects'
         for g, prim_ids in csg_groups:
             add(g, prim_ids, True)
-        member_prims = np.concatenate([np.asarray(ids, np.int32) for _, ids in csg_groups])
+        rows = [type(shapes[g]).native_rows for g, _ in csg_groups]
+        member_prims = np.concatenate([np.repeat(np.asarray(ids, np.int32), r)
+                                       for (_, ids), r in zip(csg_groups, rows, strict=True)])
         masks = np.concatenate([masks, prim_mask[member_prims]])
         units = np.concatenate([units, np.asarray(prim_unit, np.int32)[member_prims]])
         program = _relocate(csg, member_base)
@@ -506,9 +515,20 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
     for kernel, alike in _alike(accel, shapes, [g for g, ag in enumerate(accel.groups) if ag.filters]):
         members = _chosen_members(accel, alike, shapes, object_from_world, item)
         any_csg = any(accel.groups[g].csg for g in alike)
+        all_csg = all(accel.groups[g].csg for g in alike)
 
-        def one(mine, csg, arrays, m, sub, t_counted, any_csg=any_csg, kernel=kernel):
-            t, n = _kernel_hits(kernel, arrays, matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d), sub)
+        def one(mine, csg, arrays, m, sub, t_counted, any_csg=any_csg, all_csg=all_csg, kernel=kernel):
+            o_obj, d_obj = matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d)
+            # CSG members only, of a shape that refines the query's crossing (a polynomial's
+            # search, ~4 brackets of 50 halvings, on every entry of every shadow ray: pawns.pov
+            # 1.2 -> 3.5 s): the counted crossing itself
+            near = None if kernel is not None or not all_csg else arrays.near_hit(
+                o_obj, d_obj, jnp.where(mine & jnp.isfinite(t_counted), t_counted, 0).astype(o.dtype))
+            if near is not None:
+                t, n = near
+                ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
+                return jnp.where(ok, t, jnp.inf), safe_normalize(vecmat(n[0], m[:3, :3]))[None]
+            t, n = _kernel_hits(kernel, arrays, o_obj, d_obj, sub)
             ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
             n = jax.vmap(lambda v: safe_normalize(vecmat(v, m[:3, :3])))(n)
             t = jnp.where(ok, t, jnp.inf)

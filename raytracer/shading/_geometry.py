@@ -202,13 +202,31 @@ def hierarchy_choice(plan: Plan, accelerate: bool | None = None,
     in_csg = set(csg)
     filters = [i for i in np.flatnonzero(bits & _accel.MASK_FILTER) if held[i] or plan.prim_unit[i] in in_csg]
     if 0 < sum(native_items(plan.prims[i].obj.shape) for i in filters) < _accel.MIN_FILTER_ITEMS:
-        # a few transparent shadow casters: cheaper as candidates than through the all-crossings query
+        # a few transparent shadow casters: cheaper as candidates than through the all-crossings
+        # query, unless their objects have a part the hierarchy's solver finds (``_refines``)
+        members = _unit_members(plan)
+        costly = {u for u in csg if any(_refines(plan.prims[i].obj.shape) for i in members[u])}
         for i in filters:
-            held[i] = False
-        dropped = {plan.prim_unit[i] for i in filters}
+            held[i] = held[i] and _refines(plan.prims[i].obj.shape)
+        dropped = {plan.prim_unit[i] for i in filters} - costly
         csg = tuple(u for u in csg if u not in dropped)
     items = sum(native_items(p.obj.shape) for p, ok in zip(plan.prims, held, strict=True) if ok) + len(csg)
-    return (held, csg) if items >= _accel.MIN_ITEMS else ([False] * len(plan.prims), ())
+    if items < _accel.MIN_ITEMS:
+        # a shape whose hit the hierarchy's solver finds (``near_hit``) pays for it alone: its JAX
+        # search costs every ray ~400 evaluations of a superellipsoid's norm or a polynomial's
+        # four brackets (objects/quartic/*.pov, one polynomial: 0.07-0.14 s warm -> ...)
+        chosen = [i for i, ok in enumerate(held) if ok]
+        members = _unit_members(plan)
+        chosen += [i for u in csg for i in members[u]]
+        if not any(_refines(plan.prims[i].obj.shape) for i in chosen):
+            return [False] * len(plan.prims), ()
+    return held, csg
+
+
+def _refines(shape: AbstractShape) -> bool:
+    """Whether the hierarchy's choice of ``shape`` is refined (``near_hit``) rather than searched
+    again by its own kernel."""
+    return type(shape).near_hit is not AbstractShape.near_hit
 
 
 MAX_CSG_HEIGHT = 64  # deeper CSG trees stay candidates (bvh.cc evaluates a tree by recursion)
@@ -245,17 +263,25 @@ def csg_units(plan: Plan, bits: np.ndarray) -> tuple[int, ...]:
     counted crossing) and a tree at most ``MAX_CSG_HEIGHT`` deep.
     ``bits``: ``prim_bits(plan)``. (A part's conditions only name parts
     of its own unit: only a splittable union, which adds no condition, lies above a unit.)"""
-    if all(isinstance(tree, InPrim) for tree in plan.units):
-        return ()  # no CSG or clipped object
+    if all(isinstance(tree, InPrim) and not _refines(plan.prims[tree.prim].obj.shape) for tree in plan.units):
+        return ()  # no CSG or clipped object (nor a polynomial on its own)
     members = _unit_members(plan)
 
     def member_ok(i):
         shape = plan.prims[i].obj.shape
         return type(shape).native_kernel is not None and type(shape).n_native_items(shape) == 1
 
+    def boxed(u, tree):
+        if has_box(tree, plan.prims):
+            return not isinstance(tree, InPrim)
+        # an object without a box whose part the hierarchy's solver finds (a polynomial on its
+        # own, or clipped by planes and quadrics: objects/quartic/helix.pov) is cheaper there
+        # than searched by every ray's JAX kernel: its box is everything (``_accel.UNBOUNDED``)
+        return any(_refines(plan.prims[i].obj.shape) for i in members.get(u, []))
+
     return tuple(u for u, tree in enumerate(plan.units)
-                 if not isinstance(tree, InPrim) and has_box(tree, plan.prims)
-                 and _height(tree) <= MAX_CSG_HEIGHT and all(member_ok(i) for i in members.get(u, [])))
+                 if boxed(u, tree) and _height(tree) <= MAX_CSG_HEIGHT
+                 and all(member_ok(i) for i in members.get(u, [])))
 
 
 def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int],
@@ -265,13 +291,13 @@ def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int],
     members = _unit_members(plan)
     ops = {InAll: 1, InAny: 2, InDiff: 3}
     prog: list[int] = []
-    offsets, masks = [], []
+    offsets, masks, alive = [], [], []
     for u in units:
         rendered = [i for i in members[u] if plan.prims[i].rendered]
         offsets.append(len(prog))
         prog.append(len(rendered))
         header = len(prog)
-        prog.extend([0] * (3 * len(rendered)))
+        prog.extend([0] * (_accel.MEMBER_INTS * len(rendered)))
         at_node: dict[int, int] = {}
 
         def node(tree: InsideTree, at_node=at_node) -> int:
@@ -289,7 +315,14 @@ def csg_program(plan: Plan, units: Sequence[int], member_rank: dict[int, int],
 
         for j, i in enumerate(rendered):
             conds = [(node(c.tree), int(c.want)) for c in plan.prims[i].conditions]
-            prog[header + 3 * j: header + 3 * j + 3] = [-1 - member_rank[i], len(prog), len(conds)]
+            # its bounds (``Prim.bounds``): one primitive of each crossed, else the ray sees none of it
+            crossed = 0  # (none: offset 0 is the first unit's count, never a node)
+            if plan.prims[i].bounds:
+                bounds = plan.prims[i].bounds
+                alive.append(InAll(tuple(InAny(tuple(InPrim(b, False) for b in bound)) for bound in bounds)))
+                crossed = node(alive[-1])  # (kept alive: ``node`` knows a tree by its id)
+            at = header + _accel.MEMBER_INTS * j
+            prog[at: at + _accel.MEMBER_INTS] = [-1 - member_rank[i], len(prog), len(conds), crossed]
             for pair in conds:
                 prog.extend(pair)
         masks.append(np.bitwise_or.reduce(bits[rendered]) if rendered else 0)
@@ -335,7 +368,10 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
     if accel_groups or csg_groups:
         programs = None
         if csg:
-            rank = {int(i): r for r, i in enumerate(i for _, ids in csg_groups for i in ids)}
+            # a member's first row of parameters (a polynomial takes two: ``native_rows``)
+            rows = [type(shapes[g]).native_rows for g, ids in csg_groups for _ in ids]
+            ids = [int(i) for _, group in csg_groups for i in group]
+            rank = dict(zip(ids, np.cumsum([0, *rows[:-1]]).tolist(), strict=True))
             programs = csg_program(plan, csg, rank, bits)
         geo = dataclasses.replace(geo, accel=_accel.pack_accel(
             shapes, ofw, wfo, accel_groups, bits, dtype,

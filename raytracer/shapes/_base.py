@@ -188,6 +188,10 @@ class AbstractShape(Record):
         points whose hull holds each item (k, V, 3) (its bounding box comes from them)."""
         raise NotImplementedError(f"{self.kind} has no native kernel")
 
+    # rows of ITEM_PARAMS numbers one item takes (its map, then ``native_items``' parameters, 12 a
+    # row after the first row's): a polynomial's 35 coefficients take 2
+    native_rows: ClassVar[int] = 1
+
     def n_native_items(self) -> int:
         """k of ``native_items`` (static: from shapes alone)."""
         return 1
@@ -250,7 +254,8 @@ NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC, NATIVE_
 NATIVE_PLANE = 6  # unbounded: only a member of a CSG object the hierarchy holds (``_accel``)
 NATIVE_SUPERELLIPSOID = 8  # (7 is a CSG object: ``_accel.KIND_CSG``)
 NATIVE_QUADRIC = 9  # unbounded, as a plane: only a member of a CSG object the hierarchy holds
-UNBOUNDED_KERNELS = frozenset({NATIVE_PLANE, NATIVE_QUADRIC})
+NATIVE_POLY = 10  # unbounded, as a plane; two rows of parameters (``native_rows``)
+UNBOUNDED_KERNELS = frozenset({NATIVE_PLANE, NATIVE_QUADRIC, NATIVE_POLY})
 
 
 def box_corners(lo, hi):

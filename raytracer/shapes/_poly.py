@@ -39,7 +39,7 @@ from ..kernels._numerics import (
     safe_normalize,
     solve_quartic,
 )
-from ._base import AbstractShape
+from ._base import NATIVE_POLY, AbstractShape, array_module
 
 ORDER_MAX = 4
 POLY_K = 4  # crossings of a line with a quartic
@@ -196,6 +196,26 @@ class Poly(AbstractShape):
 
     def inside(self, p):
         return poly_inside(self.coeffs, p)
+
+    # unbounded, as a quadric: never an item of its own, only a member of a bounded CSG object (a
+    # pawn's quartics in a union bounded by a cylinder, advanced/pawns), whose crossings the
+    # hierarchy's own solver finds (``_native/bvh.cc``); 35 coefficients take two rows
+    native_kernel: ClassVar[int] = NATIVE_POLY
+    native_rows: ClassVar[int] = 2
+
+    def native_items(self):
+        xp = array_module(self.coeffs)
+        params = xp.concatenate([self.coeffs, xp.zeros(1, self.coeffs.dtype)])[None]  # (1, 36)
+        return params, xp.zeros((1, 1, 3), self.coeffs.dtype)
+
+    def near_hit(self, o, d, t0):
+        # the crossing the hierarchy's solver found (double precision): two Newton steps of P
+        # attach its implicit derivatives (``differentiable_root``: the value stays t0) instead of
+        # bracketing every root again
+        coeffs, o, d = as_float_arrays(self.coeffs, o, d)
+        t = differentiable_root(lambda ti: poly_value(coeffs, o + ti * d), t0)
+        normal = safe_normalize(jax.grad(lambda q: poly_value(coeffs, q))(o + t * d))
+        return t[None], normal[None]
 
     @classmethod
     def parse_sdl(cls, keyword, args):

@@ -535,6 +535,61 @@ intersection { cylinder { -x, x, 0.3 } disc { 0, y, 2 } box { -0.5, 0.5 } pigmen
     assert psnr(np.asarray(render(load_scene(text), width=80, height=60)), pov) < 40.0
 
 
+# polynomials in every way the hierarchy holds them: a CSG member (pawns.pov's collar cut from a
+# cylinder), parts of a union bounded by a cylinder (seen by the rays that cross it), one on its own
+# (a box of everything), one clipped by planes and a quadric (no box either), a transparent one
+TORUS = ("1, 0, 0, 0, 2, 0, 0, 2, 0, -2.5, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, "
+         "1, 0, 0, 2, 0, 1.5, 0, 0, 0, 0, 1, 0, -2.5, 0, 0.5625")  # R = 1, r = 0.5
+POLY_SCENE = f"""
+#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ location <0, 5, -11> look_at <0, 0.8, 0> angle 50 }}
+light_source {{ <-8, 14, -9> color rgb 1 }}
+light_source {{ <9, 6, -4> color rgb 0.4 }}
+plane {{ y, 0 pigment {{ checker rgb 1 rgb 0.3 }} }}
+difference {{ cylinder {{ -0.3 * y, 0.3 * y, 1.2 }} quartic {{ <{TORUS}> }} translate <-3, 0.3, 0>
+             pigment {{ rgb <0.9, 0.5, 0.2> }} finish {{ phong 0.5 }} }}
+union {{ quartic {{ <{TORUS}> scale 0.5 translate 1.2 * y }} sphere {{ 0.5 * y, 0.4 }}
+        bounded_by {{ cylinder {{ 0, 2 * y, 0.6 }} }} translate <0, 0, 1> pigment {{ rgb <0.3, 0.6, 0.9> }} }}
+quartic {{ <{TORUS}> rotate 70 * x translate <3, 1.2, 0> pigment {{ rgb <0.8, 0.8, 0.2> }} }}
+quartic {{ <0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -0.1666, 0, 1, 0,
+           0, 0, 0, 0, 0, 0, 0, 0.5, 0, -1, 0, 0, 0, 0, 0>
+          clipped_by {{ quadric {{ <1, 1, 0>, 0, 0, -1 }} plane {{ z, 1.4 }} plane {{ -z, 0 }} }}
+          rotate -90 * x translate <1.5, 0, -3> pigment {{ rgb <0.2, 0.8, 0.4> }} }}
+intersection {{ quartic {{ <{TORUS}> }} sphere {{ 0, 1.2 }} scale 0.8 translate <-1.5, 0.8, -3>
+               pigment {{ rgbf <1, 0.6, 0.6, 0.7> }} }}
+"""
+
+
+@pytest.mark.slow  # two forward-mode programs
+@pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
+def test_polynomials_in_the_hierarchy_give_the_candidate_paths_image_and_derivatives(tmp_path, monkeypatch):
+    """Polynomials are members of the hierarchy's CSG objects (bvh.cc's polynomial kernel chooses,
+    ``near_hit`` refines the choice): the candidate path's pixels and derivatives, shadows through
+    the transparent one included; every polynomial is held, the floor alone left to candidates."""
+    path = tmp_path / "poly.pov"
+    path.write_text(POLY_SCENE)
+    scene = load_scene(path, width=40, height=30)
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    monkeypatch.setattr(_accel, "MIN_FILTER_ITEMS", 1)
+    plan = make_plan(scene)
+    geo = pack_geometry(plan, jnp.float32)
+    assert sorted(plan.prims[i].kind for g in geo.groups if not g.accelerated for i in g.prims) == ["plane"]
+    tangent = _tangent(scene, seed=3)
+    out = {}
+    for mode in ("native", "none"):
+        monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+        jax.clear_caches()
+        image, d_image = jax.jvp(lambda s: render(s, width=40, height=30), (scene,), (tangent,))
+        out[mode] = np.asarray(image), np.asarray(d_image)
+    (ours, d_ours), (reference, d_reference) = out["native"], out["none"]
+    assert np.isfinite(ours).all() and np.isfinite(d_ours).all()
+    diff = np.abs(ours - reference).max(axis=-1)
+    assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
+    assert np.abs(d_reference).max() > 1.0
+    np.testing.assert_allclose(d_ours, d_reference, rtol=1e-3, atol=1e-3)
+
+
 FADING_SCENE = """
 #version 3.7;
 global_settings { assumed_gamma 1.0 }

@@ -123,15 +123,31 @@ def test_bounded_by_bounds_an_object_without_a_box_of_its_own(monkeypatch):
     np.testing.assert_allclose(images[0], images[1], atol=1e-5)
 
 
-def test_bounded_by_shows_an_unbounded_object_to_the_rays_that_cross_its_bound():
+@pytest.mark.parametrize("held", [False, True], ids=["candidate", "hierarchy"])
+def test_bounded_by_shows_an_unbounded_object_to_the_rays_that_cross_its_bound(held, monkeypatch):
     """POV-Ray's ``bounded_by`` on an object without a box: a ray that crosses the bound sees all of
     the object, also where it lies outside the bound, and a ray that does not sees none of it
     (neither a clip nor a box). An orthographic camera looks along +z at a white wall (z = 3) through
     a red plane z = 0 bounded by a sphere of radius 1.2 at z = -3: the plane is seen exactly where
     the camera's ray crosses the sphere, x² + y² < 1.2², though the plane lies 3 from the sphere.
     Made invisible to the camera (``no_image``), the same plane shades the wall from a light at
-    z = -10 where the shadow ray crosses the sphere: inside the cone from the light tangent to it."""
+    z = -10 where the shadow ray crosses the sphere: inside the cone from the light tangent to it.
+    Both as a candidate of every ray and as a CSG object of the native hierarchy (its box the
+    sphere's; bvh.cc's bounds' node)."""
+    import jax.numpy as jnp
+
     import raytracer as rt
+    from raytracer._plan import make_plan
+    from raytracer.shading import _accel
+    from raytracer.shading._geometry import pack_geometry
+
+    if held:
+        if _accel.unavailable_reason() is not None:
+            pytest.skip(str(_accel.unavailable_reason()))
+        monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+        monkeypatch.setattr(_accel, "MIN_ITEMS", 1)
+    else:
+        monkeypatch.setenv("RAYTRACER_ACCEL", "none")
 
     head = """#version 3.7;
 global_settings { assumed_gamma 1.0 }
@@ -147,7 +163,10 @@ plane { z, 3 pigment { rgb 1 } finish { ambient 0 diffuse 1 } }
     r = np.hypot(*np.meshgrid(x, y))  # (h, w) distance from the axis
     edge = 0.25 * np.sqrt(2)  # a pixel's diagonal: pixels this close to a circle are not asked about
 
-    seen = np.asarray(rt.render(rt.load_scene(head + bounded % ""), width=w, height=h))
+    scene = rt.load_scene(head + bounded % "")
+    geo = pack_geometry(make_plan(scene), jnp.float32)
+    assert [g.kind for g in geo.groups if g.accelerated] == (["plane", "sphere"] if held else [])
+    seen = np.asarray(rt.render(scene, width=w, height=h))
     red = (seen[..., 0] > 0.5) & (seen[..., 1] < 0.1)
     inside, outside = r < 1.2 - edge, r > 1.2 + edge
     assert inside.sum() > 20 and red[inside].all() and not red[outside].any()

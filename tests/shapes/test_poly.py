@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 
 import raytracer as rt
+from raytracer._plan import make_plan
 from raytracer.errors import SceneError
+from raytracer.shading import _accel
+from raytracer.shading._geometry import pack_geometry
 from raytracer.shapes import REGISTRY, Poly, Torus
 from raytracer.shapes._poly import TERMS, poly_hits, quartic_coefficients
 
@@ -166,6 +169,79 @@ poly {{ 5, <{", ".join(["1"] * 56)}> }}
     path.write_text("camera { location <0, 0, -9> look_at 0 }\nquartic { <1, 2, 3> }\n")
     with pytest.raises(SceneError, match=r"short\.pov:2:11: expected 35 coefficients, found 3"):
         rt.load_scene(path)
+
+
+@pytest.mark.skipif(_accel.unavailable_reason() is not None, reason=str(_accel.unavailable_reason()))
+def test_the_hierarchys_solver_finds_the_first_root_of_every_polynomial(x64):
+    """The native hierarchy's polynomial kernel (the polynomial along the ray expanded from its 35
+    coefficients, its roots isolated between those of its derivatives; two rows of parameters a
+    polynomial, each an object of its own with a box of everything): the closest-hit query names
+    the polynomial whose first positive root (numpy, float64) is nearest, at that root, for random
+    polynomials of orders 2–4 placed by translations and random rays."""
+    rng = np.random.default_rng(8)
+    shapes, places = [], []
+    for i in range(9):
+        order = 2 + i % 3
+        values = rng.normal(size=len([t for t in TERMS if sum(t) <= order]))
+        shapes.append(quartic_coefficients(order, values))
+        places.append(rng.uniform(-3, 3, 3))
+        numbers, place = ", ".join(f"{v:.17g}" for v in values), ", ".join(map(str, places[-1]))
+        shapes[-1] = (shapes[-1], f"poly {{ {order}, <{numbers}> translate <{place}> }}")
+    scene = rt.load_scene("camera { location <0, 0, -9> look_at 0 }\n" + "\n".join(s for _, s in shapes))
+    geo = pack_geometry(make_plan(scene), jnp.float64)
+    assert geo.accel is not None and not any(not g.accelerated for g in geo.groups)  # all held
+    rays = 400
+    o = rng.normal(size=(rays, 3)) * 4
+    d = rng.normal(size=(rays, 3)) * rng.uniform(0.3, 3, size=(rays, 1))
+    item, t = _accel._closest_query(geo.accel.tables, jnp.asarray(o), jnp.asarray(d), jnp.zeros(rays),
+                                    jnp.full(rays, 1e7), jnp.ones(rays, jnp.int32))
+    item = np.asarray(item)
+    prim = np.where(item >= 0, np.asarray(geo.accel.item_prim)[np.maximum(item, 0)], -1)
+    checked = 0
+    for r in range(rays):
+        firsts, clean = [], True
+        for (coeffs, _), place in zip(shapes, places, strict=True):
+            roots, ok = numpy_roots(coeffs, o[r] - place, d[r])
+            clean &= ok and not np.any(np.abs(roots) > 1e5)
+            positive = roots[roots > 1e-9]
+            firsts.append(positive.min() if positive.size else np.inf)
+        if not clean:
+            continue
+        checked += 1
+        want = int(np.argmin(firsts)) if np.isfinite(min(firsts)) else -1
+        assert prim[r] == want, (r, prim[r], want, firsts)
+        if want >= 0:
+            np.testing.assert_allclose(float(t[r]), firsts[want], rtol=1e-9)
+    assert checked > 250
+
+
+def test_a_polynomial_refines_a_given_crossing_with_the_kernels_derivatives(x64):
+    """``near_hit`` (the hierarchy's crossing with two Newton steps) has the value, the normal and
+    the derivatives along random directions of (coefficients, o, d) of the first crossing of the
+    shape's own kernel, for random rays through a quartic torus (float64)."""
+    rng = np.random.default_rng(6)
+    coeffs = jnp.asarray(torus_quartic(1.5, 0.5))
+
+    def first(c, o, d):
+        t, n = jax.vmap(Poly(coeffs=c).hits)(o, d)
+        return jnp.where(jnp.isfinite(t[:, 0]), t[:, 0], 0.0), n[:, 0]
+
+    def near(t0, c, o, d):
+        t, n = jax.vmap(lambda o, d, t0: Poly(coeffs=c).near_hit(o, d, t0))(o, d, t0)
+        return t[:, 0], n[:, 0]
+
+    o = jnp.asarray(rng.uniform(-4, 4, (24, 3)))
+    d = jnp.asarray(rng.uniform(-1.5, 1.5, (24, 3))) - o
+    args = (coeffs, o, d)
+    tangent = tuple(jnp.asarray(rng.normal(size=np.shape(x))) for x in args)
+    (t0, n0), (dt0, dn0) = jax.jit(lambda a, v: jax.jvp(first, a, v))(args, tangent)
+    hit = np.asarray(t0) != 0.0
+    assert hit.sum() >= 8
+    (t1, n1), (dt1, dn1) = jax.jit(lambda t0, a, v: jax.jvp(lambda *x: near(t0, *x), a, v))(t0, args, tangent)
+    np.testing.assert_allclose(np.asarray(t1)[hit], np.asarray(t0)[hit], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(n1)[hit], np.asarray(n0)[hit], atol=1e-9)
+    np.testing.assert_allclose(np.asarray(dt1)[hit], np.asarray(dt0)[hit], rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(dn1)[hit], np.asarray(dn0)[hit], rtol=1e-6, atol=1e-8)
 
 
 # ---------------------------------------------------------------- the generic test case
