@@ -491,19 +491,25 @@ def test_csg_objects_in_the_hierarchy_give_the_candidate_paths_image_and_derivat
         mixed = [s for _, s in _accel._alike(geo.accel, geo.shapes, groups)
                  if len({geo.accel.groups[g].csg for g in s}) == 2]
         assert len(mixed) == 2, mixed
-    tangent = _tangent(scene, seed=1)
+    _assert_native_jvp_is_the_candidate_paths(scene, (48, 36), _tangent(scene, seed=1), monkeypatch, 1e-4)
+
+
+def _assert_native_jvp_is_the_candidate_paths(scene, size, tangent, monkeypatch, tol):
+    """The image (``size``) and its derivative along ``tangent`` through the native hierarchy are
+    those of the candidate path (pixels to 1e-4, derivatives to ``tol``), finite, not all flat."""
+    width, height = size
     out = {}
     for mode in ("native", "none"):
         monkeypatch.setenv("RAYTRACER_ACCEL", mode)
         jax.clear_caches()
-        image, d_image = jax.jvp(lambda s: render(s, width=48, height=36), (scene,), (tangent,))
+        image, d_image = jax.jvp(lambda s: render(s, width=width, height=height), (scene,), (tangent,))
         out[mode] = np.asarray(image), np.asarray(d_image)
     (ours, d_ours), (reference, d_reference) = out["native"], out["none"]
     assert np.isfinite(ours).all() and np.isfinite(d_ours).all()
     diff = np.abs(ours - reference).max(axis=-1)
     assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
     assert np.abs(d_reference).max() > 1.0
-    np.testing.assert_allclose(d_ours, d_reference, rtol=1e-4, atol=1e-4)
+    np.testing.assert_allclose(d_ours, d_reference, rtol=tol, atol=tol)
 
 
 @pytest.mark.povray
@@ -575,19 +581,7 @@ def test_polynomials_in_the_hierarchy_give_the_candidate_paths_image_and_derivat
     plan = make_plan(scene)
     geo = pack_geometry(plan, jnp.float32)
     assert sorted(plan.prims[i].kind for g in geo.groups if not g.accelerated for i in g.prims) == ["plane"]
-    tangent = _tangent(scene, seed=3)
-    out = {}
-    for mode in ("native", "none"):
-        monkeypatch.setenv("RAYTRACER_ACCEL", mode)
-        jax.clear_caches()
-        image, d_image = jax.jvp(lambda s: render(s, width=40, height=30), (scene,), (tangent,))
-        out[mode] = np.asarray(image), np.asarray(d_image)
-    (ours, d_ours), (reference, d_reference) = out["native"], out["none"]
-    assert np.isfinite(ours).all() and np.isfinite(d_ours).all()
-    diff = np.abs(ours - reference).max(axis=-1)
-    assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
-    assert np.abs(d_reference).max() > 1.0
-    np.testing.assert_allclose(d_ours, d_reference, rtol=1e-3, atol=1e-3)
+    _assert_native_jvp_is_the_candidate_paths(scene, (40, 30), _tangent(scene, seed=3), monkeypatch, 1e-3)
 
 
 FADING_SCENE = """
