@@ -11,7 +11,7 @@ import pytest
 from raytracer import load_scene, render
 from raytracer._plan import make_plan
 from raytracer.shading import _accel
-from raytracer.shading._geometry import pack_geometry
+from raytracer.shading._geometry import hierarchy_choice, pack_geometry
 from raytracer.shapes._base import AbstractShape
 from raytracer.shapes._cone import frustum_form_hits
 
@@ -634,6 +634,35 @@ def test_fading_transparent_objects_in_the_hierarchy_give_the_candidate_paths_sh
 
 @pytest.mark.slow  # two programs
 @pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
+def test_one_csg_object_is_enough_for_the_hierarchy(monkeypatch):
+    """A CSG object pays for the hierarchy's query alone (as candidates every ray computes each
+    member's crossings and the inside tests of the others): a scene whose only item is a difference
+    is accelerated, a hierarchy of one item, with the candidate path's image; a scene of a few plain
+    spheres, fewer than ``MIN_ITEMS`` items, is not."""
+    text = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 2, -6> look_at <0, 0.8, 0> angle 50 }
+light_source { <-5, 8, -6> color rgb 1 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
+difference { box { <-2, 0, -1>, <2, 2, 1> } cylinder { <0, -1, -2>, <0, 3, -2>, 1.2 }
+             cylinder { <-1.5, 1, -2>, <-1.5, 1, 2>, 0.4 } pigment { rgb <0.9, 0.6, 0.3> } }
+"""
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    scene = load_scene(text)
+    held, csg = hierarchy_choice(make_plan(scene))
+    assert len(csg) == 1 and not any(held)
+    ours = np.asarray(render(scene, width=32, height=24))
+    spheres = load_scene(text.split("plane")[0]
+                         + "sphere { 0, 1 pigment { rgb 1 } } sphere { x, 0.5 pigment { rgb 1 } }")
+    assert hierarchy_choice(make_plan(spheres)) == ([False, False], ())
+    monkeypatch.setenv("RAYTRACER_ACCEL", "none")
+    jax.clear_caches()
+    reference = np.asarray(render(load_scene(text), width=32, height=24))
+    assert reference[10:14, 12:20].max() > 0.3 and reference[10:14, 12:20].std() > 0.05  # the notch is seen
+    np.testing.assert_allclose(ours, reference, atol=1e-4)
+
+
 def test_a_csg_object_of_one_part_is_an_item_of_its_own(monkeypatch):
     """A CSG object whose other parts are left out (``difference { A B }`` with B a shape we do not
     render: POV-Ray's ``advanced/pawns``) is its one part: its unit is not a CSG object of the
