@@ -292,7 +292,7 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
               for g in geo.groups]
     return pickle.dumps((
         scene_plan.effects, candidates, groups, circuit_roots, geo.cand_prim.tobytes(), geo.n_candidates,
-        geo.conditions, geo.unit_boxes is None, accel.groups, hierarchy_filters(geo, scene_plan)[1], layers,
+        geo.conditions, geo.unit_boxes is None, accel.groups, hierarchy_filters(geo, scene_plan)[1:], layers,
         mats.pattern_names, mats.turbulent, mats.octaves, bool(np.any(mats.waves != 0))),
         protocol=pickle.HIGHEST_PROTOCOL)
 

@@ -504,6 +504,13 @@ class Crossed(NamedTuple):
     overflow: jax.Array  # () bool: more than k items were crossed (the farthest were dropped)
 
 
+def _line_crossings(shapes, slots: int) -> int:
+    """The most crossings a line can have with a shape of the stacked group ``shapes``: its class's
+    ``line_crossings`` where that is a number for the class (a convex frustum's 2), else ``slots``."""
+    bound = getattr(type(shapes), "line_crossings", None)
+    return min(bound, slots) if isinstance(bound, int) else slots
+
+
 def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Crossed:
     """The nearest ``FILTER_ITEMS`` transparent shadow-casting items (``MASK_FILTER``) with a
     crossing on the segment ``t_min < t < t_max``, and every crossing of each, computed again by its
@@ -542,7 +549,16 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
             return jnp.where(csg, nearest, t), jnp.where(csg, n.at[0].set(n[c]), n)
 
         t, n = jax.vmap(one)(*members, t_native)
-        ts.append((t, n) if not all(accel.groups[g].csg for g in alike) else (t[:, :1], n[:, :1]))
+        if all_csg:
+            t, n = t[:, :1], n[:, :1]
+        else:
+            # no more than a line can cross (a cylinder's kernel has 4 slots, a line crosses it
+            # twice): every slot is a pigment request of every shadow ray downstream
+            most = max(_line_crossings(shapes[accel.groups[g].group], t.shape[1]) for g in alike)
+            if most < t.shape[1]:
+                keep = jnp.argsort(sg(t), axis=1)[:, :most]
+                t, n = jnp.take_along_axis(t, keep, axis=1), jnp.take_along_axis(n, keep[..., None], axis=1)
+        ts.append((t, n))
     width = max(t.shape[1] for t, _ in ts)
 
     def widen(x, fill):

@@ -407,16 +407,18 @@ def _padded_to_bucket(geo: PackedGeometry, plan: Plan) -> PackedGeometry:
                                member_prims=tuple(members))
 
 
-def hierarchy_filters(geo: PackedGeometry, plan: Plan) -> tuple[bool, bool]:
+def hierarchy_filters(geo: PackedGeometry, plan: Plan) -> tuple[bool, bool, int]:
     """Whether the hierarchy holds transparent shadow-casting items (``MASK_FILTER``: its groups'
-    ``filters``), and whether some of them have an interior that fades."""
+    ``filters``), whether some of them have an interior that fades, and the most texture layers
+    one of them has (a primitive's present layers are its first ones)."""
     if geo.accel is None:
-        return False, False
+        return False, False, 0
     groups = [ag for ag in geo.accel.groups if ag.filters]
     bits = prim_bits(plan)
-    fades = any(bits[i] & _accel.MASK_FILTER and plan.prims[i].fades
-                for ag in groups for i in geo.groups[ag.group].prims)
-    return bool(groups), fades
+    filtering = [i for ag in groups for i in geo.groups[ag.group].prims if bits[i] & _accel.MASK_FILTER]
+    fades = any(plan.prims[i].fades for i in filtering)
+    layers = max((len(plan.prims[i].texture.layers) for i in filtering), default=0)
+    return bool(groups), fades, layers
 
 
 def solo_prims(plan: Plan) -> set[int]:

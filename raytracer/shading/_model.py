@@ -246,6 +246,7 @@ class TraceContext:
     fading_cands: np.ndarray  # shadow slots of transparent prims whose interior may fade
     accel_filters: bool  # the hierarchy holds transparent shadow-casting items (``MASK_FILTER``)
     accel_fades: bool  # ... and some of them have an interior that fades
+    accel_filter_layers: int  # ... and the most texture layers one of them has
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
@@ -254,7 +255,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
     bits = prim_bits(plan)  # the hierarchy's items use them too
     # shadow rays compute the crossings of shadow casters only (no_shadow objects are skipped)
     shadow = candidate_view(geo, plan, lambda i: bool(bits[i] & (_accel.MASK_SHADOW | _accel.MASK_FILTER)))
-    filters, fades = hierarchy_filters(geo, plan)
+    filters, fades, filter_layers = hierarchy_filters(geo, plan)
     return TraceContext(
         plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
         background=background.astype(dtype), dtype=dtype,
@@ -267,6 +268,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         fading_cands=np.flatnonzero([prims[i].transparent and prims[i].fades for i in shadow.cand_prim]),
         accel_filters=filters,
         accel_fades=fades,
+        accel_filter_layers=filter_layers,
     )
 
 
@@ -423,11 +425,15 @@ def _accel_filter(ctx: TraceContext, o, l, t_min, t_max):
     (``_accel.Crossed``: their interiors' fade is ``_shadow_fade``'s)."""
     crossed = _accel.filtering(ctx.geo.accel, ctx.geo.shapes, ctx.geo.object_from_world, o, l, t_min, t_max)
     m = ctx.mats
-    present = jnp.asarray(m.tables["layer_present"])[crossed.prim]  # (k, n_layers)
+    # the layers a transparent item can have, not the scene's most: every slot here is an entry of
+    # every shadow ray's requests (incdemo/texture2.pov: 16 items x 4 crossings x 3 layers of which
+    # its glass has 1, 154,800 entries a chunk of 400 points and 2 lights)
+    n_layers = ctx.accel_filter_layers
+    present = jnp.asarray(m.tables["layer_present"])[crossed.prim][:, :n_layers]  # (k, L)
     ok = jnp.isfinite(crossed.t)  # (k, J)
     points = o[None, None, :] + jnp.where(ok, crossed.t, 0.0)[..., None] * l[None, None, :]  # (k, J, 3)
-    rows = crossed.prim[:, None] * m.n_layers + jnp.arange(m.n_layers)[None, :]  # (k, L)
-    rows = jnp.broadcast_to(rows[:, None, :], ok.shape + (m.n_layers,))  # (k, J, L)
+    rows = crossed.prim[:, None] * m.n_layers + jnp.arange(n_layers)[None, :]  # (k, L)
+    rows = jnp.broadcast_to(rows[:, None, :], ok.shape + (n_layers,))  # (k, J, L)
     at = jnp.broadcast_to(points[:, :, None, :], rows.shape + (3,))
     use = ok[:, :, None] & present[:, None, :]  # (k, J, L)
     return crossed.overflow, (rows.reshape(-1).astype(jnp.int32), at.reshape(-1, 3), use.reshape(-1)), crossed

@@ -12,6 +12,7 @@ from raytracer import load_scene, render
 from raytracer._plan import make_plan
 from raytracer.shading import _accel
 from raytracer.shading._geometry import hierarchy_choice, pack_geometry
+from raytracer.shading._materials import pack_materials
 from raytracer.shapes._base import AbstractShape
 from raytracer.shapes._cone import frustum_form_hits
 
@@ -630,6 +631,57 @@ def test_fading_transparent_objects_in_the_hierarchy_give_the_candidate_paths_sh
         images[mode] = np.asarray(render(scene, width=48, height=36))
     diff = np.abs(images["native"] - images["none"]).max(axis=-1)
     assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
+
+
+FILTER_SCENE = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 5, -9> look_at <0, 0.6, 0> angle 50 }
+light_source { <-6, 12, -7> color rgb 1 }
+light_source { <8, 6, -3> color rgb 0.5 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
+box { <-3, 0, 2>, <3, 2, 2.5> texture { pigment { rgb 0.8 } }
+      texture { pigment { checker rgbt <1, 0, 0, 0.5> rgbt 1 scale 0.3 } }
+      texture { pigment { gradient x color_map { [0 rgbt <0, 0, 1, 0.7>] [1 rgbt 1] } } } }
+#for (i, 0, 3)
+  cylinder { <-2.4 + 1.5 * i, 0, 0>, <-2.4 + 1.5 * i, 1.6, 0.3>, 0.45 #if (mod(i, 2)) open #end
+             pigment { rgbf <1, 0.6 + 0.1 * i, 0.3, 0.8> } }
+  cone { <-2 + 1.4 * i, 1.9, -1.5>, 0.4, <-2 + 1.4 * i, 2.6, -1.5>, 0.1
+         texture { pigment { rgbf <0.3, 1, 0.5, 0.7> } } texture { pigment { rgbt <1, 1, 1, 0.5> } } }
+#end
+sphere { <0, 0.5, -2.5>, 0.5 pigment { rgbf <0.6, 0.6, 1, 0.9> } }
+"""
+
+
+@pytest.mark.skipif(ACCEL != "native", reason="the all-crossings query is the native hierarchy's")
+def test_filter_requests_have_a_lines_crossings_and_the_filters_own_layers(monkeypatch):
+    """The hierarchy's transparent items ask a shadow ray for as many crossings as a line can have
+    with them (a cylinder's kernel has 4 slots, a line crosses it twice) and as many texture layers
+    as the most a transparent item has (2, where the scene's most is 3): every slot is an entry of
+    every shadow ray's pigment requests. Open and closed cylinders, cones of two layers and a sphere
+    filter the candidate path's shadows."""
+    from raytracer.shading import _model
+
+    monkeypatch.setenv("RAYTRACER_ACCEL", "native")
+    monkeypatch.setattr(_accel, "MIN_FILTER_ITEMS", 1)
+    scene = load_scene(FILTER_SCENE)
+    plan = make_plan(scene)
+    geo = jax.tree.map(jnp.asarray, pack_geometry(plan, jnp.float32))  # (traced lookups need arrays)
+    mats = pack_materials(plan, jnp.float32)
+    ctx = _model.make_context(plan, geo, mats, scene.lights, scene.settings, jnp.zeros(3), jnp.float32)
+    assert mats.n_layers == 3 and ctx.accel_filter_layers == 2
+    ray = jax.ShapeDtypeStruct((3,), jnp.float32)
+    _, (rows, _, _), crossed = jax.eval_shape(lambda o, d: _model._accel_filter(ctx, o, d, 1e-4, 10.0),
+                                              ray, ray)
+    assert crossed.t.shape == (_accel.FILTER_ITEMS, 2) and rows.shape == (_accel.FILTER_ITEMS * 2 * 2,)
+    images = {}
+    for mode in ("native", "none"):
+        monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+        jax.clear_caches()
+        images[mode] = np.asarray(render(load_scene(FILTER_SCENE), width=48, height=36))
+    diff = np.abs(images["native"] - images["none"]).max(axis=-1)
+    assert np.count_nonzero(diff > 1e-4) == 0, np.argwhere(diff > 1e-4)
+    assert np.abs(images["none"] - images["none"][:, ::-1]).max() > 0.1  # (not a blank image)
 
 
 @pytest.mark.slow  # two programs
