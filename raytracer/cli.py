@@ -206,7 +206,7 @@ def _acceleration_text(p) -> str:
     n = sum(held) + members
     if not n:
         return (f"acceleration: none (fewer than {_accel.MIN_ITEMS} primitives or triangles it can hold, "
-                "none of them a CSG object, superellipsoid or polynomial): "
+                "none of them a CSG object, torus, superellipsoid or polynomial): "
                 "every ray tests every primitive")
     items = len(csg) + sum(native_items(prim.obj.shape) for prim, ok in zip(p.prims, held, strict=True) if ok)
     objects = f", {len(csg)} of them CSG objects of {members} primitives" if csg else ""

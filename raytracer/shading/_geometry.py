@@ -216,9 +216,11 @@ def hierarchy_choice(plan: Plan, accelerate: bool | None = None,
     # cylinders on a plane, 160x120: n = 2 / 4 / 12 took 6.4 / 13 / 101 ms warm as candidates, 4.0 /
     # 5.2 / 8.3 ms held, and compiled 0.6-0.8 s faster; incdemo/sundial.pov, 35 members: 0.85 s ->
     # 12 ms). So does a shape whose hit the hierarchy's solver finds (``near_hit``): its JAX search
-    # costs every ray ~400 evaluations of a superellipsoid's norm or a polynomial's four brackets.
-    if items < _accel.MIN_ITEMS and not csg and not any(_refines(plan.prims[i].obj.shape)
-                                                        for i, ok in enumerate(held) if ok):
+    # costs every ray ~400 evaluations of a superellipsoid's norm or a polynomial's four brackets;
+    # and one whose kernel is costly (a torus's quartic).
+    if items < _accel.MIN_ITEMS and not csg and not any(
+            _refines(plan.prims[i].obj.shape) or plan.prims[i].obj.shape.costly_kernel
+            for i, ok in enumerate(held) if ok):
         return [False] * len(plan.prims), ()
     return held, csg
 

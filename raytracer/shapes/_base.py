@@ -179,6 +179,9 @@ class AbstractShape(Record):
     # The acceleration structure (``shading/_accel.py``) can choose among shapes that name one of
     # its native kernels. It only chooses: the hit is then computed again by ``sub_hits``.
     native_kernel: ClassVar[int | None] = None  # one of the NATIVE_* kernels below
+    # its JAX kernel costs a ray far more than the hierarchy's query (a quartic's roots): one such
+    # shape pays for the query alone, however few items the scene has (``_geometry.hierarchy_choice``)
+    costly_kernel: ClassVar[bool] = False
 
     def native_items(self) -> tuple[Float[Array, "k 12"], Float[Array, "k V 3"]]:
         """The shape as ``k`` items of ``native_kernel`` (object space): their parameters (k, 12)

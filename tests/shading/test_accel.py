@@ -686,11 +686,11 @@ def test_filter_requests_have_a_lines_crossings_and_the_filters_own_layers(monke
 
 @pytest.mark.slow  # two programs
 @pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
-def test_one_csg_object_is_enough_for_the_hierarchy(monkeypatch):
+def test_one_csg_object_or_torus_is_enough_for_the_hierarchy(monkeypatch):
     """A CSG object pays for the hierarchy's query alone (as candidates every ray computes each
     member's crossings and the inside tests of the others): a scene whose only item is a difference
-    is accelerated, a hierarchy of one item, with the candidate path's image; a scene of a few plain
-    spheres, fewer than ``MIN_ITEMS`` items, is not."""
+    is accelerated, a hierarchy of one item, with the candidate path's image; so is a lone torus;
+    a scene of a few plain spheres, fewer than ``MIN_ITEMS`` items, is not."""
     text = """
 #version 3.7;
 global_settings { assumed_gamma 1.0 }
@@ -708,6 +708,9 @@ difference { box { <-2, 0, -1>, <2, 2, 1> } cylinder { <0, -1, -2>, <0, 3, -2>, 
     spheres = load_scene(text.split("plane")[0]
                          + "sphere { 0, 1 pigment { rgb 1 } } sphere { x, 0.5 pigment { rgb 1 } }")
     assert hierarchy_choice(make_plan(spheres)) == ([False, False], ())
+    # nor is a torus, whose quartic as a candidate costs every ray more than the query
+    torus = load_scene(text.split("plane")[0] + "torus { 1, 0.3 pigment { rgb 1 } }")
+    assert hierarchy_choice(make_plan(torus)) == ([True], ())
     monkeypatch.setenv("RAYTRACER_ACCEL", "none")
     jax.clear_caches()
     reference = np.asarray(render(load_scene(text), width=32, height=24))
