@@ -660,6 +660,7 @@ sphere { <0, 0.5, -2.5>, 0.5 pigment { rgbf <0.6, 0.6, 1, 0.9> } }
 """
 
 
+@pytest.mark.slow  # two programs
 @pytest.mark.skipif(ACCEL != "native", reason="the all-crossings query is the native hierarchy's")
 def test_filter_requests_have_a_lines_crossings_and_the_filters_own_layers(monkeypatch):
     """The hierarchy's transparent items ask a shadow ray for as many crossings as a line can have
@@ -719,6 +720,8 @@ difference { box { <-2, 0, -1>, <2, 2, 1> } cylinder { <0, -1, -2>, <0, 3, -2>, 
     np.testing.assert_allclose(ours, reference, atol=1e-4)
 
 
+@pytest.mark.slow  # two programs
+@pytest.mark.skipif(ACCEL != "native", reason=NO_TWIN_CSG)
 def test_a_csg_object_of_one_part_is_an_item_of_its_own(monkeypatch):
     """A CSG object whose other parts are left out (``difference { A B }`` with B a shape we do not
     render: POV-Ray's ``advanced/pawns``) is its one part: its unit is not a CSG object of the
