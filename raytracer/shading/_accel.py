@@ -27,8 +27,9 @@ The hierarchy is rebuilt by every call of the compiled program from the scene's 
 (binned SAH, native), so it is right under ``jit``, ``grad`` and ``vmap`` and for traced geometry.
 The other primitives (planes and other unbounded shapes, CSG objects it cannot hold, shapes
 without a native kernel) keep the candidate path of ``_geometry``; a scene with fewer than
-``MIN_ITEMS`` items is not accelerated at all, unless one of them is a CSG object or a shape whose
-hit the hierarchy's solver finds (``near_hit``): either pays for the query alone.
+``MIN_ITEMS`` items is not accelerated at all, unless one of them is a CSG object, a shape whose
+hit the hierarchy's solver finds (``near_hit``) or one whose kernel is costly (a torus): each pays
+for the query alone.
 ``RAYTRACER_ACCEL=none`` turns the native path off (``native`` requires it); without the compiled
 library the renderer falls back to the candidate path, and ``raytracer info`` says which one a render
 uses.
