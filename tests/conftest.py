@@ -10,7 +10,10 @@ float64 fixture, and the ``povray`` marker's skip.
   tiny and its programs many, so LLVM's optimisations and the fusion emitters cost far more than
   they save (a glass scene's reverse-mode program: 30 s of compile without, 9.5 s with). The
   arithmetic is IEEE either way; ``make validate`` and the benchmarks use XLA's defaults. The
-  flags every user of ``import raytracer`` gets (``raytracer/_xla.py``) are added too.
+  flags every user of ``import raytracer`` gets (``raytracer/_xla.py``) are added too. The module
+  is generated as one part (``parallel_codegen_split_count=1``), not 32 compiled on a thread pool:
+  the two xdist workers keep both cores busy already, and splitting costs more than it saves
+  (``tests/shapes/test_gradients.py``: XLA's compile 49–51 → 41 CPU-s, session 31).
 * Reference images (POV-Ray, Mitsuba) of the validation suite are kept for the run in a folder of
   its own (``$RAYTRACER_REFERENCE_CACHE``), so a reference two tests need is rendered once.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
@@ -24,7 +27,7 @@ import tempfile
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 FAST_COMPILE_XLA_FLAGS = ("--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true "
-                          "--xla_cpu_use_fusion_emitters=false")
+                          "--xla_cpu_use_fusion_emitters=false --xla_cpu_parallel_codegen_split_count=1")
 # read when the CPU backend starts (the first computation), so before any test; subprocesses inherit it
 if FAST_COMPILE_XLA_FLAGS not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_XLA_FLAGS}".strip()

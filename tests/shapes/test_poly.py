@@ -43,13 +43,16 @@ def numpy_value(coeffs, p):
 def numpy_roots(coeffs, o, d):
     """Real roots in t of P(o + t d): the polynomial along the ray expanded in numpy (float64)."""
     o, d = np.asarray(o, np.float64), np.asarray(d, np.float64)
-    total = np.zeros(1)
+    # (o_a + t d_a)^p for each axis a and power p ≤ 4, highest power of t first, padded to 5
+    powers = np.zeros((3, 5, 5))
+    powers[:, 0, 4] = 1
+    for p in range(1, 5):
+        powers[:, p, :4] = powers[:, p - 1, 1:] * d[:, None]
+        powers[:, p] += powers[:, p - 1] * o[:, None]
+    total = np.zeros(5)
     for c, (i, j, k) in zip(coeffs, TERMS, strict=True):
-        term = np.array([c])
-        for axis, power in enumerate((i, j, k)):
-            for _ in range(power):
-                term = np.polymul(term, [d[axis], o[axis]])
-        total = np.polyadd(total, term)
+        if c:
+            total += c * np.convolve(np.convolve(powers[0, i], powers[1, j]), powers[2, k])[-5:]
     total = np.trim_zeros(total, "f")
     roots = np.roots(total) if len(total) > 1 else np.array([])
     real = np.sort(roots[np.abs(roots.imag) < 1e-9].real)
