@@ -169,8 +169,10 @@ def _load(args):
         animation = Animation(frame=args.frame, initial_frame=args.frame, final_frame=args.frame)
     t0 = time.perf_counter()
     limits = None if args.parse_timeout is None else Limits(max_parse_seconds=args.parse_timeout)
+    # an image, not a gradient: a filter or transmit written as 0 is opaque, as POV-Ray renders it
     scene = load_scene(args.scene, include_paths=tuple(args.include_path), strict=args.strict,
-                       width=args.width, height=args.height, animation=animation, limits=limits)
+                       width=args.width, height=args.height, animation=animation, limits=limits,
+                       fit_zero_filters=False)
     return scene, time.perf_counter() - t0
 
 

@@ -346,6 +346,34 @@ def test_diffuse_only_scene_compiles_without_secondary_rays():
     assert "reverse=True" not in jaxpr  # no combination of secondary rays
 
 
+ZERO_FILTER_SCENE = """
+camera { location <0, 1.5, -4> look_at <0, 0.5, 0> }
+light_source { <-4, 8, -6> color rgb 1 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.3 } }
+sphere { <0, 0.8, 0>, 0.8
+  texture { pigment { BOTTOM } }
+  texture { pigment { checker rgbf <1, 1, 1, 1> rgbf <0.2, 0.5, 0.3, 0.6> scale 0.3 } } }
+"""
+
+
+def test_a_zero_filter_renders_as_opaque_and_leaves_transmission_out_unless_fitted():
+    """A sphere whose bottom layer is written ``rgbf <…, 0>`` under a layer that filters: the same
+    image as with that layer written ``rgb`` (opaque, as POV-Ray renders both), from the program
+    of ``rgb`` with ``fit_zero_filters=False``; by default the written filter is compiled (the
+    sphere is transparent: shadow rays filter through it, rays pass on through it without using a
+    trace level) so that it can be fitted."""
+    opaque = rt.load_scene(ZERO_FILTER_SCENE.replace("BOTTOM", "rgb <0.8, 0.3, 0.2>"))
+    text = ZERO_FILTER_SCENE.replace("BOTTOM", "rgbf <0.8, 0.3, 0.2, 0>")
+    fitted, rendered = rt.load_scene(text), rt.load_scene(text, fit_zero_filters=False)
+    assert rt.plan(rendered).effects == rt.plan(opaque).effects
+    assert not any(p.transparent for p in rt.plan(rendered).prims)
+    assert [p.transparent for p in rt.plan(fitted).prims] == [False, True]  # the plane, the sphere
+    assert rt.plan(fitted).effects.straight_passes == 2 and rt.plan(rendered).effects.straight_passes == 0
+    want = np.asarray(rt.render(opaque, width=24, height=18))
+    for scene in (fitted, rendered):
+        np.testing.assert_allclose(np.asarray(rt.render(scene, width=24, height=18)), want, atol=1e-5)
+
+
 def test_reflective_scene_scans_over_its_trace_levels_with_one_shading_body():
     fin = rt.Finish(reflection=rt.Reflection(min=(0.5,) * 3, max=(0.5,) * 3))
     scene = sphere_scene(fin, settings=rt.Settings(max_trace_level=3))

@@ -22,15 +22,18 @@ def _transform(m) -> S.Transform | None:
     return None if m is None else build(S.Transform, matrix=m)
 
 
-def lower_pigment(pig: PigRec, world: np.ndarray | None) -> S.Pigment:
+def lower_pigment(pig: PigRec, world: np.ndarray | None, fit_zero_filters: bool = True) -> S.Pigment:
+    """``fit_zero_filters`` (``load_scene``'s): a filter or transmit written as 0 makes the pigment
+    transparent (True) or only non-zero values do (False)."""
+    written = pig.ft and fit_zero_filters
     if pig.pattern == "solid":  # (most objects of a large scene: one colour, read as Python numbers)
         value, color = pig.cmap[0]
         rgbft = color.padded(5)
         return build(S.Pigment, pattern="solid", values=(float(value) * 0.0,), colors=(rgbft,),
-                     transparent=bool(pig.ft or rgbft[3] != 0 or rgbft[4] != 0))
+                     transparent=bool(written or rgbft[3] != 0 or rgbft[4] != 0))
     colors = np.array([c.padded(5) for _, c in pig.cmap], dtype=np.float64)
     values = np.array([v for v, _ in pig.cmap], dtype=np.float64)
-    transparent = bool(pig.ft or np.any(colors[:, 3:] != 0))
+    transparent = bool(written or np.any(colors[:, 3:] != 0))
     m = pig.transform
     if world is not None:
         m = world if m is None else world @ m
@@ -67,7 +70,8 @@ def _exact_key(v):
 class Lowerer:
     """Converts records, caching textures so objects sharing one get one pytree."""
 
-    def __init__(self):
+    def __init__(self, fit_zero_filters: bool = True):
+        self.fit_zero_filters = fit_zero_filters
         self._tex_cache = {}
         self._finish_cache: dict[str, S.Finish] = {}
         self.lights: list[S.Light] = []
@@ -78,7 +82,8 @@ class Lowerer:
         if tex is None:
             # the renderer wants the top layer first; records keep them bottom first
             tex = build(S.Texture, layers=tuple(
-                build(S.Layer, pigment=lower_pigment(layer.pigment, world), finish=self.finish(layer.finish))
+                build(S.Layer, pigment=lower_pigment(layer.pigment, world, self.fit_zero_filters),
+                        finish=self.finish(layer.finish))
                 for layer in reversed(layers)))
             self._tex_cache[key] = (tex, layers)  # keep layers alive so ids stay unique
             return tex
@@ -230,8 +235,8 @@ def output_transfer(p) -> tuple[str, float]:
     return "linear", 1.0
 
 
-def lower_scene(p) -> S.Scene:
-    low = Lowerer()
+def lower_scene(p, fit_zero_filters: bool = True) -> S.Scene:
+    low = Lowerer(fit_zero_filters)
     objects = []
     for rec in p.items:
         o = low.obj(rec, None, True)

@@ -126,6 +126,21 @@ def test_pigment_transparency_follows_the_colour_expression(pigment, transparent
     assert o.texture.layers[0].pigment.transparent is transparent
 
 
+@pytest.mark.parametrize("pigment", [
+    "rgbf <1,1,1,0>", "color red 1 filter 0", "rgbt <0.2, 0.3, 0.4, 0>",
+    "gradient x color_map { [0 rgbf <1,0,0,0>] [1 rgbft <0,0,1,0,0>] }",
+])
+def test_a_filter_written_as_zero_is_transparent_only_where_it_is_to_be_fitted(pigment):
+    """``fit_zero_filters`` (default True): a written 0 filter or transmit makes the pigment
+    transparent, so it can be fitted; False (the command line's): only a value that is not 0 does,
+    as POV-Ray renders it. A non-zero value is transparent either way."""
+    text = f"sphere {{ 0, 1 pigment {{ {pigment} }} }}"
+    assert load_scene(text).objects[0].texture.layers[0].pigment.transparent
+    assert not load_scene(text, fit_zero_filters=False).objects[0].texture.layers[0].pigment.transparent
+    clear = text.replace("0>", "0.5>").replace("filter 0", "filter 0.5")
+    assert load_scene(clear, fit_zero_filters=False).objects[0].texture.layers[0].pigment.transparent
+
+
 def test_finish_keywords():
     f = only_object("""sphere { 0, 1 finish { ambient rgb <0.1,0.2,0.3> emission 0.5 diffuse 0.7
         brilliance 2 phong 0 phong_size 20 specular 0.3 roughness 0.01 metallic
