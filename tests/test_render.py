@@ -583,10 +583,11 @@ def test_a_small_image_is_split_over_the_devices_only_where_its_rays_branch(monk
     assert render_module._layout(tree, least, 1, 1, 2)[2] == 2
 
 
-def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable():
+def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable(monkeypatch):
     """``render`` keeps the packed scene's arrays on the device between calls (not copied from
     NumPy on each), and on one device they stay uncommitted as NumPy inputs were: the image
-    combines with an array committed to any device."""
+    combines with an array committed to any device. The placed copies stay within
+    ``PLACED_BYTES`` in all: the oldest make room, and a larger scene is not kept."""
     import importlib
 
     render_module = importlib.import_module("raytracer.render")
@@ -616,6 +617,19 @@ def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable
 
     assert full is not narrow and dtypes(narrow) == {np.dtype("float32")}
     assert np.dtype("float64") in dtypes(full)
+
+    def size(p):
+        return sum(x.nbytes for x in jax.tree.leaves(p) if isinstance(x, np.ndarray))
+
+    one, two = render_module.pack(sphere_scene(rt.Finish())), render_module.pack(sphere_scene(rt.Finish()))
+    monkeypatch.setattr(render_module, "PLACED_BYTES", size(one) + size(two) // 2)  # room for one
+    render_module._PLACED.clear()
+    kept = render_module._placed(one, 1)
+    assert render_module._placed(two, 1) is not two
+    assert render_module._placed(one, 1) is not kept  # dropped to make room for two
+    monkeypatch.setattr(render_module, "PLACED_BYTES", size(one) - 1)
+    three = render_module.pack(sphere_scene(rt.Finish()))
+    assert render_module._placed(three, 1) is three  # too large to keep: its NumPy arrays, copied per call
 
 
 def test_a_scene_with_nothing_to_render_is_its_background_through_the_output_transfer():
