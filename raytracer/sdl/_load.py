@@ -41,7 +41,7 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
             ``Animation.from_ini("scene.ini", frame=3)``); None: no animation (``clock`` = 0).
         fit_zero_filters: a colour's filter or transmit written as 0 (``rgbf <r, g, b, 0>``,
             ``filter 0``) makes its pigment transparent, as any written term is compiled (semantics
-            §2.6, "present in the structure"), so the value can be fitted from 0. False: a pigment
+            §2.2 and §2.6, "present in the structure"), so the value can be fitted from 0. False: a pigment
             is transparent where a value is not 0, as POV-Ray renders it: the same image from a
             smaller, faster program (POV-Ray's ``advanced/pawns.pov``, whose opaque wood is written
             ``filter 0.000``: every object filtered shadows and passed rays on), but such a
