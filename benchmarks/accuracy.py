@@ -8,7 +8,7 @@ Four scenes (``benchmarks._common.SCENES``): the seed scene (with a ``#version 3
 soft-shadow area-light scene (POV-Ray only: Mitsuba has no equivalent of POV's area lights).
 
 Sweeps, for our renderer (each setting in a fresh process: compile time, median warm time of
-``--repeats`` runs, CPU seconds, peak memory ``ru_maxrss``):
+``--repeats`` runs, CPU seconds, peak memory ``VmHWM``):
 
 * samples per pixel (1, 4, 16, 64: a deterministic k×k grid), float32;
 * ``max_trace_level`` (Whitted scene: 1 … 8), spp 1;
@@ -670,7 +670,7 @@ def main(argv=None) -> int:
             "compile_s": "ours: compile_render (trace + XLA); Mitsuba: first call minus warm median "
             "(Dr.Jit kernel JIT, cold cache); POV-Ray: 0 (it has no compile step)",
             "time_s": "ours/Mitsuba: median warm render wall time; POV-Ray: its Trace Time (median)",
-            "peak_mb": "ru_maxrss of a fresh process per row (POV-Ray: the povray process alone)",
+            "peak_mb": "VmHWM of a fresh process per row (POV-Ray: ru_maxrss of the povray process alone)",
             "rmse/max_err": "linear units, all pixels and channels, vs the row's 'reference'",
         },
         "rows": rows,

@@ -30,7 +30,7 @@ Every measurement is a fresh worker process (``benchmarks/_worker.py``), one at 
   with N ≥ 8: ``compile_render`` of the nearest count whose arrays pad to the same sizes, after
   the first in the same process: issue 11's "no compile for another object count"), warm s
   (median of ``--repeats`` runs of the compiled function; fewer runs when they add up to more
-  than a quarter of the timeout: ``runs`` in the JSON), peak MB (``ru_maxrss`` of the worker:
+  than a quarter of the timeout: ``runs`` in the JSON), peak MB (``VmHWM`` of the worker:
   interpreter and JAX included);
 * ours reverse mode (``kind: ours_grad``, spheres with N ≤ 100, every depth): compile s, warm s,
   peak MB of the jitted gradient, and ``grad / fwd``: its warm time over the forward warm time;
@@ -577,7 +577,7 @@ def write_outputs(doc: dict, out: Path) -> str:
         f"{opts['repeats']} warm runs; timeout {opts['timeout']:g} s per job.",
         "",
         "Ours: parse = `load_scene`, compile = `compile_render` (trace + XLA), warm = the compiled render, "
-        "float32; peak MB = `ru_maxrss` of a fresh worker (Python and JAX included). POV-Ray: `+WT2`, its "
+        "float32; peak MB = `VmHWM` of a fresh worker (Python and JAX included). POV-Ray: `+WT2`, its "
         "own Parse and Trace Time, peak MB of the `povray` process. ours / POV = ours warm / POV trace. "
         "PSNR: ours against POV-Ray's image (linear, peak 1). `timeout` / `failed`: the job did not "
         "finish (reasons below the table); `skipped`: that renderer already timed out or failed on a "
