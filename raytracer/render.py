@@ -210,6 +210,9 @@ def _placed(packed: Packed, n_dev: int) -> Packed:
     size = n_dev * sum(x.nbytes for x in jax.tree.leaves(arrays))
     if size > PLACED_BYTES:
         return packed  # copied by each call: no second copy kept
+    # room first, so that the copies never take more than the budget
+    while _PLACED and (len(_PLACED) >= 4 or size + sum(e[2] for e in _PLACED.values()) > PLACED_BYTES):
+        _PLACED.pop(next(iter(_PLACED)))
     if n_dev > 1:
         mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.local_devices()[:n_dev],
                              axis_types=(jax.sharding.AxisType.Auto,))
@@ -217,8 +220,6 @@ def _placed(packed: Packed, n_dev: int) -> Packed:
     else:  # uncommitted, as NumPy arrays are: the image may then be combined with any other
         placed = jax.device_put(arrays)
     placed = eqx.combine(placed, static)
-    while _PLACED and (len(_PLACED) >= 4 or size + sum(e[2] for e in _PLACED.values()) > PLACED_BYTES):
-        _PLACED.pop(next(iter(_PLACED)))
     _PLACED[key] = (packed, placed, size)
     return placed
 

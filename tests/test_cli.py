@@ -26,6 +26,18 @@ def test_info_prints_objects_lights_and_the_plan(capsys):
     assert "depth: 1" in out
 
 
+def test_the_command_renders_a_filter_written_as_zero_as_opaque(tmp_path, capsys):
+    """``load_scene(…, fit_zero_filters=False)``: a sphere written ``rgbf <…, 0>`` plans no
+    transmission (the API's default would, so that the 0 can be fitted)."""
+    scene = tmp_path / "zero.pov"
+    scene.write_text("camera { location -5 * z look_at 0 }\nlight_source { <2, 4, -3> rgb 1 }\n"
+                     "sphere { 0, 1 pigment { rgbf <1, 0.5, 0.2, 0> } }\n")
+    assert rt.plan(rt.load_scene(scene)).effects.transmission
+    assert main(["info", str(scene)]) == 0
+    out = capsys.readouterr().out
+    assert "plan: primitives: sphere; effects: shadows" in out and "transmission" not in out
+
+
 def test_info_says_which_csg_objects_the_hierarchy_holds(tmp_path, capsys, monkeypatch):
     from raytracer.shading import _accel
 
