@@ -340,7 +340,8 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     all, one tile at a time, and the dropped-ray count. A tile's camera rays are made in the tile,
     so no image-sized array of rays exists; its k² samples per pixel are averaged in it, so
     supersampling widens nothing. ``tiles`` may instead be (T, tile/k²) pixel indices: each row is
-    a tile of those pixels (the refined pixels of adaptive anti-aliasing).
+    a tile of those pixels (the refined pixels of adaptive anti-aliasing), where an index past the
+    image is padding (dead rays, colour 0).
     ``scene_plan`` is ``make_plan(packed.scene)``."""
     scene = packed.rest
     dtype = scene.camera.location.dtype
@@ -360,8 +361,11 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
         pixel = t if t.ndim else t + stride * jnp.arange(pixels)
         ray = (pixel[:, None] * samples + jnp.arange(samples)[None, :]).reshape(tile)
         o, d = camera_rays(scene.camera, *sample_coords(ray, width, height, k, dtype))
+        # a row of pixel indices: those past the image are padding, dead rays (a plain render's
+        # tail past the image is traced: its tiles are not padded at their ends)
+        alive = jnp.repeat(pixel < width * height, samples) if t.ndim else None
         colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity, media=media,
-                                 grad_chunk=grad_chunk)
+                                 grad_chunk=grad_chunk, alive=alive)
         return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
 
     if tiles.shape[0] == 1:
@@ -464,20 +468,26 @@ def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: in
     return _assemble(packed.rest.settings, [colours], width, height, k, linear), dropped
 
 
-def _pixel_devices(m: int) -> int:
-    """The local devices ``_render_pixels`` shards ``m`` pixels over."""
+def _pixel_devices(m: int, samples: int = 1) -> int:
+    """The local devices ``_render_pixels`` shards ``m`` pixels of ``samples`` rays over: all where
+    ``m`` splits into their tiles and each gets ``MIN_SHARD_RAYS``, else one."""
     devices = len(jax.local_devices())
-    return devices if m % (devices * CHUNKS_PER_TILE) == 0 else 1
+    split = m % (devices * CHUNKS_PER_TILE) == 0 and m * samples >= devices * MIN_SHARD_RAYS
+    return devices if split else 1
 
 
 @eqx.filter_jit
 def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None):
     """Linear colours (M, 3) of the pixels ``pixels`` (M,) int, each the mean of its k×k grid, and
     the rays dropped. M is a multiple of ``CHUNKS_PER_TILE`` × the devices (``_pixel_bucket``); the
-    pixels are split into as many tiles per device, which are sharded over the devices when M allows."""
+    pixels are dealt to tiles in turn (tile j: pixels j, j + T, …), which are sharded over the
+    devices when M allows. Indices past the image are padding (colour 0): put at the end, they
+    are the last of every tile, whose chunks of dead rays are skipped, and the live pixels are
+    shared evenly (as a plain render's tiles, each spread over the image: one device does not
+    get the glass and the other the floor)."""
     scene_plan = _plan_of(packed)
     m = pixels.shape[0]
-    n_dev = _pixel_devices(m)
+    n_dev = _pixel_devices(m, k * k)
     share = m // n_dev
     most = _tile_size(scene_plan, share * k * k, k * k, capacity) // (k * k)
     # the largest tile that divides a device's share: a few large tiles shade a level's live rays in
@@ -485,10 +495,10 @@ def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capa
     # (whitted.pov, +A0.3 +R2 at 96×72, per device: tiles of 512 pixels took 12 ms, one of 1,536 7 ms)
     per_tile = next(d for d in range(min(share, most) // CHUNKS_PER_TILE * CHUNKS_PER_TILE, 0,
                                      -CHUNKS_PER_TILE) if share % d == 0)
-    rows = pixels.reshape(-1, per_tile)
+    rows = pixels.reshape(per_tile, -1).T
     colours, dropped = _sharded(packed, rows, n_dev, lambda p, r: _trace_tiles(
         p, scene_plan, r, width, height, k, tile=per_tile * k * k, stride=0, capacity=capacity))
-    return colours.reshape(-1, 3), dropped
+    return jnp.swapaxes(colours, 0, 1).reshape(-1, 3), dropped
 
 
 def _seen(image, gamma):
@@ -770,14 +780,13 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
             todo = _with_chain_neighbours(todo, have, width, height)
         m = _pixel_bucket(todo.size, CHUNKS_PER_TILE * len(jax.local_devices()))
         pad = m - todo.size
-        pixels = jnp.asarray(np.concatenate([todo, np.full(pad, todo[0])]).astype(np.int32))
-        placed = _placed(packed, _pixel_devices(m))
+        # the padding: an index past the image, traced as dead rays and dropped by the update
+        pixels = jnp.asarray(np.concatenate([todo, np.full(pad, width * height)]).astype(np.int32))
+        placed = _placed(packed, _pixel_devices(m, n * n))
         grid = _with_room(lambda room, p=pixels, s=placed: _render_pixels(s, width, height, n, p, room),
                           capacity, key and key + (n, m))
         grid = _on_one_device(grid)
-        # the padding's rows go nowhere (an index past the image, dropped)
-        dest = jnp.asarray(np.concatenate([todo, np.full(pad, width * height)]).astype(np.int32))
-        refined, seen, flag = _refine_step(refined, seen, centre, seen_centre, dest, grid, n, aa.threshold,
+        refined, seen, flag = _refine_step(refined, seen, centre, seen_centre, pixels, grid, n, aa.threshold,
                                            aa.gamma)
         have[todo] = True
         flag = np.asarray(flag).ravel()

@@ -85,7 +85,9 @@ from raytracer import load_scene, render
 R = importlib.import_module("raytracer.render")
 scene = load_scene(sys.argv[1])
 image = render(scene, width={W}, height={H}, adaptive=(0.3, 3))
-pixels = jnp.arange(4 * len(jax.local_devices()), dtype=jnp.int32)
+devices = len(jax.local_devices())  # enough pixels of 9 rays to be split: MIN_SHARD_RAYS a device
+quantum = 4 * devices
+pixels = jnp.arange(-(-devices * R.MIN_SHARD_RAYS // (9 * quantum)) * quantum, dtype=jnp.int32)
 program = R._render_pixels.lower(R.pack(scene), {W}, {H}, 3, pixels, 2).as_text()
 large = render(scene, width=128, height=96)  # two tiles: sharded over both devices, committed
 mixed = float(jnp.sum(large[:{H}, :{W}] + image))  # raised "incompatible devices" when the adaptive

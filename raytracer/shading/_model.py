@@ -163,13 +163,15 @@ def child_slots(effects: Effects) -> int:
     return int(effects.reflection) + int(effects.transmission)
 
 
-def camera_rays(origin, direction, media=None) -> Rays:
-    """Camera rays (N, 3): alive, weight 1, trace level 1 (POV counts the camera ray as level 1),
-    inside the interiors ``media`` (K,) (``initial_media``; None: none)."""
+def camera_rays(origin, direction, media=None, alive=None) -> Rays:
+    """Camera rays (N, 3): alive (or as ``alive`` (N,) bool says: a dead one is padding, traced by
+    nothing), weight 1, trace level 1 (POV counts the camera ray as level 1), inside the interiors
+    ``media`` (K,) (``initial_media``; None: none)."""
     n = origin.shape[0]
     media = jnp.zeros((0,), jnp.int32) if media is None else media
     return Rays(origin=origin, direction=direction, weight=jnp.ones(n, origin.dtype),
-                alive=jnp.ones(n, bool), reflection=jnp.zeros(n, bool), level=jnp.ones(n, jnp.int32),
+                alive=jnp.ones(n, bool) if alive is None else alive, reflection=jnp.zeros(n, bool),
+                level=jnp.ones(n, jnp.int32),
                 media=jnp.broadcast_to(media, (n, media.shape[0])))
 
 

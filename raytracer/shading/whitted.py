@@ -32,9 +32,10 @@ def slots_per_camera_ray(effects: Effects, capacity: int | None = None) -> int:
 
 
 def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None,
-          media=None, grad_chunk: int | None = None) -> tuple[jax.Array, jax.Array]:
+          media=None, grad_chunk: int | None = None, alive=None) -> tuple[jax.Array, jax.Array]:
     """Colours (N, 3) of N camera rays (origins and unit directions (N, 3)) that start inside the
-    interiors ``media`` (``initial_media(ctx, eye)``; None: none), and the number of child rays
+    interiors ``media`` (``initial_media(ctx, eye)``; None: none), the dead ones of ``alive`` (N,)
+    (None: none) padding that costs nothing where a whole chunk is dead, and the number of child rays
     dropped for lack of ``capacity`` (0 without one), shaded ``chunk`` rays at a time (derivatives:
     ``grad_chunk``): see ``_scheduler.trace_tree``."""
     eff = ctx.plan.effects
@@ -44,5 +45,5 @@ def trace(ctx: TraceContext, o, d, chunk: int, capacity: int | None = None,
     def shade_rays(rays):
         return shade_batch(ctx, rays)
 
-    return trace_tree(shade_rays, camera_rays(o, d, media), depth=eff.depth,
+    return trace_tree(shade_rays, camera_rays(o, d, media, alive), depth=eff.depth,
                       branch=child_slots(eff), chunk=chunk, capacity=capacity, grad_chunk=grad_chunk)
