@@ -335,13 +335,15 @@ def _pack_traced(scene: Scene, mode: str) -> Packed:
 
 
 def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: int, k: int, tile: int,
-                 stride: int, capacity: int | None):
+                 stride: int, capacity: int | None, post=None):
     """Pixel colours (T, tile/k², 3) of the tiles numbered ``tiles`` (T,) of ``stride`` tiles in
     all, one tile at a time, and the dropped-ray count. A tile's camera rays are made in the tile,
     so no image-sized array of rays exists; its k² samples per pixel are averaged in it, so
     supersampling widens nothing. ``tiles`` may instead be (T, tile/k²) pixel indices: each row is
     a tile of those pixels (the refined pixels of adaptive anti-aliasing), where an index past the
-    image is padding (dead rays, colour 0).
+    image is padding (dead rays, colour 0). ``post`` (None: none) maps a tile's colours
+    (pixels, 3) to the arrays returned in their place (each (T, tile/k², …)): work per pixel done
+    where the tile is, on its device.
     ``scene_plan`` is ``make_plan(packed.scene)``."""
     scene = packed.rest
     dtype = scene.camera.location.dtype
@@ -366,13 +368,14 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
         alive = jnp.repeat(pixel < width * height, samples) if t.ndim else None
         colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity, media=media,
                                  grad_chunk=grad_chunk, alive=alive)
-        return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
+        colours = colours.reshape(pixels, samples, 3).mean(axis=1)
+        return (colours if post is None else post(colours)), dropped
 
     if tiles.shape[0] == 1:
         # one tile: nothing to bound by rematerialising it, and reverse mode then keeps the tile's
         # residuals instead of tracing (and compiling) its forward pass a second time
         colours, dropped = one_tile(tiles[0])
-        return colours[None], jnp.sum(dropped)[None]
+        return jax.tree.map(lambda x: x[None], colours), jnp.sum(dropped)[None]
     colours, dropped = jax.lax.map(jax.checkpoint(one_tile), tiles)
     return colours, jnp.sum(dropped)[None]
 
@@ -409,14 +412,15 @@ def _render_part(packed: Packed, width: int, height: int, k: int, n_parts: int, 
 
 
 def _render_tiles(packed: Packed, scene_plan: Plan, width: int, height: int, k: int, n_parts: int, part,
-                  capacity: int | None):
-    """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(packed.scene)``.
-    Rays beyond the image (the last tile's tail) are traced and cut off by ``_assemble``."""
+                  capacity: int | None, post=None):
+    """``_render_part`` inside a trace that has already made ``scene_plan = make_plan(packed.scene)``
+    (``post``: as ``_trace_tiles``). Rays beyond the image (the last tile's tail) are traced and
+    cut off by ``_assemble``."""
     tile, per_part, n_dev = _layout(scene_plan, width * height * k * k, k * k, n_parts, capacity)
     tiles = part * per_part + jnp.arange(per_part)
     stride = per_part * n_parts
     return _sharded(packed, tiles, n_dev, lambda p, t: _trace_tiles(
-        p, scene_plan, t, width, height, k, tile=tile, stride=stride, capacity=capacity))
+        p, scene_plan, t, width, height, k, tile=tile, stride=stride, capacity=capacity, post=post))
 
 
 def _sharded(packed: Packed, tiles, n_dev: int, trace):
@@ -441,9 +445,13 @@ def _sharded(packed: Packed, tiles, n_dev: int, trace):
 @eqx.filter_jit
 def _assemble(settings, parts, width: int, height: int, k: int, linear: bool = False):
     # parts: (tiles, pixels per tile, 3); tile t holds pixels t, t + tiles, … (``_trace_tiles``)
-    colours = jnp.swapaxes(jnp.concatenate(parts), 0, 1).reshape(-1, 3)[:width * height]
-    image = colours.reshape(height, width, 3)
+    image = _image_of(jnp.concatenate(parts), width, height)
     return image if linear else _output_transfer(image, settings)
+
+
+def _image_of(colours, width: int, height: int):
+    """The (H, W, 3) image of tiles' colours (tiles, pixels per tile, 3) (``_trace_tiles``)."""
+    return jnp.swapaxes(colours, 0, 1).reshape(-1, 3)[:width * height].reshape(height, width, 3)
 
 
 def _background_only(scene: Scene, width: int, height: int):
@@ -466,6 +474,21 @@ def _render_packed(packed: Packed, width: int, height: int, k: int, capacity: in
     ``capacity`` (0 when None)."""
     colours, dropped = _render_tiles(packed, _plan_of(packed), width, height, k, 1, 0, capacity)
     return _assemble(packed.rest.settings, [colours], width, height, k, linear), dropped
+
+
+@eqx.filter_jit
+def _render_centres(packed: Packed, width: int, height: int, capacity: int | None, gamma):
+    """The image of one ray through each pixel centre three ways: linear, as POV-Ray's adaptive
+    rule compares colours (``_seen``) and after the output transfer; and the rays dropped. The two
+    powers per value are taken in the tiles, on their devices (on one device after the program,
+    at 384×288 they cost 1.2 ms (``_seen``) and 0.6 ms (an sRGB decode))."""
+    settings = packed.rest.settings
+
+    def post(colours):
+        return colours, _seen(colours, gamma), _output_transfer(colours, settings)
+
+    three, dropped = _render_tiles(packed, _plan_of(packed), width, height, 1, 1, 0, capacity, post)
+    return tuple(_image_of(x, width, height) for x in three), dropped
 
 
 def _pixel_devices(m: int, samples: int = 1) -> int:
@@ -748,14 +771,15 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         return _background_only(scene, width, height)
     packed = pack(scene, scene_plan)
     key = _room_key(packed, width, height)
-    centre = _with_room(lambda room: _render_packed(
-        _image_placed(packed, scene_plan, width * height, 1, room), width, height, 1, room, True),
+    centres = _with_room(lambda room: _render_centres(
+        _image_placed(packed, scene_plan, width * height, 1, room), width, height, room, aa.gamma),
         capacity, key and key + ("centre",))
-    traced_on, centre = centre, _on_one_device(centre)
+    traced_on = centres[2]
+    centre, seen_centre, image = (_on_one_device(x) for x in centres)
     n = aa.depth
     # the first guess: the rule with every value a centre (the pixels on either side of a
-    # difference of centres); outputs without a gradient, concrete under eager grad
-    seen_centre, flag = _first_guess(centre, aa.threshold, aa.gamma)
+    # difference of centres); no gradient, concrete under eager grad
+    flag = _first_guess(seen_centre, aa.threshold)
     if isinstance(flag, jax.core.Tracer):
         # under jit / vmap which pixels differ is known only when the program runs: refine every
         # pixel and keep the refined value where POV-Ray's rule flags it (the same image, no
@@ -771,9 +795,9 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     have = np.zeros_like(flag)
     refined = centre  # the refined values where known, the centres elsewhere
     seen = seen_centre  # and as the rule compares them
-    passes = 0
+    out, out_centre = image, image  # and after the output transfer; the centres after it
     while (todo := np.flatnonzero(flag & ~have)).size:
-        if passes:
+        if have.any():
             # a pass past the first adds pixels set off by a refined left or upper neighbour, and
             # each of those can set off the next: trace the two to the right and the one below
             # too, so that a chain is not one pass per pixel (each pass ~1 ms of fixed cost)
@@ -786,12 +810,11 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         grid = _with_room(lambda room, p=pixels, s=placed: _render_pixels(s, width, height, n, p, room),
                           capacity, key and key + (n, m))
         grid = _on_one_device(grid)
-        refined, seen, flag = _refine_step(refined, seen, centre, seen_centre, pixels, grid, n, aa.threshold,
-                                           aa.gamma)
+        refined, seen, out, flag, image = _refine_step(
+            refined, seen, out, centre, seen_centre, out_centre, pixels, grid, n, aa.threshold, aa.gamma,
+            scene.settings)
         have[todo] = True
         flag = np.asarray(flag).ravel()
-        passes += 1
-    image = _keep_flagged(centre, refined, None if passes == 0 else jnp.asarray(flag), scene.settings)
     # where the centres were traced (uncommitted, or on the devices a plain render's image is):
     # an image placed as a plain render's combines with it
     if isinstance(traced_on, jax.core.Tracer) or isinstance(image, jax.core.Tracer):
@@ -830,36 +853,32 @@ def _with_chain_neighbours(todo, have, width: int, height: int):
     return every[~have[every]]
 
 
-@eqx.filter_jit
-def _first_guess(centre, threshold, gamma):
-    """The centres as POV-Ray's rule compares them (``_seen``: raised to 1/gamma once, not on every
-    pass) and the rule with every value a centre."""
-    seen = _seen(centre, gamma)
-    return seen, _rule(seen, seen, threshold)
+@jax.jit
+def _first_guess(seen_centre, threshold):
+    """POV-Ray's rule with every value a centre (``seen_centre``: the centres as it compares them)."""
+    return _rule(seen_centre, seen_centre, threshold)
 
 
 @eqx.filter_jit
-def _refine_step(refined, seen, centre, seen_centre, dest, grid, n: int, threshold, gamma):
-    """One pass's update and POV-Ray's rule on it, as one program: the pixels ``dest`` (M,) (past
-    the image: padding) of ``refined`` (H, W, 3) set to ``(centre + n² · grid) / (n² + 1)``,
-    POV-Ray's refined value, and of ``seen`` to that value as the rule compares it (the new
-    values only: the power of the whole image twice cost ~0.12 ms a pass at 128×96), then
-    ``_rule`` of the result (a call less per pass)."""
+def _refine_step(refined, seen, out, centre, seen_centre, out_centre, dest, grid, n: int, threshold, gamma,
+                 settings):
+    """One pass's update, POV-Ray's rule on it and the image it makes, as one program: the pixels
+    ``dest`` (M,) (past the image: padding) of ``refined`` (H, W, 3) set to
+    ``(centre + n² · grid) / (n² + 1)``, POV-Ray's refined value, of ``seen`` to that value as the
+    rule compares it and of ``out`` to it after the output transfer (the new values only: the
+    powers of the whole image cost more than a pass's refined rays on a small image), then
+    ``_rule`` of the result and the image: ``out`` where it flags, ``out_centre`` elsewhere (the
+    last pass's is the render's: no call after the loop)."""
     shape = centre.shape
     value = (centre.reshape(-1, 3).at[dest].get(mode="fill", fill_value=0) + n * n * grid) / (n * n + 1)
-    refined = refined.reshape(-1, 3).at[dest].set(value, mode="drop").reshape(shape)
-    seen = seen.reshape(-1, 3).at[dest].set(_seen(value, gamma), mode="drop").reshape(shape)
-    return refined, seen, _rule(seen_centre, seen, threshold)
 
+    def put(image, x):
+        return image.reshape(-1, 3).at[dest].set(x, mode="drop").reshape(shape)
 
-@eqx.filter_jit
-def _keep_flagged(centre, refined, flag, settings):
-    """The adaptive image after the output transfer: the refined values where ``flag`` (H·W,) is
-    set, the centres elsewhere. One program: a small image's dozen eager operations cost more
-    than its refined pixels (seed.pov, +A0.3 +R2 at 128×96: ~2.7 ms of 4.8)."""
-    if flag is None:
-        return _output_transfer(centre, settings)
-    return _output_transfer(jnp.where(flag.reshape(centre.shape[:2])[..., None], refined, centre), settings)
+    refined, seen = put(refined, value), put(seen, _seen(value, gamma))
+    out = put(out, _output_transfer(value, settings))
+    flag = _rule(seen_centre, seen, threshold)
+    return refined, seen, out, flag, jnp.where(flag[..., None], out, out_centre)
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,
