@@ -27,6 +27,7 @@ from ._gc import paused, without_collections
 from ._packing import Frozen, is_traced, keyed, skeleton, with_field
 from ._plan import InPrim, Plan, leaf_prims, make_plan
 from ._xla import warn_if_untuned
+from .kernels import safe_pow
 from .scene import Scene
 from .shading import _accel
 from .shading._geometry import PackedGeometry, hierarchy_filters, pack_geometry, prim_bits
@@ -526,7 +527,7 @@ def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capa
 
 def _seen(image, gamma):
     """Colours as POV-Ray's anti-aliasing compares them: raised to 1/``gamma`` (``Antialias_Gamma``)."""
-    return jnp.maximum(jax.lax.stop_gradient(image), 0) ** (1 / gamma)
+    return safe_pow(jax.lax.stop_gradient(image), 1 / gamma)  # 0 where not positive
 
 
 def _chain(at0, at1):

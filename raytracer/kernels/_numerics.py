@@ -117,7 +117,7 @@ def safe_arccos(x: ArrayLike) -> Array:
 def safe_pow(x: ArrayLike, p: ArrayLike) -> Array:
     """``x ** p`` for ``x > 0``; for ``x <= 0`` it is 0 (1 when ``p == 0``). Gradients finite."""
     ok = x > 0
-    powered = jnp.power(jnp.where(ok, x, 1.0), p)
+    powered = jnp.exp(p * jnp.log(jnp.where(ok, x, 1.0)))
     return jnp.where(ok, powered, jnp.where(p == 0, 1.0, 0.0))
 
 
