@@ -19,9 +19,11 @@ demo: setup
 
 # The full suite, slow tests included (this is what CI runs). worksteal: an idle worker takes tests
 # from a busy one, so no file's long tests pin the run to one core; tests/conftest.py gives the run
-# one JAX compilation cache that both workers share.
+# one JAX compilation cache that the workers share. Three workers on two cores: with two, the
+# cores were busy 88 % of the run (tests wait on POV-Ray, Mitsuba and their own subprocesses);
+# session 32, one run each: 2 workers 5.7 min, 3 workers 5.0, 4 workers 5.4.
 test: setup
-	$(PY) -m pytest -q -n 2 --dist worksteal -p no:cacheprovider
+	$(PY) -m pytest -q -n 3 --dist worksteal -p no:cacheprovider
 
 # Everything but the tests marked slow: in their files, or listed in tests/slow_tests.txt (those that
 # took 0.5 s or more in a full run; `make slow-list` measures them again). 31 s on 2 cores (793 tests).
