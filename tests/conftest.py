@@ -12,8 +12,9 @@ float64 fixture, and the ``povray`` marker's skip.
   arithmetic is IEEE either way; ``make validate`` and the benchmarks use XLA's defaults. The
   flags every user of ``import raytracer`` gets (``raytracer/_xla.py``) are added too. The module
   is generated as one part (``parallel_codegen_split_count=1``), not 32 compiled on a thread pool:
-  the two xdist workers keep both cores busy already, and splitting costs more than it saves
-  (``tests/shapes/test_gradients.py``: XLA's compile 49–51 → 41 CPU-s, session 31).
+  the xdist workers (three for ``make test``, two for ``make test-fast``) keep both cores busy
+  already, and splitting costs more than it saves (``tests/shapes/test_gradients.py``: XLA's
+  compile 49–51 → 41 CPU-s, session 31).
 * Reference images (POV-Ray, Mitsuba) of the validation suite are kept for the run in a folder of
   its own (``$RAYTRACER_REFERENCE_CACHE``), so a reference two tests need is rendered once.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
