@@ -502,6 +502,11 @@ def _pixel_devices(m: int, samples: int = 1) -> int:
 
 @eqx.filter_jit
 def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None):
+    """``_pixel_colours`` as a program of its own."""
+    return _pixel_colours(packed, width, height, k, pixels, capacity)
+
+
+def _pixel_colours(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None):
     """Linear colours (M, 3) of the pixels ``pixels`` (M,) int, each the mean of its k×k grid, and
     the rays dropped. M is a multiple of ``CHUNKS_PER_TILE`` × the devices (``_pixel_bucket``); the
     pixels are dealt to tiles in turn (tile j: pixels j, j + T, …), which are sharded over the
@@ -807,13 +812,19 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         pad = m - todo.size
         # the padding: an index past the image, traced as dead rays and dropped by the update
         pixels = jnp.asarray(np.concatenate([todo, np.full(pad, width * height)]).astype(np.int32))
-        placed = _placed(packed, _pixel_devices(m, n * n))
-        grid = _with_room(lambda room, p=pixels, s=placed: _render_pixels(s, width, height, n, p, room),
-                          capacity, key and key + (n, m))
-        grid = _on_one_device(grid)
-        refined, seen, out, flag, image = _refine_step(
-            refined, seen, out, centre, seen_centre, out_centre, pixels, grid, n, aa.threshold, aa.gamma,
-            scene.settings)
+        n_dev = _pixel_devices(m, n * n)
+        placed = _placed(packed, n_dev)
+        state = refined, seen, out, centre, seen_centre, out_centre
+        if n_dev == 1:
+            refined, seen, out, flag, image = _with_room(
+                lambda room, p=pixels, s=placed, st=state: _refine_pass(
+                    s, width, height, n, p, room, st, aa.threshold, aa.gamma, scene.settings),
+                capacity, key and key + (n, m))
+        else:
+            grid = _with_room(lambda room, p=pixels, s=placed: _render_pixels(s, width, height, n, p, room),
+                              capacity, key and key + (n, m))
+            refined, seen, out, flag, image = _refine_step(*state, pixels, _on_one_device(grid), n,
+                                                           aa.threshold, aa.gamma, scene.settings)
         have[todo] = True
         flag = np.asarray(flag).ravel()
     # where the centres were traced (uncommitted, or on the devices a plain render's image is):
@@ -823,6 +834,17 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
     if not traced_on.committed:
         return image if not image.committed else jax.device_put(np.asarray(image))
     return image if image.sharding == traced_on.sharding else jax.device_put(image, traced_on.sharding)
+
+
+@eqx.filter_jit
+def _refine_pass(packed: Packed, width: int, height: int, n: int, pixels, capacity, state, threshold, gamma,
+                 settings):
+    """A pass that ``_pixel_devices`` keeps on one device, as one program: the colours of the
+    refined pixels ``pixels`` (``_pixel_colours``) and ``_refine_step`` on them (``state``: its
+    first six arguments), and the rays dropped. A call and a wait less per pass than the two
+    programs (the chain passes, and every pass of a small image)."""
+    grid, dropped = _pixel_colours(packed, width, height, n, pixels, capacity)
+    return _refine_step(*state, pixels, grid, n, threshold, gamma, settings), dropped
 
 
 def _on_one_device(x):

@@ -85,6 +85,7 @@ from raytracer import load_scene, render
 R = importlib.import_module("raytracer.render")
 scene = load_scene(sys.argv[1])
 image = render(scene, width={W}, height={H}, adaptive=(0.3, 3))
+every = render(scene, width={W}, height={H}, adaptive=(0.0, 3))  # every pixel: a pass split over both
 devices = len(jax.local_devices())  # enough pixels of 9 rays to be split: MIN_SHARD_RAYS a device
 quantum = 4 * devices
 pixels = jnp.arange(-(-devices * R.MIN_SHARD_RAYS // (9 * quantum)) * quantum, dtype=jnp.int32)
@@ -94,7 +95,8 @@ mixed = float(jnp.sum(large[:{H}, :{W}] + image))  # raised "incompatible device
                                                    # image was committed to the first device only
 json.dump({{"devices": len(jax.local_devices()), "sharded": "manual_computation" in program,
            "large_devices": len(large.devices()), "mixed": mixed,
-           "image": np.asarray(image).tolist()}}, open(sys.argv[2], "w"))
+           "split": R._pixel_devices({W} * {H}, 9), "image": np.asarray(image).tolist(),
+           "every": np.asarray(every).tolist()}}, open(sys.argv[2], "w"))
 """
 
 
@@ -112,6 +114,11 @@ def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, 
     assert got["devices"] == 2 and got["sharded"] and got["large_devices"] == 2 and np.isfinite(got["mixed"])
     want = render(scene, width=W, height=H, adaptive=(0.3, 3))  # this process: one device
     np.testing.assert_allclose(np.asarray(got["image"]), np.asarray(want), rtol=1e-5, atol=1e-6)
+    # threshold 0 refines every pixel in one pass, traced on both devices (a pass on one device
+    # is one program with its update; one on several, two)
+    assert got["split"] == 2
+    every = render(scene, width=W, height=H, adaptive=(0.0, 3))
+    np.testing.assert_allclose(np.asarray(got["every"]), np.asarray(every), rtol=1e-5, atol=1e-6)
 
 
 @pytest.mark.slow
