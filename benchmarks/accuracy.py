@@ -616,6 +616,9 @@ def main(argv=None) -> int:
     ap.add_argument("--scenes", nargs="*", default=None, help="subset of: seed whitted lambert area")
     ap.add_argument("--tiny", action="store_true", help=argparse.SUPPRESS)  # smoke test: minimal sweep
     ap.add_argument("--from-json", type=Path, help="only rewrite the .md and .png from this accuracy.json")
+    ap.add_argument("--size-scale", type=float, default=None,
+                    help="every scene's image size times this (no resolution sweep): the same curves where "
+                    "a render's fixed costs weigh less than on the panels' small images")
     args = ap.parse_args(argv)
     if args.from_json:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -646,6 +649,10 @@ def main(argv=None) -> int:
         ]
     if args.scenes:
         plan = [s for s in plan if s.name in args.scenes]
+    if args.size_scale:
+        f = args.size_scale
+        plan = [dataclasses.replace(s, size=(round(s.size[0] * f), round(s.size[1] * f)), resolutions=[])
+                for s in plan]
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     info = machine()
@@ -663,6 +670,7 @@ def main(argv=None) -> int:
     doc = {
         "machine": info,
         "quick": args.quick,
+        "size_scale": args.size_scale,
         "repeats": args.repeats,
         "wall_s": wall,
         "failures": failures,
