@@ -15,3 +15,4 @@ from ._numerics import safe_sqrt as safe_sqrt
 from ._numerics import solve_linear as solve_linear
 from ._numerics import solve_quadratic as solve_quadratic
 from ._numerics import solve_quartic as solve_quartic
+from ._numerics import world_normal as world_normal

@@ -19,6 +19,8 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float
 
+from ._common import vecmat
+
 __all__ = [
     "as_float_arrays",
     "differentiable_root",
@@ -32,6 +34,7 @@ __all__ = [
     "solve_linear",
     "solve_quadratic",
     "solve_quartic",
+    "world_normal",
 ]
 
 
@@ -119,6 +122,12 @@ def safe_pow(x: ArrayLike, p: ArrayLike) -> Array:
     ok = x > 0
     powered = jnp.exp(p * jnp.log(jnp.where(ok, x, 1.0)))
     return jnp.where(ok, powered, jnp.where(p == 0, 1.0, 0.0))
+
+
+def world_normal(n: Float[Array, "... 3"], ofw: Float[Array, "4 4"]) -> Float[Array, "... 3"]:
+    """The unit world normal of the object normal ``n`` of a primitive whose ``object_from_world``
+    is ``ofw`` (its upper 3×3 is enough): normals transform with the inverse transpose."""
+    return safe_normalize(vecmat(n, ofw[:3, :3]))
 
 
 def solve_linear(a: ArrayLike, b: ArrayLike) -> tuple[Array, Array]:

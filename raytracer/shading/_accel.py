@@ -50,7 +50,7 @@ import numpy as np
 from jax.custom_batching import custom_vmap
 
 from .._packing import any_traced, bucket, is_traced, pad_rows, register_packed
-from ..kernels import matvec, safe_normalize, vecmat
+from ..kernels import matvec, world_normal
 from ..shapes._base import AbstractShape
 
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
@@ -484,7 +484,7 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
             c = jnp.where(csg, jnp.argmin(jnp.where(ok, jnp.abs(sg(t) - t_chosen), jnp.inf)), c)
         closer = tt[c] < best_t
         best_t = jnp.where(closer, tt[c], best_t)
-        best_n = jnp.where(closer, safe_normalize(vecmat(n[c], m[:3, :3])), best_n)
+        best_n = jnp.where(closer, world_normal(n[c], m), best_n)
     return jnp.isfinite(best_t), best_t, accel.item_prim[chosen], best_n
 
 
@@ -537,10 +537,10 @@ def filtering(accel: Accel, shapes, object_from_world, o, d, t_min, t_max) -> Cr
             if near is not None:
                 t, n = near
                 ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
-                return jnp.where(ok, t, jnp.inf), safe_normalize(vecmat(n[0], m[:3, :3]))[None]
+                return jnp.where(ok, t, jnp.inf), world_normal(n[0], m)[None]
             t, n = _kernel_hits(kernel, arrays, o_obj, d_obj, sub)
             ok = mine & (t > t_min) & (t < t_max) & jnp.isfinite(t)
-            n = jax.vmap(lambda v: safe_normalize(vecmat(v, m[:3, :3])))(n)
+            n = jax.vmap(lambda v: world_normal(v, m))(n)
             t = jnp.where(ok, t, jnp.inf)
             if not any_csg:
                 return t, n

@@ -22,7 +22,7 @@ import numpy as np
 
 from .._packing import EYE4, bucket, inverse_affines, pad_rows, register_packed, stack
 from .._plan import InAll, InAny, InDiff, InPrim, InsideTree, Plan, has_box
-from ..kernels import matvec, safe_normalize, vecmat
+from ..kernels import matvec, world_normal
 from ..shapes import AbstractShape, world_bounds
 from ..shapes._base import UNBOUNDED_KERNELS
 from . import _accel
@@ -561,16 +561,10 @@ def all_crossings(geo: PackedGeometry, o, d, members=None, world: bool = True):
         t, n = jax.vmap(one)(shapes, ofw)
         ts.append(t.reshape(-1))
         ns.append(n.reshape(-1, 3))
-        ms.append(jnp.repeat(ofw[:, :3, :3], t.shape[-1], axis=0))
+        if not world:
+            ms.append(jnp.repeat(ofw[:, :3, :3], t.shape[-1], axis=0))
     joined = jnp.concatenate(ts), jnp.concatenate(ns)
     return joined if world else (*joined, jnp.concatenate(ms))
-
-
-def world_normal(n, ofw):
-    """The unit world normal of the object normal ``n`` (…, 3) of a primitive whose
-    ``object_from_world`` is ``ofw`` (its upper 3×3 is enough): normals transform with the
-    inverse transpose."""
-    return safe_normalize(vecmat(n, ofw[:3, :3]))
 
 
 @dataclasses.dataclass(frozen=True)
