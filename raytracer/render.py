@@ -90,6 +90,22 @@ def plan(scene: Scene) -> Plan:
     return make_plan(scene)
 
 
+def _mesh(n_dev: int):
+    return jax.make_mesh((n_dev,), ("tiles",), devices=jax.local_devices()[:n_dev],
+                         axis_types=(jax.sharding.AxisType.Auto,))
+
+
+def _replicated(x, n_dev: int):
+    """``x`` (arrays inside a program sharded over ``n_dev`` local devices) whole on every device.
+    Left to XLA's partitioner, what a program did with a sharded trace's colours next was split
+    over the devices too, each piece gathered on its own: an adaptive pass's update waited on six
+    gathers (~45 µs each at 128×96, each a wait for every device) instead of one."""
+    if n_dev == 1:
+        return x
+    everywhere = jax.sharding.NamedSharding(_mesh(n_dev), jax.sharding.PartitionSpec())
+    return jax.lax.with_sharding_constraint(x, everywhere)
+
+
 def _tile_size(scene_plan: Plan, n_rays: int, samples: int, capacity: int | None = None) -> int:
     """Camera rays per tile: the pool of the widest tree level stays within ``RAYS_PER_TILE`` and
     the pools of all levels (kept for the combine) within ``TREE_SLOTS_PER_TILE``, and a tile holds
@@ -343,8 +359,9 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     supersampling widens nothing. ``tiles`` may instead be (T, tile/k²) pixel indices: each row is
     a tile of those pixels (the refined pixels of adaptive anti-aliasing), where an index past the
     image is padding (dead rays, colour 0). ``post`` (None: none) maps a tile's colours
-    (pixels, 3) to the arrays returned in their place (each (T, tile/k², …)): work per pixel done
-    where the tile is, on its device.
+    (pixels, 3) and its pixels' indices (pixels,) to the array returned in their place ((T,
+    tile/k², …)): work per pixel done where the tile is, on its device, and one array for a
+    program sharded over devices to gather (each gathered array is a wait for every device).
     ``scene_plan`` is ``make_plan(packed.scene)``."""
     scene = packed.rest
     dtype = scene.camera.location.dtype
@@ -364,6 +381,10 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
         pixel = t if t.ndim else t + stride * jnp.arange(pixels)
 
         def traced(pixel):
+            colours, dropped = shaded(pixel)
+            return (colours if post is None else post(colours, pixel)), dropped
+
+        def shaded(pixel):
             ray = (pixel[:, None] * samples + jnp.arange(samples)[None, :]).reshape(tile)
             o, d = camera_rays(scene.camera, *sample_coords(ray, width, height, k, dtype))
             # a row of pixel indices: those past the image are padding, dead rays (a plain
@@ -373,13 +394,12 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
                                      grad_chunk=grad_chunk, alive=alive)
             return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
 
-        if t.ndim:  # a tile of padding alone (``_deal``) is not traced, nor its camera rays made
-            colours, dropped = jax.lax.cond(
-                jnp.any(pixel < width * height), traced,
-                lambda _: (jnp.zeros((pixels, 3), dtype), jnp.zeros((), jnp.int32)), pixel)
-        else:
-            colours, dropped = traced(pixel)
-        return (colours if post is None else post(colours)), dropped
+        if not t.ndim:
+            return traced(pixel)
+        # a tile of padding alone (``_deal``) is not traced, nor its camera rays made
+        zeros = jax.eval_shape(traced, pixel)
+        return jax.lax.cond(jnp.any(pixel < width * height), traced,
+                            lambda _: jax.tree.map(lambda z: jnp.zeros(z.shape, z.dtype), zeros), pixel)
 
     if tiles.shape[0] == 1:
         # one tile: nothing to bound by rematerialising it, and reverse mode then keeps the tile's
@@ -441,13 +461,11 @@ def _sharded(packed: Packed, tiles, n_dev: int, trace):
         # the packed scene is replicated; only its arrays cross the shard_map boundary, its
         # static half (the skeleton, static tables) is closed over
         arrays, static = eqx.partition(packed, eqx.is_array)
-        mesh = jax.make_mesh((n_dev,), ("tiles",), devices=jax.local_devices()[:n_dev],
-                             axis_types=(jax.sharding.AxisType.Auto,))
         spec, replicated = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-        colours, dropped = jax.shard_map(lambda a, t: trace(eqx.combine(a, static), t), mesh=mesh,
+        colours, dropped = jax.shard_map(lambda a, t: trace(eqx.combine(a, static), t), mesh=_mesh(n_dev),
                                          in_specs=(replicated, spec), out_specs=(spec, spec),
-                                         check_vma=False)(arrays, tiles)
-        return colours, jnp.sum(dropped)
+                                         check_vma=False)(_replicated(arrays, n_dev), tiles)
+        return _replicated((colours, jnp.sum(dropped)), n_dev)
     colours, dropped = trace(packed, tiles)
     return colours, jnp.sum(dropped)
 
@@ -460,8 +478,9 @@ def _assemble(settings, parts, width: int, height: int, k: int, linear: bool = F
 
 
 def _image_of(colours, width: int, height: int):
-    """The (H, W, 3) image of tiles' colours (tiles, pixels per tile, 3) (``_trace_tiles``)."""
-    return jnp.swapaxes(colours, 0, 1).reshape(-1, 3)[:width * height].reshape(height, width, 3)
+    """The (H, W, C) image of tiles' colours (tiles, pixels per tile, C) (``_trace_tiles``)."""
+    c = colours.shape[-1]
+    return jnp.swapaxes(colours, 0, 1).reshape(-1, c)[:width * height].reshape(height, width, c)
 
 
 def _background_only(scene: Scene, width: int, height: int):
@@ -493,11 +512,12 @@ def _render_centres(packed: Packed, width: int, height: int, capacity: int | Non
     at 384×288 they cost 1.2 ms (``_seen``) and 0.6 ms (an sRGB decode))."""
     settings = packed.rest.settings
 
-    def post(colours):
-        return colours, _seen(colours, gamma), _output_transfer(colours, settings)
+    def post(colours, _):
+        return jnp.concatenate([colours, _seen(colours, gamma), _output_transfer(colours, settings)], -1)
 
-    three, dropped = _render_tiles(packed, _plan_of(packed), width, height, 1, 1, 0, capacity, post)
-    return tuple(_image_of(x, width, height) for x in three), dropped
+    nine, dropped = _render_tiles(packed, _plan_of(packed), width, height, 1, 1, 0, capacity, post)
+    nine = _image_of(nine, width, height)
+    return (nine[..., :3], nine[..., 3:6], nine[..., 6:]), dropped
 
 
 def _pixel_devices(m: int, samples: int = 1) -> int:
@@ -515,7 +535,7 @@ def _render_pixels(packed: Packed, width: int, height: int, k: int, pixels, capa
 
 
 def _pixel_colours(packed: Packed, width: int, height: int, k: int, pixels, capacity: int | None = None,
-                   most_devices: int | None = None):
+                   most_devices: int | None = None, post=None):
     """Linear colours of the pixels ``pixels`` (M,) int, each the mean of its k×k grid: (the pixel
     of each colour (M,), the colours (M, 3)), in the order they were traced; and the rays dropped.
     Indices past the image are padding (colour 0, its index kept), all after the live ones; M is a
@@ -523,7 +543,8 @@ def _pixel_colours(packed: Packed, width: int, height: int, k: int, pixels, capa
     over where M allows (``_pixel_devices``; at most ``most_devices``). The live pixels fill the
     first tiles, as few as hold them, at least one a device (``_deal``), and a tile of padding alone
     is skipped: a batch of 16,384 pixels of which 500 are live took 9.9 ms (whitted.pov, 288×216,
-    3×3), as long as 6,000 live ones, when every tile held a few."""
+    3×3), as long as 6,000 live ones, when every tile held a few. ``post``: as ``_trace_tiles``
+    (the colours returned are then its arrays)."""
     scene_plan = _plan_of(packed)
     m = pixels.shape[0]
     n_dev = min(_pixel_devices(m, k * k), most_devices or m)
@@ -534,10 +555,10 @@ def _pixel_colours(packed: Packed, width: int, height: int, k: int, pixels, capa
     # (whitted.pov, +A0.3 +R2 at 96×72, per device: tiles of 512 pixels took 12 ms, one of 1,536 7 ms)
     per_tile = next(d for d in range(min(share, most) // CHUNKS_PER_TILE * CHUNKS_PER_TILE, 0,
                                      -CHUNKS_PER_TILE) if share % d == 0)
-    rows = _deal(pixels, width * height, per_tile, n_dev)
+    rows = _replicated(_deal(pixels, width * height, per_tile, n_dev), n_dev)
     colours, dropped = _sharded(packed, rows, n_dev, lambda p, r: _trace_tiles(
-        p, scene_plan, r, width, height, k, tile=per_tile * k * k, stride=0, capacity=capacity))
-    return (rows.reshape(-1), colours.reshape(-1, 3)), dropped
+        p, scene_plan, r, width, height, k, tile=per_tile * k * k, stride=0, capacity=capacity, post=post))
+    return (rows.reshape(-1), colours.reshape(m, -1)), dropped
 
 
 def _deal(pixels, size: int, per_tile: int, n_dev: int):
@@ -883,6 +904,10 @@ def _adaptive_program(packed: Packed, width: int, height: int, n: int, batch: in
     flag = _rule(seen_centre, seen_centre, threshold)
     size = width * height
 
+    def post(grid, pixel):  # a tile's refined values as the rule compares them and after the transfer
+        value = _refined(centre, pixel, grid, n)
+        return jnp.concatenate([_seen(value, gamma), _output_transfer(value, settings)], -1)
+
     def pending(state):
         _, _, flag, have, _ = state
         return jnp.any(flag & ~have)
@@ -895,9 +920,8 @@ def _adaptive_program(packed: Packed, width: int, height: int, n: int, batch: in
                 | jnp.pad(todo[:-1], ((1, 0), (0, 0))))
         todo = jnp.where(jnp.any(have), (todo | near) & ~have, todo)
         pixels = jnp.nonzero(todo.ravel(), size=batch, fill_value=size)[0].astype(jnp.int32)
-        (dest, grid), lost = _pixel_colours(packed, width, height, n, pixels, capacity, n_dev)
-        value = _refined(centre, dest, grid, n)
-        seen, out = _put(seen, dest, _seen(value, gamma)), _put(out, dest, _output_transfer(value, settings))
+        (dest, six), lost = _pixel_colours(packed, width, height, n, pixels, capacity, n_dev, post)
+        seen, out = _put(seen, dest, six[:, :3]), _put(out, dest, six[:, 3:])
         have = have.ravel().at[dest].set(True, mode="drop").reshape(have.shape)
         return seen, out, _rule(seen_centre, seen, threshold), have, dropped + lost
 
