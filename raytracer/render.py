@@ -45,6 +45,12 @@ CHUNKS_PER_TILE = 4  # a tile's rays are a multiple of 4 (× samples): its pools
 # chunks of 2,048 / 512 / 256 / 128 rays 0.31 / 0.28 / 0.28 / 0.30 s; advanced/pawns at 160×120
 # (tiles of 4,800): chunks of 1,200 / 300 / 150 rays 0.37 / 0.34–0.35 / 0.33 s
 CHUNK_RAYS = 256
+# and where a tile's tree has one level (no reflected or refracted rays): its pool is the camera rays,
+# all live but a batch's padding, so a chunk's fixed cost (a loop step, a branch) is paid for fewer
+# rays. seed.pov, three alternating rounds (256 → 512): 640×480 16.5–20.1 → 16.3–16.7 ms, 128×96
+# adaptive +A0.3 +R2 2.51–2.85 → 2.26–2.41 ms, +A0.03 +R6 5.0–5.6 → 4.4–4.8 ms; 1,024 no better.
+# Trees stay at 256: whitted.pov 96×72 adaptive was 1–9 % slower at 512
+FLAT_CHUNK_RAYS = 512
 # differentiated, a tile's pool of at most this many slots is shaded in one vmap, unchunked:
 # skipping its empty chunks saves less than their branches cost (two ``lax.cond`` levels,
 # linearized in reverse mode: the chunked reverse program of an 8×6 glass scene took 56 s to trace
@@ -117,11 +123,13 @@ def _tile_size(scene_plan: Plan, n_rays: int, samples: int, capacity: int | None
     return min(size, -(-n_rays // quantum) * quantum)
 
 
-def _chunk_size(tile: int) -> int:
+def _chunk_size(tile: int, depth: int = 2) -> int:
     """Rays per chunk of a tile's pools: ``tile/c`` for the largest ``c`` of 4, 8, 16, … that divides
-    ``tile`` and leaves at least ``CHUNK_RAYS`` rays (``tile/4`` if none does)."""
+    ``tile`` and leaves at least ``CHUNK_RAYS`` rays (``FLAT_CHUNK_RAYS`` for a tree of ``depth``
+    1; ``tile/4`` if none does)."""
+    least = CHUNK_RAYS if depth > 1 else FLAT_CHUNK_RAYS
     c = CHUNKS_PER_TILE
-    while tile % (2 * c) == 0 and tile // (2 * c) >= CHUNK_RAYS:
+    while tile % (2 * c) == 0 and tile // (2 * c) >= least:
         c *= 2
     return tile // c
 
@@ -368,7 +376,7 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
                        dtype)
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
-    chunk = _chunk_size(tile)
+    chunk = _chunk_size(tile, scene_plan.effects.depth)
     grad_chunk = pool if pool <= UNCHUNKED_POOL else chunk
     samples = k * k
     pixels = tile // samples
