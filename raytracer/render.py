@@ -961,10 +961,14 @@ def _on_one_device(x):
     refined pixels of a differentiated render come from programs sharded over one or all local
     devices (``_placed``), and the program that combines them runs on one (a program takes
     committed arrays of one set of devices only). A replicated array's copy there is free; a
-    sharded one is gathered by a copy between devices."""
-    if isinstance(x, jax.core.Tracer) or not x.committed or len(x.sharding.device_set) == 1:
-        return x
+    sharded one is gathered by a copy between devices. A value being differentiated (eager
+    ``grad``, ``jvp``) is copied there as a differentiable ``device_put``."""
     first = jax.local_devices()[0]
+    if isinstance(x, jax.core.Tracer):
+        one = len(jax.local_devices()) == 1
+        return x if one else jax.device_put(x, jax.sharding.SingleDeviceSharding(first))
+    if not x.committed or len(x.sharding.device_set) == 1:
+        return x
     if x.sharding.is_fully_replicated:
         for shard in x.addressable_shards:
             if shard.device == first:

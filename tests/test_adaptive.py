@@ -80,7 +80,7 @@ def test_under_jit_every_pixel_is_refined_and_the_flagged_ones_kept(scene):
 
 TWO_DEVICES = """
 import importlib, json, sys
-import jax, jax.numpy as jnp, numpy as np
+import equinox as eqx, jax, jax.numpy as jnp, numpy as np
 from raytracer import load_scene, render
 R = importlib.import_module("raytracer.render")
 scene = load_scene(sys.argv[1])
@@ -93,17 +93,24 @@ program = R._render_pixels.lower(R.pack(scene), {W}, {H}, 3, pixels, 2).as_text(
 large = render(scene, width=128, height=96)  # two tiles: sharded over both devices, committed
 mixed = float(jnp.sum(large[:{H}, :{W}] + image))  # raised "incompatible devices" when the adaptive
                                                    # image was committed to the first device only
+def mean_at(c):  # at 128×96 the centres are sharded over both devices, the refined pixels not
+    lit = eqx.tree_at(lambda s: s.lights[0].color, scene, c)
+    return jnp.mean(render(lit, width=128, height=96, adaptive=(0.3, 2)))
+c0 = jnp.asarray(scene.lights[0].color)
+grad = jax.grad(mean_at)(c0)  # raised "incompatible devices": centres on two, refined pixels on one
+fd = [float(mean_at(c0.at[i].add(1e-3)) - mean_at(c0.at[i].add(-1e-3))) / 2e-3 for i in range(3)]
 json.dump({{"devices": len(jax.local_devices()), "sharded": "manual_computation" in program,
            "large_devices": len(large.devices()), "mixed": mixed,
            "split": R._pixel_devices({W} * {H}, 9), "image": np.asarray(image).tolist(),
-           "every": np.asarray(every).tolist()}}, open(sys.argv[2], "w"))
+           "every": np.asarray(every).tolist(), "grad": np.asarray(grad).tolist(), "fd": fd}},
+          open(sys.argv[2], "w"))
 """
 
 
 @pytest.mark.slow
 def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, tmp_path):
     """With two devices the refined pixels are traced on both, the image is the one-device image,
-    and it combines with an image sharded over both devices."""
+    it combines with an image sharded over both devices, and its gradient is finite differences'."""
     path = tmp_path / "aa.pov"
     path.write_text(SCENE)
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
@@ -119,6 +126,9 @@ def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, 
     assert got["split"] == 2
     every = render(scene, width=W, height=H, adaptive=(0.0, 3))
     np.testing.assert_allclose(np.asarray(got["every"]), np.asarray(every), rtol=1e-5, atol=1e-6)
+    # the image's mean is linear in the light's colour for the pixels refined (float32: rtol 1e-3)
+    assert np.all(np.asarray(got["grad"]) > 0)
+    np.testing.assert_allclose(got["grad"], got["fd"], rtol=1e-3)
 
 
 @pytest.mark.slow
