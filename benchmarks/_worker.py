@@ -12,10 +12,11 @@ a ``.npy`` path to write the last image to):
 
 * ``{"kind": "ours", "spp": k², "x64": bool}``: parse, compile (``compile_render``), one first render
   (``first_render_s``: where the compiled room is too small for the ray tree, ``compile_render``
-  compiles again inside it), then ``repeats`` warm renders. ``x64`` turns ``jax_enable_x64`` on
-  before anything is created. With ``"adaptive": [threshold, depth]``, ``render(…, adaptive=)``
-  instead (its first call, compile and one render, is the compile time). The scene is loaded as the
-  ``raytracer`` command loads it (``fit_zero_filters=False``: a filter written as 0 is opaque).
+  compiles again inside it), unmeasured warm renders (``_warm_up``), then ``repeats`` warm renders.
+  ``x64`` turns ``jax_enable_x64`` on before anything is created. With ``"adaptive": [threshold,
+  depth]``, ``render(…, adaptive=)`` instead (its first call, compile and one render, is the compile
+  time). The scene is loaded as the ``raytracer`` command loads it (``fit_zero_filters=False``: a
+  filter written as 0 is opaque).
 * ``{"kind": "ours_grad", "spp": k², "x64": bool}``: parse, then compile and time (``repeats`` warm
   runs) ``jax.jit(jax.grad(loss))`` with ``loss = mean(render(scene))`` differentiated with respect to
   every inexact array leaf of the scene (``eqx.partition(scene, eqx.is_inexact_array)``, as
@@ -24,9 +25,10 @@ a ``.npy`` path to write the last image to):
   ``povray`` binary through :func:`validation.povray.run_povray`; POV-Ray's own Parse and Trace Time
   and its CPU seconds are read from its log.
 * ``{"kind": "mitsuba", "spp": n, "seed": 0}``: the scene converted with
-  :func:`validation.mitsuba.to_mitsuba`, loaded once, then rendered ``repeats + 1`` times to a
-  box-filtered film: the first call JIT-compiles Dr.Jit's kernels (``first_s``; run with an empty
-  ``$HOME`` so that Dr.Jit's on-disk kernel cache is cold), the others are warm.
+  :func:`validation.mitsuba.to_mitsuba`, loaded once, then rendered to a box-filtered film: the first
+  call JIT-compiles Dr.Jit's kernels (``first_s``; run with an empty ``$HOME`` so that Dr.Jit's
+  on-disk kernel cache is cold), then unmeasured warm renders (``_warm_up``) and ``repeats`` warm
+  ones.
 
 Optional keys of the ``ours`` and ``povray`` jobs (``benchmarks/sample_renders.py`` uses them):
 
@@ -133,6 +135,23 @@ def _save(path, image) -> None:
         np.save(path, np.asarray(image))
 
 
+# unmeasured warm runs before the measured ones (ours and Mitsuba; each POV-Ray run is a process of
+# its own): up to this many, within this many seconds. A process's first warm renders are slower
+# until the OS has spread XLA's two worker threads over the two cores: seed.pov 128×96 adaptive took
+# 3.1–3.5 ms a render for its first 5–20 renders, 2.0–2.3 ms after (2.0–2.4 ms from the first with the
+# threads pinned to a core each), so a median of three such renders measured the placement
+WARM_UP_RUNS = 20
+WARM_UP_S = 1.0
+
+
+def _warm_up(fn) -> None:
+    t0 = time.perf_counter()
+    for _ in range(WARM_UP_RUNS):
+        fn()
+        if time.perf_counter() - t0 > WARM_UP_S:
+            return
+
+
 def _timed_runs(fn, repeats: int, max_total_s: float):
     """Runs ``fn`` ``repeats`` times (fewer if the runs together exceed ``max_total_s``, at least one);
     returns (wall seconds, CPU seconds of this process, last result)."""
@@ -218,6 +237,7 @@ def run_ours(job: dict) -> dict:
     t0 = time.perf_counter()
     once()
     first_render_s = time.perf_counter() - t0
+    _warm_up(once)
     walls, cpus, image = _timed_runs(once, job.get("repeats", 3), job.get("max_total_s", 120.0))
     _save(job.get("image"), image)
     import numpy as np
@@ -367,6 +387,7 @@ def run_mitsuba(job: dict) -> dict:
     c0, t0 = time.process_time(), time.perf_counter()
     once()
     first_s, first_cpu = time.perf_counter() - t0, time.process_time() - c0
+    _warm_up(once)
     walls, cpus, image = _timed_runs(once, job.get("repeats", 3), job.get("max_total_s", 120.0))
     _save(job.get("image"), image)
     return {
