@@ -851,11 +851,14 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
         return _output_transfer(jnp.where(flag[..., None], refined, centre), scene.settings)
     key = _room_key(values, width, height)
     batch = _adaptive_batch(width, height)
+    # arrays, not constants of the program: one program for every threshold and gamma
+    dtype = scene.camera.location.dtype
+    threshold, gamma = np.asarray(aa.threshold, dtype), np.asarray(aa.gamma, dtype)
 
     def run(room):
         n_dev = _adaptive_devices(scene_plan, width, height, n, batch, room)
-        return _adaptive_program(_placed(values, n_dev), width, height, n, batch, n_dev, room, aa.threshold,
-                                 aa.gamma)
+        return _adaptive_program(_placed(values, n_dev), width, height, n, batch, n_dev, room, threshold,
+                                 gamma)
 
     image, flag = _with_room(run, capacity, key and key + ("adaptive", n))
     if values is packed:
@@ -917,24 +920,27 @@ def _adaptive_program(packed: Packed, width: int, height: int, n: int, batch: in
         return jnp.concatenate([_seen(value, gamma), _output_transfer(value, settings)], -1)
 
     def pending(state):
-        _, _, flag, have, _ = state
-        return jnp.any(flag & ~have)
+        _, _, flag, have, _, passes = state
+        # each pass refines at least one pending pixel: at most one pass a pixel
+        return jnp.any(flag & ~have) & (passes < size)
+
+    def shifted(x, down, right):  # x moved down and right, zeros shifted in, none wrapped
+        return jnp.pad(x, ((down, 0), (right, 0)))[:height, :width]
 
     def one_pass(state):
-        seen, out, flag, have, dropped = state
+        seen, out, flag, have, dropped, passes = state
         todo = flag & ~have
-        # the two to the right of and the one below each pending pixel (shifted in, none wrapped)
-        near = (jnp.pad(todo[:, :-1], ((0, 0), (1, 0))) | jnp.pad(todo[:, :-2], ((0, 0), (2, 0)))
-                | jnp.pad(todo[:-1], ((1, 0), (0, 0))))
+        # the two to the right of and the one below each pending pixel
+        near = shifted(todo, 0, 1) | shifted(todo, 0, 2) | shifted(todo, 1, 0)
         todo = jnp.where(jnp.any(have), (todo | near) & ~have, todo)
         pixels = jnp.nonzero(todo.ravel(), size=batch, fill_value=size)[0].astype(jnp.int32)
         (dest, six), lost = _pixel_colours(packed, width, height, n, pixels, capacity, n_dev, post)
         seen, out = _put(seen, dest, six[:, :3]), _put(out, dest, six[:, 3:])
         have = have.ravel().at[dest].set(True, mode="drop").reshape(have.shape)
-        return seen, out, _rule(seen_centre, seen, threshold), have, dropped + lost
+        return seen, out, _rule(seen_centre, seen, threshold), have, dropped + lost, passes + 1
 
-    state = seen_centre, out_centre, flag, jnp.zeros_like(flag), dropped
-    _, out, flag, _, dropped = jax.lax.while_loop(pending, one_pass, state)
+    state = seen_centre, out_centre, flag, jnp.zeros_like(flag), dropped, jnp.int32(0)
+    _, out, flag, _, dropped, _ = jax.lax.while_loop(pending, one_pass, state)
     return (jnp.where(flag[..., None], out, out_centre), flag), dropped
 
 

@@ -36,7 +36,7 @@ def scene(tmp_path):
     return load_scene(path)
 
 
-def _expected(scene, threshold, n):
+def _expected(scene, threshold, n, W=W, H=H):
     """Independently: centre samples, the n×n grid of every pixel (two whole-image renders),
     POV-Ray's rule as a loop over the pixels in scan order (each centre compared with its left
     and upper neighbours' values as they are then, colours raised to 1/2.5; a difference refines
@@ -70,6 +70,19 @@ def test_refines_in_scan_order_as_povray_does_with_its_weights(scene):
     assert flag0.all()
     np.testing.assert_allclose(np.asarray(render(scene, width=W, height=H, adaptive=(0.0, 2))), everything,
                                rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.slow  # ~5 s: three programs for each of two sizes
+@pytest.mark.parametrize("size", [(1, 12), (12, 1)], ids=["one column", "one row"])
+def test_an_image_one_pixel_wide_or_high(scene, size):
+    """An image one pixel wide or high, every pixel refined and some (the same program: the
+    threshold is an argument): a render one pixel wide hung (the chain neighbours, two to the
+    right and one below, were shifted into flags wider than the image)."""
+    for threshold in (0.0, 0.3):
+        want, flag = _expected(scene, threshold, 2, *size)
+        assert flag.all() == (threshold == 0.0)
+        got = np.asarray(render(scene, width=size[0], height=size[1], adaptive=(threshold, 2)))
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
 
 
 def test_under_jit_every_pixel_is_refined_and_the_flagged_ones_kept(scene):
