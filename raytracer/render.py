@@ -402,12 +402,17 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
                                      grad_chunk=grad_chunk, alive=alive)
             return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
 
+        def blank(pixel):  # ``traced``'s outputs for a tile of padding (the trace's count is int32)
+            colours = jnp.zeros((pixels, 3), dtype)
+            if post is not None:
+                shape = jax.eval_shape(post, colours, pixel)  # traces ``post`` alone, not the shading
+                colours = jnp.zeros(shape.shape, shape.dtype)
+            return colours, jnp.zeros((), jnp.int32)
+
         if not t.ndim:
             return traced(pixel)
         # a tile of padding alone (``_deal``) is not traced, nor its camera rays made
-        zeros = jax.eval_shape(traced, pixel)
-        return jax.lax.cond(jnp.any(pixel < width * height), traced,
-                            lambda _: jax.tree.map(lambda z: jnp.zeros(z.shape, z.dtype), zeros), pixel)
+        return jax.lax.cond(jnp.any(pixel < width * height), traced, blank, pixel)
 
     if tiles.shape[0] == 1:
         # one tile: nothing to bound by rematerialising it, and reverse mode then keeps the tile's
