@@ -17,7 +17,8 @@ Sweeps, for our renderer (each setting in a fresh process: compile time, median 
 * resolution, spp 1 (error against POV-Ray's ``-A`` render of the same size: same sampling).
 
 Peers on the same files and sizes: POV-Ray ``-A`` and ``+A0.0 +AM1 +R<n> -J`` (n²+1 rays per pixel),
-``+WT2``, its own Trace Time (its process wall time is kept too); the same depth and area-light
+``+WT2``, its own Trace Time (printed in whole milliseconds: the median of the readings as durations on
+that clock, ``_worker.quantized_median``; its process wall time is kept too); the same depth and area-light
 sweeps with ``-A``; and Mitsuba ``llvm_ad_rgb`` (Lambert scene, box-filtered film, 1 … 1024 spp;
 first call with a cold kernel cache, then warm median).
 
@@ -286,7 +287,8 @@ def measure_scene(sw: SceneSweep, r: Runner) -> list[dict]:
             "cpu_s": float(np.median(res["cpu_s"])) if res.get("cpu_s") else None,
             "runs": len(res.get("times_s") or res.get("trace_times_s") or [1]),
         }
-        for k in ("first_s", "wall_s", "parse_s", "base_mb", "first_cpu_s", "compile_cpu_s"):
+        for k in ("first_s", "wall_s", "parse_s", "base_mb", "first_cpu_s", "compile_cpu_s", "trace_times_s",
+                  "trace_median_s"):
             if k in res:
                 row[k] = res[k]
         rows.append(row)
@@ -592,8 +594,10 @@ def write_outputs(doc: dict, out: Path) -> None:
         "(fewer when a setting's runs exceed the time cap: see `runs` in the JSON).",
         "",
         "time: ours and Mitsuba = warm render (compile/JIT excluded, shown separately); POV-Ray = its "
-        "Trace Time with 2 threads. RMSE / max err: linear units, against ours in float64 at high spp and "
-        "the deepest setting ('converged'); the other columns use the other references.",
+        "Trace Time with 2 threads, printed in whole ms (the median of the readings as durations on "
+        "that clock: `benchmarks._worker.quantized_median`). RMSE / max err: linear units, against ours "
+        "in float64 at high spp and the deepest setting ('converged'); the other columns use the other "
+        "references.",
         "",
         "## Main table",
         "",
@@ -677,7 +681,9 @@ def main(argv=None) -> int:
         "columns": {
             "compile_s": "ours: compile_render (trace + XLA); Mitsuba: first call minus warm median "
             "(Dr.Jit kernel JIT, cold cache); POV-Ray: 0 (it has no compile step)",
-            "time_s": "ours/Mitsuba: median warm render wall time; POV-Ray: its Trace Time (median)",
+            "time_s": "ours/Mitsuba: median warm render wall time; POV-Ray: median of its Trace Times read "
+                      "as durations on a 1 ms clock (benchmarks._worker.quantized_median; trace_times_s: "
+                      "the readings)",
             "peak_mb": "VmHWM of a fresh process per row (POV-Ray: ru_maxrss of the povray process alone)",
             "rmse/max_err": "linear units, all pixels and channels, vs the row's 'reference'",
         },

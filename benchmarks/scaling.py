@@ -34,7 +34,8 @@ Every measurement is a fresh worker process (``benchmarks/_worker.py``), one at 
   interpreter and JAX included);
 * ours reverse mode (``kind: ours_grad``, spheres with N ≤ 100, every depth): compile s, warm s,
   peak MB of the jitted gradient, and ``grad / fwd``: its warm time over the forward warm time;
-* POV-Ray (``kind: povray``, ``+WT2``): its own Parse Time and Trace Time (median), peak MB of the
+* POV-Ray (``kind: povray``, ``+WT2``): its own Parse Time and Trace Time (median; the Trace Time's
+  over its 1 ms clock, ``_worker.quantized_median``), peak MB of the
   ``povray`` process;
 * ``ours / POV``: our warm time over POV-Ray's Trace Time; ``PSNR dB``: our image against POV-Ray's
   (``validation.metrics.psnr``, linear, peak 1), where both finished.

@@ -35,6 +35,24 @@ def test_scene_variant_rewrites_depth_and_area_samples(tmp_path):
         scene_variant(SCENES["seed"], tmp_path, area_samples=3)
 
 
+def test_povray_times_on_its_millisecond_clock_give_the_durations_median():
+    """A duration d read as the difference of two readings of a clock of 1 ms ticks reads ⌊d⌋ or
+    ⌈d⌉ ms as the phase falls: the grouped-data median recovers d to 0.09 of a tick (plus sampling
+    noise; the readings' plain median is a whole tick, up to half a tick off); a reading off the
+    grid (a finer clock) gives the plain median."""
+    from benchmarks._worker import quantized_median
+
+    assert quantized_median([0.002] * 7 + [0.003] * 4) == pytest.approx(0.0015 + 5.5 / 7 * 1e-3)
+    rng = np.random.default_rng(0)
+    for d in (0.7, 1.3, 2.36, 2.7, 5.5):
+        phase = rng.uniform(0, 1, 4001)
+        readings = (np.floor(phase + d) - np.floor(phase)) * 1e-3
+        assert abs(np.median(readings) * 1e3 - d) > 0.25  # a whole tick: off by a quarter tick or more
+        assert quantized_median(readings.tolist()) * 1e3 == pytest.approx(d, abs=0.12)
+    assert quantized_median([0.0] * 3) == 0.0
+    assert quantized_median([0.0123, 0.0456, 0.02]) == 0.02
+
+
 def test_markdown_table_has_one_row_per_entry():
     table = md_table(["a", "b"], [[1, 0.000123], ["x", None]])
     lines = table.splitlines()
