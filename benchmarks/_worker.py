@@ -15,7 +15,7 @@ a ``.npy`` path to write the last image to):
   compiles again inside it), unmeasured warm renders (``_warm_up``), then ``repeats`` warm renders.
   ``x64`` turns ``jax_enable_x64`` on before anything is created. With ``"adaptive": [threshold,
   depth]``, ``render(…, adaptive=)`` instead (its first call, compile and one render, is the compile
-  time). The scene is loaded as the ``raytracer`` command loads it (``fit_zero_filters=False``: a
+  time). The scene is loaded as the ``raytracer`` command loads it (``fit_zero_terms=False``: a
   filter written as 0 is opaque).
 * ``{"kind": "ours_grad", "spp": k², "x64": bool}``: parse, then compile and time (``repeats`` warm
   runs) ``jax.jit(jax.grad(loss))`` with ``loss = mean(render(scene))`` differentiated with respect to
@@ -189,7 +189,7 @@ def run_ours(job: dict) -> dict:
         height=job["height"],
         include_paths=job.get("include_paths", ()),
         animation=anim,
-        fit_zero_filters=False,  # an image, as the command line renders it
+        fit_zero_terms=False,  # an image, as the command line renders it
     )
     parse_s = time.perf_counter() - t0
     features: dict[str, int] = {}
@@ -249,7 +249,7 @@ def run_ours(job: dict) -> dict:
         # the same scene at another object count, in this process after the first: what a
         # sequence of scenes (an animation, an optimisation that adds objects) pays for each
         other = load_scene(job["recount_scene"], width=job["width"], height=job["height"],
-                           fit_zero_filters=False)
+                           fit_zero_terms=False)
         t0 = time.perf_counter()
         compile_render(other, width=job["width"], height=job["height"], spp=job.get("spp", 1))
         recount = {"recompile_s": time.perf_counter() - t0}

@@ -172,7 +172,7 @@ def _load(args):
     # an image, not a gradient: a filter or transmit written as 0 is opaque, as POV-Ray renders it
     scene = load_scene(args.scene, include_paths=tuple(args.include_path), strict=args.strict,
                        width=args.width, height=args.height, animation=animation, limits=limits,
-                       fit_zero_filters=False)
+                       fit_zero_terms=False)
     return scene, time.perf_counter() - t0
 
 

@@ -27,7 +27,7 @@ def test_info_prints_objects_lights_and_the_plan(capsys):
 
 
 def test_the_command_renders_a_filter_written_as_zero_as_opaque(tmp_path, capsys):
-    """``load_scene(…, fit_zero_filters=False)``: a sphere written ``rgbf <…, 0>`` plans no
+    """``load_scene(…, fit_zero_terms=False)``: a sphere written ``rgbf <…, 0>`` plans no
     transmission (the API's default would, so that the 0 can be fitted)."""
     scene = tmp_path / "zero.pov"
     scene.write_text("camera { location -5 * z look_at 0 }\nlight_source { <2, 4, -3> rgb 1 }\n"

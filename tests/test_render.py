@@ -359,12 +359,12 @@ sphere { <0, 0.8, 0>, 0.8
 def test_a_zero_filter_renders_as_opaque_and_leaves_transmission_out_unless_fitted():
     """A sphere whose bottom layer is written ``rgbf <…, 0>`` under a layer that filters: the same
     image as with that layer written ``rgb`` (opaque, as POV-Ray renders both), from the program
-    of ``rgb`` with ``fit_zero_filters=False``; by default the written filter is compiled (the
+    of ``rgb`` with ``fit_zero_terms=False``; by default the written filter is compiled (the
     sphere is transparent: shadow rays filter through it, rays pass on through it without using a
     trace level) so that it can be fitted."""
     opaque = rt.load_scene(ZERO_FILTER_SCENE.replace("BOTTOM", "rgb <0.8, 0.3, 0.2>"))
     text = ZERO_FILTER_SCENE.replace("BOTTOM", "rgbf <0.8, 0.3, 0.2, 0>")
-    fitted, rendered = rt.load_scene(text), rt.load_scene(text, fit_zero_filters=False)
+    fitted, rendered = rt.load_scene(text), rt.load_scene(text, fit_zero_terms=False)
     assert rt.plan(rendered).effects == rt.plan(opaque).effects
     assert not any(p.transparent for p in rt.plan(rendered).prims)
     assert [p.transparent for p in rt.plan(fitted).prims] == [False, True]  # the plane, the sphere
@@ -372,6 +372,32 @@ def test_a_zero_filter_renders_as_opaque_and_leaves_transmission_out_unless_fitt
     want = np.asarray(rt.render(opaque, width=24, height=18))
     for scene in (fitted, rendered):
         np.testing.assert_allclose(np.asarray(rt.render(scene, width=24, height=18)), want, atol=1e-5)
+
+
+ZERO_TERMS_SCENE = """
+global_settings { max_trace_level 4 }
+camera { location <0, 1.5, -4> look_at <0, 0.5, 0> }
+light_source { <-4, 8, -6> color rgb 1 }
+plane { y, 0 pigment { checker rgb 1 rgb 0.3 } finish { TERMS } }
+sphere { <0, 0.8, 0>, 0.8 pigment { rgb <0.8, 0.3, 0.2> } finish { TERMS phong 0.6 } }
+"""
+
+
+@pytest.mark.parametrize(("terms", "reflection", "metallic"), [
+    ("reflection 0", True, False), ("reflection { 0, 0 fresnel on metallic 0 }", True, False),
+    ("specular 0 metallic 0", False, True), ("phong 0 reflection { 0 metallic 0.5 }", True, False)])
+def test_zero_finish_terms_are_left_out_unless_fitted(terms, reflection, metallic):
+    """Finish terms written as 0 that add nothing at 0: with ``fit_zero_terms=False`` the plan and
+    the image are those of the scene without them (a ``reflection 0`` no longer makes a tree of
+    ``max_trace_level`` levels); by default they are compiled, so they can be fitted."""
+    bare = rt.load_scene(ZERO_TERMS_SCENE.replace("TERMS", ""))
+    text = ZERO_TERMS_SCENE.replace("TERMS", terms)
+    fitted, rendered = rt.load_scene(text), rt.load_scene(text, fit_zero_terms=False)
+    assert rt.plan(rendered).effects == rt.plan(bare).effects
+    eff = rt.plan(fitted).effects
+    assert (eff.reflection, eff.depth, eff.metallic) == (reflection, 4 if reflection else 1, metallic)
+    want = np.asarray(rt.render(bare, width=16, height=12))
+    np.testing.assert_allclose(np.asarray(rt.render(rendered, width=16, height=12)), want, atol=1e-6)
 
 
 def test_reflective_scene_scans_over_its_trace_levels_with_one_shading_body():

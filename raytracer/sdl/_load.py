@@ -27,7 +27,7 @@ def _is_path(path_or_text) -> bool:
 @without_collections  # a parse makes almost no cycles (POV-Ray's heaviest sample scenes: ≤ 66 objects)
 def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: int | None = None,
                height: int | None = None, limits: Limits | None = None,
-               animation: Animation | None = None, fit_zero_filters: bool = True):
+               animation: Animation | None = None, fit_zero_terms: bool = True):
     """Parses a POV-Ray 3.7 scene (a file path or SDL text) into a :class:`raytracer.scene.Scene`.
 
     Args:
@@ -39,13 +39,15 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
         limits: loop/recursion/include bounds (:class:`Limits`).
         animation: the frame to load (``clock``, ``frame_number`` …; :class:`Animation`, e.g.
             ``Animation.from_ini("scene.ini", frame=3)``); None: no animation (``clock`` = 0).
-        fit_zero_filters: a colour's filter or transmit written as 0 (``rgbf <r, g, b, 0>``,
-            ``filter 0``) makes its pigment transparent, as any written term is compiled (semantics
-            §2.2 and §2.6, "present in the structure"), so the value can be fitted from 0. False: a pigment
-            is transparent where a value is not 0, as POV-Ray renders it: the same image from a
+        fit_zero_terms: a term written as 0 whose value adds nothing at 0 (a colour's filter or
+            transmit: ``rgbf <r, g, b, 0>``, ``filter 0``; a finish's ``reflection 0``, ``phong 0``,
+            ``specular 0``, ``metallic 0``) is part of the scene's structure and compiled, as any
+            written term (semantics §2.2 and §2.6, "present in the structure"), so the value can be
+            fitted from 0. False: such a zero is left out, as if not written: the same image from a
             smaller, faster program (POV-Ray's ``advanced/pawns.pov``, whose opaque wood is written
-            ``filter 0.000``: every object filtered shadows and passed rays on), but such a
-            zero's derivative is then 0. The command line renders with False.
+            ``filter 0.000``: every object filtered shadows and passed rays on; a ``reflection 0``
+            makes a tree of ``max_trace_level`` levels of a scene with no other reflection), but
+            such a zero's derivative is then 0. The command line renders with False.
 
     Raises:
         SceneError: for any scene that cannot be loaded, with ``file:line:col``.
@@ -70,7 +72,7 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
         p.run()
         _check_open_blocks(p)
         lowering = True
-        return lower_scene(p, fit_zero_filters)
+        return lower_scene(p, fit_zero_terms)
     except SceneError:
         raise
     except RecursionError:  # a scene nested deeper than Python's stack (((((…))))), not a bug

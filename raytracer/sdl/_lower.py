@@ -22,10 +22,10 @@ def _transform(m) -> S.Transform | None:
     return None if m is None else build(S.Transform, matrix=m)
 
 
-def lower_pigment(pig: PigRec, world: np.ndarray | None, fit_zero_filters: bool = True) -> S.Pigment:
-    """``fit_zero_filters`` (``load_scene``'s): a filter or transmit written as 0 makes the pigment
-    transparent (True) or only non-zero values do (False)."""
-    written = pig.ft and fit_zero_filters
+def lower_pigment(pig: PigRec, world: np.ndarray | None, fit_zero_terms: bool = True) -> S.Pigment:
+    """``fit_zero_terms`` (``load_scene``'s): a filter or transmit written as 0 makes the pigment
+    transparent (True) or only values that are not 0 do (False)."""
+    written = pig.ft and fit_zero_terms
     if pig.pattern == "solid":  # (most objects of a large scene: one colour, read as Python numbers)
         value, color = pig.cmap[0]
         rgbft = color.padded(5)
@@ -44,12 +44,26 @@ def lower_pigment(pig: PigRec, world: np.ndarray | None, fit_zero_filters: bool 
                  lambda_=pig.lambda_, octaves=pig.octaves, wave=wave, transparent=transparent)
 
 
-def lower_finish(fin: dict) -> S.Finish:
-    kwargs = {k: fin[k] for k in _FINISH_KEYS if k in fin}
+# optional finish terms that add nothing at 0: the highlights and their metallic tint
+_ZERO_IS_ABSENT = ("phong", "specular", "metallic")
+
+
+def _zero(value) -> bool:
+    return value is not None and not np.any(np.asarray(value, dtype=np.float64))
+
+
+def lower_finish(fin: dict, fit_zero_terms: bool = True) -> S.Finish:
+    """``fit_zero_terms`` (``load_scene``'s): a ``phong``, ``specular``, ``metallic`` or
+    ``reflection`` written as 0 is compiled (True) or left out (False: it adds nothing, semantics
+    §2.4 and §2.6; a reflection whose minimum and maximum are both 0 reflects nothing, with or
+    without ``fresnel``, and its ``metallic`` of 0 tints nothing)."""
+    kwargs = {k: fin[k] for k in _FINISH_KEYS if k in fin
+              and (fit_zero_terms or k not in _ZERO_IS_ABSENT or not _zero(fin[k]))}
     r = fin.get("reflection")
-    if r is not None:
+    if r is not None and (fit_zero_terms or not (_zero(r["min"]) and _zero(r["max"]))):
+        metallic = r["metallic"] if fit_zero_terms or not _zero(r["metallic"]) else None
         kwargs["reflection"] = build(S.Reflection, min=r["min"], max=r["max"], falloff=r["falloff"],
-                                     exponent=r["exponent"], metallic=r["metallic"],
+                                     exponent=r["exponent"], metallic=metallic,
                                      fresnel=bool(r["fresnel"]))
     return build(S.Finish, **kwargs)
 
@@ -70,8 +84,8 @@ def _exact_key(v):
 class Lowerer:
     """Converts records, caching textures so objects sharing one get one pytree."""
 
-    def __init__(self, fit_zero_filters: bool = True):
-        self.fit_zero_filters = fit_zero_filters
+    def __init__(self, fit_zero_terms: bool = True):
+        self.fit_zero_terms = fit_zero_terms
         self._tex_cache = {}
         self._finish_cache: dict[str, S.Finish] = {}
         self.lights: list[S.Light] = []
@@ -82,7 +96,7 @@ class Lowerer:
         if tex is None:
             # the renderer wants the top layer first; records keep them bottom first
             tex = build(S.Texture, layers=tuple(
-                build(S.Layer, pigment=lower_pigment(layer.pigment, world, self.fit_zero_filters),
+                build(S.Layer, pigment=lower_pigment(layer.pigment, world, self.fit_zero_terms),
                         finish=self.finish(layer.finish))
                 for layer in reversed(layers)))
             self._tex_cache[key] = (tex, layers)  # keep layers alive so ids stay unique
@@ -100,7 +114,7 @@ class Lowerer:
             key = _exact_key(fin)
         got = self._finish_cache.get(key)
         if got is None:
-            got = self._finish_cache[key] = lower_finish(fin)
+            got = self._finish_cache[key] = lower_finish(fin, self.fit_zero_terms)
         return got
 
     def interior(self, rec, layers) -> S.Interior | None:
@@ -235,8 +249,8 @@ def output_transfer(p) -> tuple[str, float]:
     return "linear", 1.0
 
 
-def lower_scene(p, fit_zero_filters: bool = True) -> S.Scene:
-    low = Lowerer(fit_zero_filters)
+def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
+    low = Lowerer(fit_zero_terms)
     objects = []
     for rec in p.items:
         o = low.obj(rec, None, True)

@@ -131,14 +131,14 @@ def test_pigment_transparency_follows_the_colour_expression(pigment, transparent
     "gradient x color_map { [0 rgbf <1,0,0,0>] [1 rgbft <0,0,1,0,0>] }",
 ])
 def test_a_filter_written_as_zero_is_transparent_only_where_it_is_to_be_fitted(pigment):
-    """``fit_zero_filters`` (default True): a written 0 filter or transmit makes the pigment
+    """``fit_zero_terms`` (default True): a written 0 filter or transmit makes the pigment
     transparent, so it can be fitted; False (the command line's): only a value that is not 0 does,
     as POV-Ray renders it. A non-zero value is transparent either way."""
     text = f"sphere {{ 0, 1 pigment {{ {pigment} }} }}"
     assert load_scene(text).objects[0].texture.layers[0].pigment.transparent
-    assert not load_scene(text, fit_zero_filters=False).objects[0].texture.layers[0].pigment.transparent
+    assert not load_scene(text, fit_zero_terms=False).objects[0].texture.layers[0].pigment.transparent
     clear = text.replace("0>", "0.5>").replace("filter 0", "filter 0.5")
-    assert load_scene(clear, fit_zero_filters=False).objects[0].texture.layers[0].pigment.transparent
+    assert load_scene(clear, fit_zero_terms=False).objects[0].texture.layers[0].pigment.transparent
 
 
 def test_finish_keywords():
