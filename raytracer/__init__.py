@@ -45,6 +45,7 @@ from .scene import Quadric as Quadric
 from .scene import Reflection as Reflection
 from .scene import Scene as Scene
 from .scene import Settings as Settings
+from .scene import SkySphere as SkySphere
 from .scene import SmoothTriangle as SmoothTriangle
 from .scene import Sphere as Sphere
 from .scene import Spot as Spot

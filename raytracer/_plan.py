@@ -180,6 +180,8 @@ class Effects:
                         ``max_trace_level + straight_passes``.
         media_slots:    the length of a ray's interior list: 0 without refraction, else as many
                         entries as the scene can put in it at once, at most ``MEDIA_SLOTS``.
+        sky_sphere:     rays that hit nothing see a ``sky_sphere`` (its pigments' patterns are in
+                        ``patterns`` too).
     """
 
     kinds: tuple[str, ...]
@@ -202,6 +204,7 @@ class Effects:
     straight_passes: int
     depth: int
     media_slots: int = 0
+    sky_sphere: bool = False
 
     @property
     def secondary_rays(self) -> bool:
@@ -211,7 +214,7 @@ class Effects:
         on = [name for name in ("shadows", "filtered_shadows", "reflection", "transmission",
                                 "refraction", "highlights", "metallic", "reflection_metallic",
                                 "fresnel", "fade", "spotlights", "area_lights", "parallel_lights",
-                                "csg", "interior_fade") if getattr(self, name)]
+                                "csg", "interior_fade", "sky_sphere") if getattr(self, name)]
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
                 f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}"
                 + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
@@ -435,7 +438,8 @@ def make_plan(scene: Scene) -> Plan:
                                      "are traced along the top layer's mirror ray with its exponent"))
     if any("double_illuminate" in p.flags for p in rendered):
         warnings.append(SceneWarning("double_illuminate", "double_illuminate is not rendered"))
-    for pig in pigments:
+    sky = () if scene.sky_sphere is None else scene.sky_sphere.pigments
+    for pig in [*pigments, *sky]:
         if pig.pattern not in SUPPORTED_PATTERNS:
             warnings.append(SceneWarning(pig.pattern, f"pattern {pig.pattern!r} is not rendered"))
     lights = scene.lights
@@ -474,13 +478,14 @@ def make_plan(scene: Scene) -> Plan:
                                 for f in finishes),
         fresnel=any(f.reflection is not None and f.reflection.fresnel for f in finishes),
         **light_effects(lights),  # fade, spotlights, area_lights, parallel_lights: from LIGHT_TYPES
-        patterns=tuple(sorted({pig.pattern for pig in pigments})),
+        patterns=tuple(sorted({pig.pattern for pig in [*pigments, *sky]})),
         csg=any(p.conditions for p in prims),
         interior_fade=transmission and any(p.interior is not None and p.interior.fade_distance is not None
                                            and p.interior.fade_power is not None for p in rendered),
         straight_passes=straight_passes,
         depth=depth,
         media_slots=_media_slots(prims, rendered) if refraction else 0,
+        sky_sphere=scene.sky_sphere is not None,
     )
     units, prim_unit = bounding_units(scene.objects, roots, len(prims), fl.bounds)
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),

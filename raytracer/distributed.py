@@ -90,7 +90,7 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1, capacity: int
     k = _check(width, height, spp)
     use_compilation_cache()
     if not any(prim.rendered for prim in make_plan(scene).prims):
-        return _background_only(scene, width, height)
+        return _background_only(scene, width, height, k)
     capacity, grow = _capacity(capacity)
     while True:
         colours, dropped = _part(scene, width, height, k, capacity)

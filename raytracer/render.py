@@ -31,7 +31,8 @@ from .kernels import safe_pow
 from .scene import Scene
 from .shading import _accel
 from .shading._geometry import PackedGeometry, hierarchy_filters, pack_geometry, prim_bits
-from .shading._materials import PackedMaterials, pack_materials
+from .shading._materials import PackedMaterials, pack_materials, pack_pigments
+from .shading._model import sky_colour
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
 
@@ -374,7 +375,7 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     scene = packed.rest
     dtype = scene.camera.location.dtype
     ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
-                       dtype)
+                       dtype, scene.sky_sphere)
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
     chunk = _chunk_size(tile, scene_plan.effects.depth)
     grad_chunk = pool if pool <= UNCHUNKED_POOL else chunk
@@ -496,9 +497,24 @@ def _image_of(colours, width: int, height: int):
     return jnp.swapaxes(colours, 0, 1).reshape(-1, c)[:width * height].reshape(height, width, c)
 
 
-def _background_only(scene: Scene, width: int, height: int):
+def _background_only(scene: Scene, width: int, height: int, k: int = 1):
+    """The image of a scene without a rendered object: every ray sees the background or the sky."""
+    if scene.sky_sphere is not None:
+        return _sky_image(scene.camera, scene.sky_sphere, scene.background, scene.settings, width, height, k)
     return _background_image(scene.background.astype(scene.camera.location.dtype), scene.settings,
                              width, height)
+
+
+@eqx.filter_jit
+def _sky_image(camera, sky, background, settings, width: int, height: int, k: int):
+    """The image of the ``sky_sphere`` ``sky`` seen by every ray (k×k samples a pixel)."""
+    dtype = camera.location.dtype
+    _, d = camera_rays(camera, *sample_coords(jnp.arange(width * height * k * k), width, height, k, dtype))
+    packed = pack_pigments(sky.pigments, dtype)
+    colours = jax.vmap(lambda d_: sky_colour(packed, jnp.asarray(sky.emission, dtype),
+                                             background.astype(dtype), d_))(d)
+    image = colours.reshape(height * width, k * k, 3).mean(axis=1).reshape(height, width, 3)
+    return _output_transfer(image, settings)
 
 
 @eqx.filter_jit
@@ -741,8 +757,8 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
             raise ValueError("adaptive anti-aliasing starts from one ray per pixel centre: leave spp at 1")
         return _render_adaptive(scene, width, height, Adaptive(*adaptive), capacity)
     scene_plan = _scene_plan(scene)
-    if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background
-        return _background_only(scene, width, height)
+    if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background or sky
+        return _background_only(scene, width, height, math.isqrt(spp))
     packed = pack(scene, scene_plan)
     return _with_room(lambda room: _render_packed(_image_placed(packed, scene_plan, width * height, k, room),
                                                   width, height, k, room),
@@ -1005,8 +1021,8 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
     use_compilation_cache()
     scene_plan = make_plan(scene)  # once: packing takes it (a plan of 100,000 spheres takes 3 s)
     if not any(prim.rendered for prim in scene_plan.prims):
-        _background_only(scene, width, height)  # its program compiled here, as a render's would be
-        return lambda s: _background_only(s, width, height)
+        _background_only(scene, width, height, k)  # its program compiled here, as a render's would be
+        return lambda s: _background_only(s, width, height, k)
     n_parts = 1 if progress is None else PROGRESS_PARTS
     state = {"capacity": capacity}
 

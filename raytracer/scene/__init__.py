@@ -32,6 +32,7 @@ from ._objects import AbstractObject as AbstractObject
 from ._objects import Object as Object
 from ._scene import Scene as Scene
 from ._scene import Settings as Settings
+from ._scene import SkySphere as SkySphere
 from ._texture import PATTERNS as PATTERNS
 from ._texture import WAVES as WAVES
 from ._texture import Finish as Finish

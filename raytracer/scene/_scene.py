@@ -11,6 +11,7 @@ from ..errors import SceneWarning
 from ._camera import Camera
 from ._lights import Light
 from ._objects import AbstractObject
+from ._texture import Pigment
 
 OUTPUT_TRANSFERS = ("linear", "gamma", "srgb_decode")
 
@@ -41,6 +42,23 @@ class Settings(Record):
             raise ValueError("max_trace_level must be in 1…256")
 
 
+class SkySphere(Record):
+    """``sky_sphere`` (semantics §2.8): the colour a ray that hits nothing sees, as a function of its
+    direction.
+
+    Attributes:
+        pigments: layered bottom first: each later pigment lies on top, through its filter and
+                  transmit as texture layers are, and the scene's background shows through the
+                  bottom one. Each is evaluated at the ray's unit direction, in world space (the
+                  ``sky_sphere``'s own transformations are part of each pigment's transform).
+        emission: (3,) multiplies the opaque part of each pigment's colour (not what its filter
+                  and transmit let through).
+    """
+
+    pigments: tuple[Pigment, ...] = ()
+    emission: Float[Array, "3"] = eqx.field(converter=as_float, default=(1.0, 1.0, 1.0))
+
+
 class Scene(Record):
     """A renderable scene. Every inexact array leaf is a differentiable parameter.
 
@@ -49,6 +67,7 @@ class Scene(Record):
         objects:    top-level objects (primitives or CSG trees).
         lights:     light sources.
         background: (3,) colour of rays that hit nothing (default black).
+        sky_sphere: what rays that hit nothing see instead, by direction (None: the background).
         settings:   global settings.
         warnings:   static: features parsed but not rendered, with locations.
     """
@@ -57,5 +76,6 @@ class Scene(Record):
     objects: tuple[AbstractObject, ...] = ()
     lights: tuple[Light, ...] = ()
     background: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
+    sky_sphere: SkySphere | None = None
     settings: Settings = eqx.field(default_factory=Settings)
     warnings: tuple[SceneWarning, ...] = eqx.field(static=True, default=())

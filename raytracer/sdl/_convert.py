@@ -36,7 +36,8 @@ def type_name(v) -> str:
 _TYPE_NAMES = {"PigRec": "pigment", "LayerRec": "texture layer", "TextureRec": "texture",
                "InteriorRec": "interior", "MaterialRec": "material", "LightRec": "light_source",
                "ObjRec": "object", "CameraRec": "camera", "TransformRec": "transform",
-               "ArrayValue": "array", "MacroDef": "macro", "RandStream": "seed() stream"}
+               "SkyRec": "sky_sphere", "ArrayValue": "array", "MacroDef": "macro",
+               "RandStream": "seed() stream"}
 
 
 def as_float(p, v, loc=None) -> float:

@@ -14,6 +14,7 @@ from ._objects import (
     parse_default,
     parse_global_settings,
     parse_object,
+    parse_sky_sphere,
 )
 from ._stream import Frame, Stream
 from ._textures import (
@@ -39,7 +40,7 @@ from ._values import (
     Vec,
 )
 
-_SKIPPED_STATEMENTS = ("fog", "sky_sphere", "rainbow", "media", "photons", "radiosity")
+_SKIPPED_STATEMENTS = ("fog", "rainbow", "media", "photons", "radiosity")
 
 
 class Interpreter(Stream, Directives):
@@ -65,6 +66,7 @@ class Interpreter(Stream, Directives):
         self.settings = {}
         self.statement_locs = {}  # global_settings, background: where the last one was (for errors)
         self.background = (0.0, 0.0, 0.0)
+        self.sky_sphere = None  # SkyRec
         self.default_layer = LayerRec()
         self.camera = None
         self.items: list = []  # ObjRec and LightRec in file order
@@ -112,6 +114,10 @@ class Interpreter(Stream, Directives):
         elif kw == "background":
             self.next()
             parse_background(self, t)
+        elif kw == "sky_sphere":  # a later one replaces an earlier one, as in POV-Ray
+            self.next()
+            self.statement_locs["sky_sphere"] = t.loc
+            self.sky_sphere = parse_sky_sphere(self, t)
         elif kw == "default":  # the old spelling of #default
             self.next()
             parse_default(self, t)
@@ -335,7 +341,7 @@ _RVALUE_BLOCKS = {
     "array": _array_handler,
     "spline": lambda p, t: p.parse_spline(t),
     "media": _opaque("media"), "density": _opaque("density"), "fog": _opaque("fog"),
-    "rainbow": _opaque("rainbow"), "sky_sphere": _opaque("sky_sphere"),
+    "rainbow": _opaque("rainbow"), "sky_sphere": lambda p, t: parse_sky_sphere(p, t),
     "pigment_map": _opaque("pigment_map"), "normal_map": _opaque("normal_map"),
     "slope_map": _opaque("slope_map"), "texture_map": _opaque("texture_map"),
     "density_map": _opaque("density_map"), "photons": _opaque("photons"),

@@ -268,8 +268,16 @@ def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
         camera = lower_camera(p.camera, lambda f, m: p.warn(f, m, p.camera.loc))
     except OutOfPrecision as e:
         raise SceneError(str(e), p.camera.loc) from None
+    sky = None
+    if p.sky_sphere is not None and p.sky_sphere.pigments:  # without a pigment: the background
+        try:
+            sky = build(S.SkySphere, pigments=tuple(lower_pigment(pig, p.sky_sphere.transform, fit_zero_terms)
+                                                    for pig in p.sky_sphere.pigments),
+                        emission=p.sky_sphere.emission)
+        except OutOfPrecision as e:
+            raise SceneError(str(e), p.statement_locs.get("sky_sphere")) from None
     try:
         return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                     background=p.background, settings=settings, warnings=tuple(p.warnings))
+                     background=p.background, sky_sphere=sky, settings=settings, warnings=tuple(p.warnings))
     except OutOfPrecision as e:  # the background is the only value not converted before
         raise SceneError(str(e), p.statement_locs.get("background")) from None

@@ -40,7 +40,7 @@ from ._textures import (
     skip_braces,
     vector3,
 )
-from ._values import CameraRec, LayerRec, LightRec, ObjRec, TextureRec, Vec
+from ._values import CameraRec, LayerRec, LightRec, ObjRec, SkyRec, TextureRec, Vec
 
 PRIMITIVES = tuple(SDL_KEYWORDS)
 CSG_KEYWORDS = ("union", "intersection", "difference", "merge")
@@ -565,6 +565,35 @@ def parse_background(p, t) -> None:
     p.expect_op("}", "'}' to close background")
     # POV 3.7 pre-multiplies the background by (1 - transmit) at parse time (semantics §2.2)
     p.background = tuple(v * (1.0 - c.c[4]) for v in c.c[:3])
+
+
+def parse_sky_sphere(p, t) -> SkyRec:
+    """``sky_sphere { [SKY_IDENTIFIER] [pigment {…}]… [transformations]… [emission COLOUR] }``
+    (``sky_sphere`` already consumed). Later pigments lie on top of earlier ones; the
+    transformations move the whole sky, wherever they stand among the pigments (semantics §2.8)."""
+    p.expect_op("{", "'{' after sky_sphere")
+    sky = SkyRec()
+    first = p.peek()
+    if declared(p, first):
+        v = parse_expr(p)
+        if not isinstance(v, SkyRec):
+            raise p.error(f"expected a sky_sphere, found {type_name(v)} '{first.value}'", first.loc)
+        sky = SkyRec(list(v.pigments), v.transform, v.emission)
+    while not p.accept_op("}"):
+        k = p.next()
+        kw = k.value if k.kind == ID else None
+        if kw == "pigment":
+            sky.pigments.append(parse_pigment(p))
+        elif kw in TRANSFORM_KEYWORDS:
+            m = parse_transform_item(p, k)
+            sky.transform = m if sky.transform is None else m @ sky.transform
+        elif kw == "emission":
+            c = as_color(p, parse_expr(p), k.loc)
+            sky.emission = tuple(c.c[:3])
+        else:
+            raise p.error(f"expected pigment, a transformation or emission in sky_sphere, found "
+                          f"'{k.value}'", k.loc)
+    return sky
 
 
 def parse_default(p, tok) -> None:

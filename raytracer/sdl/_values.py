@@ -174,6 +174,16 @@ class PigRec:
 
 
 @dataclasses.dataclass
+class SkyRec:
+    """A ``sky_sphere`` as parsed: pigments bottom first (as written), the sky's world_from_sky
+    matrix (its transformations, whatever their place among the pigments) and its emission."""
+
+    pigments: list = dataclasses.field(default_factory=list)
+    transform: np.ndarray | None = None
+    emission: tuple = (1.0, 1.0, 1.0)
+
+
+@dataclasses.dataclass
 class LayerRec:
     """One texture layer: pigment, finish (a dict of the keywords given) and whether a normal was given."""
 

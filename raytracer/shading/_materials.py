@@ -14,7 +14,7 @@ from .. import patterns
 from .._packing import EYE4, any_traced, bucket, inverse_affines, pad_rows, register_packed, stack, traced_op
 from .._plan import Plan
 from ..kernels import matvec
-from ..scene import WAVES, Finish, Interior, Pigment, Reflection
+from ..scene import WAVES, Finish, Interior, Layer, Pigment, Reflection, Texture
 
 
 @dataclasses.dataclass
@@ -155,6 +155,29 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         transparent=np.array([p.transparent for p in plan.prims]),
     )
     return _padded_to_bucket(mats, len(plan.prims))
+
+
+@dataclasses.dataclass
+class _PigmentRow:
+    """A primitive as :func:`pack_materials` reads one: a texture of one layer, no interior."""
+
+    texture: Texture
+    interior: None = None
+    transparent: bool = False
+
+
+def pack_pigments(pigments, dtype) -> PackedMaterials:
+    """Material rows 0 … n−1 holding ``pigments`` alone (one layer each, the default finish), for
+    :func:`pigment_at` (a ``sky_sphere``'s pigments, evaluated at ray directions)."""
+    rows = [_PigmentRow(Texture(layers=(Layer(pigment=pg),))) for pg in pigments]
+    return pack_materials(_PigmentRows(rows), dtype)
+
+
+@dataclasses.dataclass
+class _PigmentRows:
+    """What :func:`pack_materials` reads of a plan: its primitives."""
+
+    prims: list
 
 
 _ROW_ARRAYS = ("values", "colors", "pattern_from_world", "vector", "frequency", "phase", "turbulence",

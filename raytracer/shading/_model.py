@@ -69,7 +69,7 @@ from ._geometry import (
     prim_bits,
     solo_prims,
 )
-from ._materials import PackedMaterials, costly_patterns, pigment_at, pigments_at, solid_rows
+from ._materials import PackedMaterials, costly_patterns, pack_pigments, pigment_at, pigments_at, solid_rows
 
 
 class Rays(NamedTuple):
@@ -249,10 +249,13 @@ class TraceContext:
     accel_filters: bool  # the hierarchy holds transparent shadow-casting items (``MASK_FILTER``)
     accel_fades: bool  # ... and some of them have an interior that fades
     accel_filter_layers: int  # ... and the most texture layers one of them has
+    sky: PackedMaterials | None = None  # the sky_sphere's pigments, rows bottom first (None: none)
+    sky_emission: jax.Array | None = None  # (3,) multiplies them
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
-                 background, dtype) -> TraceContext:
+                 background, dtype, sky_sphere=None) -> TraceContext:
+    """``sky_sphere``: the scene's ``SkySphere`` or None."""
     prims = plan.prims
     bits = prim_bits(plan)  # the hierarchy's items use them too
     # shadow rays compute the crossings of shadow casters only (no_shadow objects are skipped)
@@ -261,6 +264,8 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
     return TraceContext(
         plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
         background=background.astype(dtype), dtype=dtype,
+        sky=None if sky_sphere is None else pack_pigments(sky_sphere.pigments, dtype),
+        sky_emission=None if sky_sphere is None else jnp.asarray(sky_sphere.emission, dtype),
         eps=2e-5 if dtype == jnp.float32 else 1e-9,
         vis_camera=(bits[geo.cand_prim] & _accel.MASK_CAMERA) != 0,
         vis_reflect=(bits[geo.cand_prim] & _accel.MASK_REFLECT) != 0,
@@ -1035,8 +1040,30 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
         children.append(_mirror(ctx, ray, s, layers, tir))
     if transmitted is not None:
         children.append(transmitted)
-    local = jnp.where(s.found, layers.local, jnp.where(s.missed, ctx.background, 0.0))
+    local = jnp.where(s.found, layers.local, jnp.where(s.missed, _unlit(ctx, ray.direction), 0.0))
     return Shading(local=local, children=tuple(children))
+
+
+def _unlit(ctx: TraceContext, d):
+    """What a ray of direction ``d`` (3,) that hits nothing sees: the background, or the
+    ``sky_sphere`` over it: its pigments at the unit direction, bottom first, each over what lies
+    below as a texture layer is (filter multiplies, transmit passes), the opaque part of their
+    colour times the emission (as POV-Ray renders it: not the filtered part; semantics §2.8)."""
+    if ctx.sky is None:
+        return ctx.background
+    return sky_colour(ctx.sky, ctx.sky_emission, ctx.background, d)
+
+
+def sky_colour(sky: PackedMaterials, emission, background, d):
+    """:func:`_unlit` with a sky: ``sky`` the sky's pigments packed (``pack_pigments``), bottom
+    first, ``emission`` (3,), ``background`` (3,), ``d`` (3,) a direction."""
+    u = d / jnp.sqrt(jnp.maximum(jnp.dot(d, d), jnp.finfo(d.dtype).tiny))
+    below = background
+    for row in range(len(sky.pattern_id)):
+        rgbft = pigment_at(sky, row, u)
+        rgb, f, t = rgbft[:3], rgbft[3], rgbft[4]
+        below = (1 - f - t) * rgb * emission + f * rgb * below + t * below
+    return below
 
 
 def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:

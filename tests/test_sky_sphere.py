@@ -1,0 +1,90 @@
+"""``sky_sphere`` (semantics §2.8): what rays that hit nothing see, against POV-Ray's images, its
+derivatives against central differences, and its syntax."""
+
+import jax
+import numpy as np
+import pytest
+
+import raytracer as rt
+from raytracer.errors import SceneError
+
+HEAD = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 0.5, -4> look_at <0, 0.6, 0> right x*image_width/image_height angle 70 }
+"""
+
+# the sky alone: layers over the background (filter, transmit), emission (not of what a filter passes),
+# the sky's transformations written before and after its pigments, a pigment's own transformation
+LAYERED = HEAD + """
+background { rgb <0, 0.2, 1> }
+sky_sphere {
+  rotate 20 * z
+  pigment { gradient y color_map { [0 rgb <1, 0.5, 0>] [0.5 rgb <0.2, 0.3, 1>] [1 rgbt <1, 1, 1, 0.6>] } }
+  pigment { gradient x color_map { [0 rgbf <0.2, 1, 0.4, 0.7>] [1 rgbt <0, 0, 1, 0.8>] } scale 0.7 }
+  translate <0, 0.2, 0>
+  emission <1.5, 1, 0.8>
+}
+"""
+
+# a declared sky used and added to, after a first sky that the later one replaces
+DECLARED = HEAD + """
+sky_sphere { pigment { rgb <1, 0, 0> } }
+#declare Sky = sky_sphere { pigment { gradient z color_map { [0 rgb 0.1] [1 rgb <0.5, 0.8, 1>] } } }
+sky_sphere { Sky pigment { rgbf <1, 0.6, 0.6, 0.5> } scale <1, 2, 1> }
+"""
+
+# rays that hit nothing after reflection and refraction see the sky too
+UNDER_THE_SKY = HEAD + """
+global_settings { max_trace_level 6 }
+light_source { <-5, 8, -6> rgb 1 }
+sky_sphere { pigment { gradient y color_map { [0 rgb <0.9, 0.6, 0.3>] [1 rgb <0.1, 0.3, 0.9>] } }
+             rotate <10, 0, 30> }
+sphere { <-1.1, 0.6, 0>, 0.9 pigment { rgb 0.2 } finish { reflection 0.8 } }
+sphere { <1.1, 0.6, 0>, 0.9 pigment { rgbf <1, 1, 1, 0.9> } interior { ior 1.5 } }
+"""
+
+
+@pytest.mark.povray
+@pytest.mark.parametrize("text", [LAYERED, DECLARED, UNDER_THE_SKY], ids=["layered", "declared", "under"])
+def test_the_sky_matches_povray(text):
+    """Every pixel within POV-Ray's half-float EXR (the first two scenes have nothing but the sky:
+    the program of camera rays alone)."""
+    from validation.povray import render_povray
+
+    ours = np.asarray(rt.render(rt.load_scene(text, width=40, height=30), width=40, height=30))
+    theirs = render_povray(text, 40, 30)
+    assert np.abs(ours).max() > 0.1
+    np.testing.assert_allclose(ours, theirs, atol=2e-3)
+
+
+def test_sky_colours_and_emission_have_the_derivatives_of_finite_differences(x64):
+    """d image / d (the sky's colour map and emission) along a random direction, forward mode,
+    against central differences (float64), where the camera sees the sky directly and in a mirror."""
+    text = UNDER_THE_SKY + (
+        "background { rgb <0.2, 0, 0.1> } sky_sphere { pigment { gradient y color_map "
+        "{ [0 rgb <0.9, 0.6, 0.3>] [1 rgbt <0.1, 0.3, 0.9, 0.3>] } } emission <1.2, 1, 0.9> }")
+    scene = rt.load_scene(text, width=8, height=6)  # (the second sky replaces the first)
+    params = {name: x for name, x in rt.params.parameters(scene).items() if name.startswith("sky_sphere.")}
+    assert {"sky_sphere.emission", "sky_sphere.pigments[0].colors"} <= set(params)
+    rng = np.random.default_rng(2)
+    tangent = {name: rng.normal(size=np.shape(x)) for name, x in params.items()}
+
+    def image(p):
+        return rt.render(rt.params.replace(scene, p), width=8, height=6)
+
+    _, d_image = jax.jvp(image, (params,), (tangent,))
+    h = 1e-6
+    step = {name: np.asarray(x) + h * tangent[name] for name, x in params.items()}
+    back = {name: np.asarray(x) - h * tangent[name] for name, x in params.items()}
+    central = (np.asarray(image(step)) - np.asarray(image(back))) / (2 * h)
+    assert np.abs(central).max() > 0.1  # the sky moves the image
+    np.testing.assert_allclose(np.asarray(d_image), central, atol=1e-6)
+
+
+def test_a_sky_without_pigment_shows_the_background_and_a_stray_item_is_an_error():
+    scene = rt.load_scene("background { rgb <0, 0, 1> } sky_sphere { scale 2 }")
+    assert scene.sky_sphere is None
+    with pytest.raises(SceneError, match=r"<string>:1:32: expected pigment, a transformation or emission"):
+        rt.load_scene("sky_sphere { pigment { rgb 1 } phong 1 }")
+    with pytest.raises(SceneError, match="expected a sky_sphere, found float 'S'"):
+        rt.load_scene("#declare S = 1; sky_sphere { S }")
