@@ -111,7 +111,16 @@ def stack(xs, dtype=None):
         # one C loop over the entries (np.stack expands each one first: 4-10x slower for 10^5)
         out = np.array(xs)
         return out if dtype is None else out.astype(dtype, copy=False)
-    return traced_op(_stack, tuple(xs), None if dtype is None else np.dtype(dtype).name)
+    return traced_op(_stack, as_dtype(xs, dtype), None if dtype is None else np.dtype(dtype).name)
+
+
+def as_dtype(xs, dtype) -> tuple:
+    """``xs`` with its NumPy float entries in ``dtype`` before they enter a jitted call: a float64
+    constant (``EYE4``) passed next to float32 tracers was staged as float64 after a render under
+    ``jax.enable_x64`` had traced the same call, and the program failed to lower."""
+    if dtype is None:
+        return tuple(xs)
+    return tuple(x.astype(dtype) if isinstance(x, np.ndarray) and x.dtype.kind == "f" else x for x in xs)
 
 
 def _stack(xs, dtype):

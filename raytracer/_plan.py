@@ -182,6 +182,8 @@ class Effects:
                         entries as the scene can put in it at once, at most ``MEDIA_SLOTS``.
         sky_sphere:     rays that hit nothing see a ``sky_sphere`` (its pigments' patterns are in
                         ``patterns`` too).
+        fog:            rays go through constant fogs (rays inside objects excepted: with
+                        transmission, the rays then keep their interior list, ``media_slots``).
     """
 
     kinds: tuple[str, ...]
@@ -205,6 +207,7 @@ class Effects:
     depth: int
     media_slots: int = 0
     sky_sphere: bool = False
+    fog: bool = False
 
     @property
     def secondary_rays(self) -> bool:
@@ -214,7 +217,7 @@ class Effects:
         on = [name for name in ("shadows", "filtered_shadows", "reflection", "transmission",
                                 "refraction", "highlights", "metallic", "reflection_metallic",
                                 "fresnel", "fade", "spotlights", "area_lights", "parallel_lights",
-                                "csg", "interior_fade", "sky_sphere") if getattr(self, name)]
+                                "csg", "interior_fade", "sky_sphere", "fog") if getattr(self, name)]
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
                 f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}"
                 + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
@@ -484,7 +487,9 @@ def make_plan(scene: Scene) -> Plan:
                                            and p.interior.fade_power is not None for p in rendered),
         straight_passes=straight_passes,
         depth=depth,
-        media_slots=_media_slots(prims, rendered) if refraction else 0,
+        # a fog needs to know which rays are inside objects (those have none)
+        media_slots=_media_slots(prims, rendered) if refraction or (scene.fogs and transmission) else 0,
+        fog=bool(scene.fogs),
         sky_sphere=scene.sky_sphere is not None,
     )
     units, prim_unit = bounding_units(scene.objects, roots, len(prims), fl.bounds)

@@ -32,7 +32,7 @@ from .scene import Scene
 from .shading import _accel
 from .shading._geometry import PackedGeometry, hierarchy_filters, pack_geometry, prim_bits
 from .shading._materials import PackedMaterials, pack_materials, pack_pigments
-from .shading._model import sky_colour
+from .shading._model import fog_factors, sky_colour
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
 
@@ -375,7 +375,7 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     scene = packed.rest
     dtype = scene.camera.location.dtype
     ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
-                       dtype, scene.sky_sphere)
+                       dtype, scene.sky_sphere, scene.fogs)
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
     chunk = _chunk_size(tile, scene_plan.effects.depth)
     grad_chunk = pool if pool <= UNCHUNKED_POOL else chunk
@@ -498,23 +498,36 @@ def _image_of(colours, width: int, height: int):
 
 
 def _background_only(scene: Scene, width: int, height: int, k: int = 1):
-    """The image of a scene without a rendered object: every ray sees the background or the sky."""
+    """The image of a scene without a rendered object: every ray sees the background or the sky,
+    through the fogs."""
     if scene.sky_sphere is not None:
-        return _sky_image(scene.camera, scene.sky_sphere, scene.background, scene.settings, width, height, k)
-    return _background_image(scene.background.astype(scene.camera.location.dtype), scene.settings,
+        return _sky_image(scene.camera, scene.sky_sphere, scene.background, scene.fogs, scene.settings, width,
+                          height, k)
+    dtype = scene.camera.location.dtype
+    return _background_image(_fogged_far(scene.fogs, scene.background.astype(dtype), dtype), scene.settings,
                              width, height)
 
 
+def _fogged_far(fogs, colour, dtype):
+    """``colour`` seen through ``fogs`` (``Fog``s) from infinitely far."""
+    if not fogs:
+        return colour
+    arrays = tuple((jnp.asarray(f.distance, dtype), jnp.asarray(f.color, dtype)) for f in fogs)
+    scale, add = fog_factors(arrays, None)
+    return colour * scale + add
+
+
 @eqx.filter_jit
-def _sky_image(camera, sky, background, settings, width: int, height: int, k: int):
-    """The image of the ``sky_sphere`` ``sky`` seen by every ray (k×k samples a pixel)."""
+def _sky_image(camera, sky, background, fogs, settings, width: int, height: int, k: int):
+    """The image of the ``sky_sphere`` ``sky`` seen by every ray through ``fogs`` (k×k samples a
+    pixel)."""
     dtype = camera.location.dtype
     _, d = camera_rays(camera, *sample_coords(jnp.arange(width * height * k * k), width, height, k, dtype))
     packed = pack_pigments(sky.pigments, dtype)
     colours = jax.vmap(lambda d_: sky_colour(packed, jnp.asarray(sky.emission, dtype),
                                              background.astype(dtype), d_))(d)
     image = colours.reshape(height * width, k * k, 3).mean(axis=1).reshape(height, width, 3)
-    return _output_transfer(image, settings)
+    return _output_transfer(_fogged_far(fogs, image, dtype), settings)
 
 
 @eqx.filter_jit

@@ -30,6 +30,7 @@ from ._objects import CSG as CSG
 from ._objects import CSG_OPERATIONS as CSG_OPERATIONS
 from ._objects import AbstractObject as AbstractObject
 from ._objects import Object as Object
+from ._scene import Fog as Fog
 from ._scene import Scene as Scene
 from ._scene import Settings as Settings
 from ._scene import SkySphere as SkySphere

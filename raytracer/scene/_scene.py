@@ -59,6 +59,20 @@ class SkySphere(Record):
     emission: Float[Array, "3"] = eqx.field(converter=as_float, default=(1.0, 1.0, 1.0))
 
 
+class Fog(Record):
+    """A constant ``fog`` (``fog_type 1``; semantics §2.8): a ray that travels a distance ``d``
+    before its hit (infinitely far where it hits nothing) keeps ``a = max(exp(−d/distance),
+    transmit)`` of its colour, tinted by the fog's filter, and takes ``1 − a`` of the fog's colour.
+
+    Attributes:
+        distance: () the distance at which ``exp(−d/distance)`` is 1/e.
+        color:    (5,) RGBFT: the fog's colour, its filter and its transmit.
+    """
+
+    distance: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    color: Float[Array, "5"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0, 0.0, 0.0))
+
+
 class Scene(Record):
     """A renderable scene. Every inexact array leaf is a differentiable parameter.
 
@@ -68,6 +82,7 @@ class Scene(Record):
         lights:     light sources.
         background: (3,) colour of rays that hit nothing (default black).
         sky_sphere: what rays that hit nothing see instead, by direction (None: the background).
+        fogs:       constant fogs every camera, reflected and transmitted ray goes through.
         settings:   global settings.
         warnings:   static: features parsed but not rendered, with locations.
     """
@@ -77,5 +92,6 @@ class Scene(Record):
     lights: tuple[Light, ...] = ()
     background: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
     sky_sphere: SkySphere | None = None
+    fogs: tuple[Fog, ...] = ()
     settings: Settings = eqx.field(default_factory=Settings)
     warnings: tuple[SceneWarning, ...] = eqx.field(static=True, default=())

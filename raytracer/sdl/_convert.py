@@ -36,7 +36,7 @@ def type_name(v) -> str:
 _TYPE_NAMES = {"PigRec": "pigment", "LayerRec": "texture layer", "TextureRec": "texture",
                "InteriorRec": "interior", "MaterialRec": "material", "LightRec": "light_source",
                "ObjRec": "object", "CameraRec": "camera", "TransformRec": "transform",
-               "SkyRec": "sky_sphere", "ArrayValue": "array", "MacroDef": "macro",
+               "SkyRec": "sky_sphere", "FogRec": "fog", "ArrayValue": "array", "MacroDef": "macro",
                "RandStream": "seed() stream"}
 
 

@@ -8,10 +8,12 @@ from ._expr import as_float, as_int, binop, parse_expr, parse_expr_paren, type_n
 from ._keywords import KEYWORDS
 from ._lexer import EOF, ID, OP, STR
 from ._objects import (
+    fog_rendered,
     is_object_start,
     parse_background,
     parse_camera,
     parse_default,
+    parse_fog,
     parse_global_settings,
     parse_object,
     parse_sky_sphere,
@@ -40,7 +42,7 @@ from ._values import (
     Vec,
 )
 
-_SKIPPED_STATEMENTS = ("fog", "rainbow", "media", "photons", "radiosity")
+_SKIPPED_STATEMENTS = ("rainbow", "media", "photons", "radiosity")
 
 
 class Interpreter(Stream, Directives):
@@ -67,6 +69,7 @@ class Interpreter(Stream, Directives):
         self.statement_locs = {}  # global_settings, background: where the last one was (for errors)
         self.background = (0.0, 0.0, 0.0)
         self.sky_sphere = None  # SkyRec
+        self.fogs = []  # FogRec, those rendered
         self.default_layer = LayerRec()
         self.camera = None
         self.items: list = []  # ObjRec and LightRec in file order
@@ -114,6 +117,11 @@ class Interpreter(Stream, Directives):
         elif kw == "background":
             self.next()
             parse_background(self, t)
+        elif kw == "fog":  # fogs add up (semantics §2.8)
+            self.next()
+            fog = parse_fog(self, t)
+            if fog_rendered(self, fog, t.loc):
+                self.fogs.append(fog)
         elif kw == "sky_sphere":  # a later one replaces an earlier one, as in POV-Ray
             self.next()
             self.statement_locs["sky_sphere"] = t.loc
@@ -340,7 +348,7 @@ _RVALUE_BLOCKS = {
     "colour_map": lambda p, t: parse_color_map(p),
     "array": _array_handler,
     "spline": lambda p, t: p.parse_spline(t),
-    "media": _opaque("media"), "density": _opaque("density"), "fog": _opaque("fog"),
+    "media": _opaque("media"), "density": _opaque("density"), "fog": lambda p, t: parse_fog(p, t),
     "rainbow": _opaque("rainbow"), "sky_sphere": lambda p, t: parse_sky_sphere(p, t),
     "pigment_map": _opaque("pigment_map"), "normal_map": _opaque("normal_map"),
     "slope_map": _opaque("slope_map"), "texture_map": _opaque("texture_map"),

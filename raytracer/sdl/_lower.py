@@ -278,6 +278,7 @@ def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
             raise SceneError(str(e), p.statement_locs.get("sky_sphere")) from None
     try:
         return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                     background=p.background, sky_sphere=sky, settings=settings, warnings=tuple(p.warnings))
+                     background=p.background, sky_sphere=sky, settings=settings, warnings=tuple(p.warnings),
+                     fogs=tuple(build(S.Fog, distance=f.distance, color=f.color) for f in p.fogs))
     except OutOfPrecision as e:  # the background is the only value not converted before
         raise SceneError(str(e), p.statement_locs.get("background")) from None

@@ -11,7 +11,7 @@ from ..scene._lights import (
     area_grid_too_large,
 )
 from ..shapes import SDL_KEYWORDS
-from ._convert import as_int
+from ._convert import as_int, fmt_number
 from ._expr import (
     COLOR_KEYWORDS,
     as_color,
@@ -40,7 +40,7 @@ from ._textures import (
     skip_braces,
     vector3,
 )
-from ._values import CameraRec, LayerRec, LightRec, ObjRec, SkyRec, TextureRec, Vec
+from ._values import CameraRec, FogRec, LayerRec, LightRec, ObjRec, SkyRec, TextureRec, Vec
 
 PRIMITIVES = tuple(SDL_KEYWORDS)
 CSG_KEYWORDS = ("union", "intersection", "difference", "merge")
@@ -594,6 +594,58 @@ def parse_sky_sphere(p, t) -> SkyRec:
             raise p.error(f"expected pigment, a transformation or emission in sky_sphere, found "
                           f"'{k.value}'", k.loc)
     return sky
+
+
+_FOG_COLOUR_WORDS = ("color", "colour", "rgb", "rgbf", "rgbt", "rgbft", "srgb", "srgbf", "srgbt", "srgbft",
+                     "red", "green", "blue", "filter", "transmit")
+
+
+def parse_fog(p, t) -> FogRec:
+    """``fog { [FOG_IDENTIFIER] [fog_type 1|2] distance D COLOUR [turbulence …] [ground fog items]
+    [transformations] }`` (``fog`` already consumed). A constant fog (``fog_type 1``) is rendered
+    (semantics §2.8); its turbulence is not (a warning: the fog is then uniform), nor ground fog
+    (``fog_type 2``: a warning, the fog left out)."""
+    p.expect_op("{", "'{' after fog")
+    first = p.peek()
+    fog = FogRec()
+    if declared(p, first):
+        v = parse_expr(p)
+        if not isinstance(v, FogRec):
+            raise p.error(f"expected a fog, found {type_name(v)} '{first.value}'", first.loc)
+        fog = FogRec(v.fog_type, v.distance, v.color, v.turbulence)
+    while not p.accept_op("}"):
+        k = p.peek()
+        kw = k.value if k.kind == ID else None
+        if kw in _FOG_COLOUR_WORDS:
+            fog.color = tuple(parse_color(p).padded(5))
+            continue
+        p.next()
+        if kw == "distance":
+            fog.distance = float_(p)
+        elif kw == "fog_type":
+            fog.fog_type = int(float_(p))
+        elif kw in ("turbulence", "fog_offset", "fog_alt", "turb_depth", "omega", "lambda", "octaves", "up"):
+            parse_expr(p)
+            fog.turbulence = fog.turbulence or kw == "turbulence"
+        elif kw in TRANSFORM_KEYWORDS:  # they move the turbulence and a ground fog's layer only
+            parse_transform_item(p, k)
+        else:
+            raise p.error(f"expected a fog item (distance, a colour, fog_type, turbulence …), found "
+                          f"'{k.value}'", k.loc)
+    return fog
+
+
+def fog_rendered(p, fog: FogRec, loc) -> bool:
+    """Whether the fog ``fog`` placed at ``loc`` is rendered; warns where it is not, or only in part."""
+    if fog.fog_type != 1:
+        p.warn("fog", f"fog_type {fog.fog_type} (ground fog) is not rendered; the fog is left out", loc)
+        return False
+    if not fog.distance > 0:
+        p.warn("fog", f"a fog distance of {fmt_number(fog.distance)} hides nothing; the fog is left out", loc)
+        return False
+    if fog.turbulence:
+        p.warn("fog", "fog turbulence is not rendered; the fog is uniform", loc)
+    return True
 
 
 def parse_default(p, tok) -> None:

@@ -184,6 +184,16 @@ class SkyRec:
 
 
 @dataclasses.dataclass
+class FogRec:
+    """A ``fog`` as parsed: its type, distance and RGBFT colour, and whether it has turbulence."""
+
+    fog_type: int = 1
+    distance: float = 0.0
+    color: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
+    turbulence: bool = False
+
+
+@dataclasses.dataclass
 class LayerRec:
     """One texture layer: pigment, finish (a dict of the keywords given) and whether a normal was given."""
 

@@ -61,7 +61,7 @@ class PackedGeometry:
     unit_boxes: tuple | None = None
     # what the program looks up at a traced primitive, as arrays of ``bucket(P)`` entries (not
     # constants: a program per object count): "sign" (``prim_sign``), "unit" (``prim_unit``, 0
-    # when None) and "medium" (``medium_ids``)
+    # when None), "medium" (``medium_ids``) and "solid" (the primitive's shape has an inside)
     prim_table: dict | None = None
     # per group: the primitive of each member of a padded group (``_padded_to_bucket``) that is an
     # object of its own (``solo_prims``; -1 for the others and past its members), as an array;
@@ -392,8 +392,9 @@ def _padded_to_bucket(geo: PackedGeometry, plan: Plan) -> PackedGeometry:
     ray computes every candidate. A mesh's group is not either: its size is its triangles'."""
     n = bucket(len(plan.prims))
     unit = geo.prim_unit if geo.prim_unit is not None else np.zeros(len(plan.prims), np.int32)
+    solid = np.array([type(p.obj.shape).solid for p in plan.prims], bool)
     table = {"sign": pad_rows(geo.prim_sign, n), "unit": pad_rows(unit, n),
-             "medium": pad_rows(medium_ids(plan.prims), n)}
+             "medium": pad_rows(medium_ids(plan.prims), n), "solid": pad_rows(solid, n)}
     shapes, ofw = list(geo.shapes), list(geo.object_from_world)
     members: list = [None] * len(geo.groups)
     solo = solo_prims(plan)

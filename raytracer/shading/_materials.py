@@ -11,7 +11,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import patterns
-from .._packing import EYE4, any_traced, bucket, inverse_affines, pad_rows, register_packed, stack, traced_op
+from .._packing import (
+    EYE4,
+    any_traced,
+    as_dtype,
+    bucket,
+    inverse_affines,
+    pad_rows,
+    register_packed,
+    stack,
+    traced_op,
+)
 from .._plan import Plan
 from ..kernels import matvec
 from ..scene import WAVES, Finish, Interior, Layer, Pigment, Reflection, Texture
@@ -91,7 +101,7 @@ def _padded(xs, m: int, dtype):
             out[rows, :n] = block
             out[rows, n:] = block[:, n - 1:n]
         return out
-    return traced_op(_padded_traced, tuple(xs), (m, np.dtype(dtype).name))
+    return traced_op(_padded_traced, as_dtype(xs, dtype), (m, np.dtype(dtype).name))
 
 
 def _padded_traced(xs, static):

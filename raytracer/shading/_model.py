@@ -251,11 +251,12 @@ class TraceContext:
     accel_filter_layers: int  # ... and the most texture layers one of them has
     sky: PackedMaterials | None = None  # the sky_sphere's pigments, rows bottom first (None: none)
     sky_emission: jax.Array | None = None  # (3,) multiplies them
+    fogs: tuple = ()  # (distance (), RGBFT (5,)) of each constant fog
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
-                 background, dtype, sky_sphere=None) -> TraceContext:
-    """``sky_sphere``: the scene's ``SkySphere`` or None."""
+                 background, dtype, sky_sphere=None, fogs=()) -> TraceContext:
+    """``sky_sphere``: the scene's ``SkySphere`` or None; ``fogs``: its ``Fog``s."""
     prims = plan.prims
     bits = prim_bits(plan)  # the hierarchy's items use them too
     # shadow rays compute the crossings of shadow casters only (no_shadow objects are skipped)
@@ -266,6 +267,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         background=background.astype(dtype), dtype=dtype,
         sky=None if sky_sphere is None else pack_pigments(sky_sphere.pigments, dtype),
         sky_emission=None if sky_sphere is None else jnp.asarray(sky_sphere.emission, dtype),
+        fogs=tuple((jnp.asarray(f.distance, dtype), jnp.asarray(f.color, dtype)) for f in fogs),
         eps=2e-5 if dtype == jnp.float32 else 1e-9,
         vis_camera=(bits[geo.cand_prim] & _accel.MASK_CAMERA) != 0,
         vis_reflect=(bits[geo.cand_prim] & _accel.MASK_REFLECT) != 0,
@@ -948,7 +950,10 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
     t_level = jnp.where(straight & ~tir, level, level + 1)
     media = ray.media
     if media.shape[-1]:  # through the surface: into its interior, or out of it
-        crossed = jnp.where(s.entering, _media_with(media, s.medium), _media_without(media, s.medium))
+        # a surface without an inside (a triangle, a mesh without inside_vector) is entered from
+        # either side, as POV-Ray keeps it: a ray past one has no fog (semantics §2.8)
+        enters = s.entering | ~jnp.asarray(ctx.geo.prim_table["solid"])[s.prim]
+        crossed = jnp.where(enters, _media_with(media, s.medium), _media_without(media, s.medium))
         media = jnp.where(tir, media, crossed)
     child = Rays(origin=jnp.where(tir, s.p_out, s.p_in), direction=d_t,
                  weight=jnp.where(tir, weight, t_weight),
@@ -1041,7 +1046,37 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
     if transmitted is not None:
         children.append(transmitted)
     local = jnp.where(s.found, layers.local, jnp.where(s.missed, _unlit(ctx, ray.direction), 0.0))
+    if ctx.fogs:
+        # the fogs along the ray, up to its hit or forever: a colour c seen through them is
+        # c·scale + add, and so is what the children bring back, through their coefficients. A
+        # ray inside an object (its interior list not empty: a transmitted ray that entered a
+        # surface and has not left it, a sphere or a triangle alike) has no fog, as in POV-Ray
+        d2 = jnp.maximum(jnp.dot(ray.direction, ray.direction), jnp.finfo(ctx.dtype).tiny)
+        near_scale, near_add = fog_factors(ctx.fogs, jnp.where(s.found, s.t * jnp.sqrt(d2), 0.0))
+        far_scale, far_add = fog_factors(ctx.fogs, None)
+        scale = jnp.where(s.found, near_scale, far_scale)
+        add = jnp.where(s.found, near_add, far_add)
+        inside = jnp.any(ray.media >= 0) if ray.media.shape[-1] else False
+        fogged = (s.found | s.missed) & ~inside
+        scale, add = jnp.where(fogged, scale, 1.0), jnp.where(fogged, add, 0.0)
+        local = jnp.where(fogged, local * scale + add, local)
+        children = [c._replace(coef=c.coef * scale) for c in children]
     return Shading(local=local, children=tuple(children))
+
+
+def fog_factors(fogs, distance):
+    """``(scale (3,), add (3,))``: a colour ``c`` seen through the constant fogs ``fogs`` ((distance,
+    RGBFT) each) over ``distance`` (None: infinitely far) is ``c·scale + add``. Each fog keeps
+    ``a = max(exp(−distance/D), transmit)`` of what lies behind it, tinted by its filter
+    (``1 − f + f·rgb``), and adds ``(1 − a)·rgb``; several fogs multiply what they keep and add
+    what they add, as POV-Ray renders them (semantics §2.8)."""
+    scale, add = 1.0, 0.0
+    for fog_distance, color in fogs:
+        rgb, filt, transmit = color[:3], color[3], color[4]
+        keep = transmit if distance is None else jnp.maximum(jnp.exp(-distance / fog_distance), transmit)
+        scale = scale * keep * (1 - filt + filt * rgb)
+        add = add + (1 - keep) * rgb
+    return scale, add
 
 
 def _unlit(ctx: TraceContext, d):

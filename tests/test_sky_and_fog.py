@@ -1,5 +1,6 @@
-"""``sky_sphere`` (semantics §2.8): what rays that hit nothing see, against POV-Ray's images, its
-derivatives against central differences, and its syntax."""
+"""``sky_sphere`` and constant ``fog`` (semantics §2.8): what rays that hit nothing see and what
+they pass through, against POV-Ray's images, their derivatives against central differences, and
+their syntax."""
 
 import jax
 import numpy as np
@@ -44,8 +45,25 @@ sphere { <1.1, 0.6, 0>, 0.9 pigment { rgbf <1, 1, 1, 0.9> } interior { ior 1.5 }
 """
 
 
+# two fogs (one with filter and transmit) over a sky, a mirror, a glass sphere and a transparent
+# triangle seen from behind in front of the glass: rays inside the sphere, and past the triangle,
+# have no fog (where a ray past such a triangle meets a mirror, POV-Ray fogs more than we do:
+# semantics §2.8)
+FOGGY = UNDER_THE_SKY + """
+fog { distance 4 color rgbft <0.6, 0.7, 0.8, 0.3, 0.1> }
+#declare Haze = fog { rgb <0.9, 0.5, 0.3> distance 12 }
+fog { Haze }
+plane { y, -0.3 pigment { checker rgb 1 rgb 0.2 } }
+triangle { <2.4, -0.3, -1.5>, <0.2, -0.3, -1.5>, <1.3, 1.2, -1.8> pigment { rgbf <1, 1, 0.9, 0.8> } }
+"""
+
+# fog over the background alone: every ray sees it from infinitely far (its transmit lets some through)
+FOG_ONLY = HEAD + "background { rgb <0, 1, 0> } fog { distance 3 color rgbt <0, 0, 1, 0.4> }"
+
+
 @pytest.mark.povray
-@pytest.mark.parametrize("text", [LAYERED, DECLARED, UNDER_THE_SKY], ids=["layered", "declared", "under"])
+@pytest.mark.parametrize("text", [LAYERED, DECLARED, UNDER_THE_SKY, FOGGY, FOG_ONLY],
+                         ids=["layered", "declared", "under", "foggy", "fog-only"])
 def test_the_sky_matches_povray(text):
     """Every pixel within POV-Ray's half-float EXR (the first two scenes have nothing but the sky:
     the program of camera rays alone)."""
@@ -57,15 +75,19 @@ def test_the_sky_matches_povray(text):
     np.testing.assert_allclose(ours, theirs, atol=2e-3)
 
 
-def test_sky_colours_and_emission_have_the_derivatives_of_finite_differences(x64):
-    """d image / d (the sky's colour map and emission) along a random direction, forward mode,
-    against central differences (float64), where the camera sees the sky directly and in a mirror."""
+def test_sky_and_fog_parameters_have_the_derivatives_of_finite_differences(x64):
+    """d image / d (the sky's colour map and emission, the fog's distance and colour) along a
+    random direction, forward mode, against central differences (float64), where the camera sees
+    the sky directly, in a mirror and through glass, through a fog."""
     text = UNDER_THE_SKY + (
         "background { rgb <0.2, 0, 0.1> } sky_sphere { pigment { gradient y color_map "
-        "{ [0 rgb <0.9, 0.6, 0.3>] [1 rgbt <0.1, 0.3, 0.9, 0.3>] } } emission <1.2, 1, 0.9> }")
+        "{ [0 rgb <0.9, 0.6, 0.3>] [1 rgbt <0.1, 0.3, 0.9, 0.3>] } } emission <1.2, 1, 0.9> }"
+        "fog { distance 5 color rgbft <0.6, 0.7, 0.8, 0.3, 0.2> }")
     scene = rt.load_scene(text, width=8, height=6)  # (the second sky replaces the first)
-    params = {name: x for name, x in rt.params.parameters(scene).items() if name.startswith("sky_sphere.")}
-    assert {"sky_sphere.emission", "sky_sphere.pigments[0].colors"} <= set(params)
+    params = {name: x for name, x in rt.params.parameters(scene).items()
+              if name.startswith(("sky_sphere.", "fogs["))}
+    assert {"sky_sphere.emission", "sky_sphere.pigments[0].colors", "fogs[0].distance",
+            "fogs[0].color"} <= set(params)
     rng = np.random.default_rng(2)
     tangent = {name: rng.normal(size=np.shape(x)) for name, x in params.items()}
 
@@ -88,3 +110,15 @@ def test_a_sky_without_pigment_shows_the_background_and_a_stray_item_is_an_error
         rt.load_scene("sky_sphere { pigment { rgb 1 } phong 1 }")
     with pytest.raises(SceneError, match="expected a sky_sphere, found float 'S'"):
         rt.load_scene("#declare S = 1; sky_sphere { S }")
+
+
+def test_fogs_povray_does_not_render_are_left_out_with_a_warning():
+    scene = rt.load_scene("fog { fog_type 2 distance 3 rgb 1 fog_alt 1 fog_offset 0.5 up y }\n"
+                          "fog { distance 0 rgb 1 }\n"
+                          "fog { distance 3 rgb 0.5 turbulence 0.4 octaves 3 scale 2 }")
+    assert len(scene.fogs) == 1  # the turbulent one, uniform
+    messages = [(w.location.line, w.message) for w in scene.warnings if w.feature == "fog"]
+    assert [line for line, _ in messages] == [1, 2, 3]
+    assert "ground fog" in messages[0][1] and "turbulence" in messages[2][1]
+    with pytest.raises(SceneError, match=r"<string>:1:32: expected a fog item"):
+        rt.load_scene("fog { distance 3 rgb 1 } fog { phong 1 }")
