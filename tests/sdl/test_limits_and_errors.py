@@ -70,10 +70,10 @@ def test_include_cycle_is_stopped(tmp_path):
 
 
 def test_unsupported_feature_warns_and_strict_raises():
-    text = "sphere { 0, 1 normal { bumps 0.5 } }\nfog { distance 3 }\n" \
+    text = "sphere { 0, 1 normal { bumps 0.5 } }\nrainbow { angle 42 width 5 }\n" \
            "text { ttf \"timrom.ttf\" \"Hi\" 1, 0 }"
     s = load_scene(text)
-    assert [w.feature for w in s.warnings] == ["normal", "fog", "text"]
+    assert [w.feature for w in s.warnings] == ["normal", "rainbow", "text"]
     assert [w.location.line for w in s.warnings] == [1, 2, 3]
     assert len(s.objects) == 1
     e = error_of(text, strict=True)
