@@ -32,7 +32,7 @@ from .scene import Scene
 from .shading import _accel
 from .shading._geometry import PackedGeometry, hierarchy_filters, pack_geometry, prim_bits
 from .shading._materials import PackedMaterials, pack_materials, pack_pigments
-from .shading._model import fog_factors, sky_colour
+from .shading._model import fog_arrays, fog_factors, sky_colour
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
 
@@ -500,34 +500,40 @@ def _image_of(colours, width: int, height: int):
 def _background_only(scene: Scene, width: int, height: int, k: int = 1):
     """The image of a scene without a rendered object: every ray sees the background or the sky,
     through the fogs."""
-    if scene.sky_sphere is not None:
-        return _sky_image(scene.camera, scene.sky_sphere, scene.background, scene.fogs, scene.settings, width,
-                          height, k)
+    if scene.sky_sphere is not None or any(f.ground for f in scene.fogs):  # a colour per ray
+        return _unlit_image(scene.camera, scene.sky_sphere, scene.background, scene.fogs, scene.settings,
+                            width, height, k)
     dtype = scene.camera.location.dtype
-    return _background_image(_fogged_far(scene.fogs, scene.background.astype(dtype), dtype), scene.settings,
-                             width, height)
-
-
-def _fogged_far(fogs, colour, dtype):
-    """``colour`` seen through ``fogs`` (``Fog``s) from infinitely far."""
-    if not fogs:
-        return colour
-    arrays = tuple((jnp.asarray(f.distance, dtype), jnp.asarray(f.color, dtype)) for f in fogs)
-    scale, add = fog_factors(arrays, None)
-    return colour * scale + add
+    colour = scene.background.astype(dtype)
+    if scene.fogs:  # constant fogs, seen from infinitely far whatever the ray
+        zero = jnp.zeros(3, dtype)
+        scale, add = fog_factors(fog_arrays(scene.fogs, dtype), zero, zero.at[2].set(1), None)
+        colour = colour * scale + add
+    return _background_image(colour, scene.settings, width, height)
 
 
 @eqx.filter_jit
-def _sky_image(camera, sky, background, fogs, settings, width: int, height: int, k: int):
-    """The image of the ``sky_sphere`` ``sky`` seen by every ray through ``fogs`` (k×k samples a
-    pixel)."""
+def _unlit_image(camera, sky, background, fogs, settings, width: int, height: int, k: int):
+    """The image every ray of which hits nothing: the ``sky_sphere`` ``sky`` (None: the
+    background) through ``fogs`` (k×k samples a pixel)."""
     dtype = camera.location.dtype
-    _, d = camera_rays(camera, *sample_coords(jnp.arange(width * height * k * k), width, height, k, dtype))
-    packed = pack_pigments(sky.pigments, dtype)
-    colours = jax.vmap(lambda d_: sky_colour(packed, jnp.asarray(sky.emission, dtype),
-                                             background.astype(dtype), d_))(d)
+    o, d = camera_rays(camera, *sample_coords(jnp.arange(width * height * k * k), width, height, k, dtype))
+    background = background.astype(dtype)
+    packed = None if sky is None else pack_pigments(sky.pigments, dtype)
+    arrays = fog_arrays(fogs, dtype)
+
+    def one(o_, d_):
+        c = background if sky is None else sky_colour(packed, jnp.asarray(sky.emission, dtype), background,
+                                                      d_)
+        if not arrays:
+            return c
+        u = d_ / jnp.linalg.norm(d_)
+        scale, add = fog_factors(arrays, o_, u, None)
+        return c * scale + add
+
+    colours = jax.vmap(one)(o, d)
     image = colours.reshape(height * width, k * k, 3).mean(axis=1).reshape(height, width, 3)
-    return _output_transfer(_fogged_far(fogs, image, dtype), settings)
+    return _output_transfer(image, settings)
 
 
 @eqx.filter_jit

@@ -57,13 +57,22 @@ plane { y, -0.3 pigment { checker rgb 1 rgb 0.2 } }
 triangle { <2.4, -0.3, -1.5>, <0.2, -0.3, -1.5>, <1.3, 1.2, -1.8> pigment { rgbf <1, 1, 0.9, 0.8> } }
 """
 
-# fog over the background alone: every ray sees it from infinitely far (its transmit lets some through)
-FOG_ONLY = HEAD + "background { rgb <0, 1, 0> } fog { distance 3 color rgbt <0, 0, 1, 0.4> }"
+# fog over the background alone: every ray sees it from infinitely far (its transmit lets some
+# through); a ground fog, whose rays that climb out of it see through it
+FOG_ONLY = HEAD + """background { rgb <0, 1, 0> } fog { distance 3 color rgbt <0, 0, 1, 0.4> }
+fog { fog_type 2 distance 2 color rgbt <1, 0.5, 0, 0.1> fog_offset 0.6 fog_alt 0.4 up <0.2, 1, 0> }"""
+
+# a ground fog over a floor, a mirror and glass, with a constant fog
+GROUND = UNDER_THE_SKY + """
+plane { y, -0.3 pigment { checker rgb 1 rgb 0.2 } }
+fog { fog_type 2 distance 1.5 color rgbf <0.8, 0.8, 0.9, 0.3> fog_offset 0.2 fog_alt 0.5 }
+fog { distance 30 color rgb <0.5, 0.5, 0.6> }
+"""
 
 
 @pytest.mark.povray
-@pytest.mark.parametrize("text", [LAYERED, DECLARED, UNDER_THE_SKY, FOGGY, FOG_ONLY],
-                         ids=["layered", "declared", "under", "foggy", "fog-only"])
+@pytest.mark.parametrize("text", [LAYERED, DECLARED, UNDER_THE_SKY, FOGGY, FOG_ONLY, GROUND],
+                         ids=["layered", "declared", "under", "foggy", "fog-only", "ground"])
 def test_the_sky_matches_povray(text):
     """Every pixel within POV-Ray's half-float EXR (the first two scenes have nothing but the sky:
     the program of camera rays alone)."""
@@ -82,12 +91,13 @@ def test_sky_and_fog_parameters_have_the_derivatives_of_finite_differences(x64):
     text = UNDER_THE_SKY + (
         "background { rgb <0.2, 0, 0.1> } sky_sphere { pigment { gradient y color_map "
         "{ [0 rgb <0.9, 0.6, 0.3>] [1 rgbt <0.1, 0.3, 0.9, 0.3>] } } emission <1.2, 1, 0.9> }"
-        "fog { distance 5 color rgbft <0.6, 0.7, 0.8, 0.3, 0.2> }")
+        "fog { distance 5 color rgbft <0.6, 0.7, 0.8, 0.3, 0.2> }"
+        "fog { fog_type 2 distance 2 color rgb <0.3, 0.4, 0.5> fog_offset 0.4 fog_alt 0.6 }")
     scene = rt.load_scene(text, width=8, height=6)  # (the second sky replaces the first)
     params = {name: x for name, x in rt.params.parameters(scene).items()
               if name.startswith(("sky_sphere.", "fogs["))}
     assert {"sky_sphere.emission", "sky_sphere.pigments[0].colors", "fogs[0].distance",
-            "fogs[0].color"} <= set(params)
+            "fogs[0].color", "fogs[1].offset", "fogs[1].alt"} <= set(params)
     rng = np.random.default_rng(2)
     tangent = {name: rng.normal(size=np.shape(x)) for name, x in params.items()}
 
@@ -113,12 +123,16 @@ def test_a_sky_without_pigment_shows_the_background_and_a_stray_item_is_an_error
 
 
 def test_fogs_povray_does_not_render_are_left_out_with_a_warning():
-    scene = rt.load_scene("fog { fog_type 2 distance 3 rgb 1 fog_alt 1 fog_offset 0.5 up y }\n"
+    """A ground fog without ``fog_alt`` (POV-Ray's image is NaN), a fog of distance 0 and an
+    unknown type are left out; a turbulent fog is rendered smooth. Each says so at its line."""
+    scene = rt.load_scene("fog { fog_type 2 distance 3 rgb 1 fog_offset 0.5 up y }\n"
                           "fog { distance 0 rgb 1 }\n"
-                          "fog { distance 3 rgb 0.5 turbulence 0.4 octaves 3 scale 2 }")
-    assert len(scene.fogs) == 1  # the turbulent one, uniform
+                          "fog { distance 3 rgb 0.5 turbulence 0.4 octaves 3 scale 2 }\n"
+                          "fog { fog_type 3 distance 3 rgb 1 }\n"
+                          "fog { fog_type 2 distance 3 rgb 1 fog_alt 0.5 }")
+    assert len(scene.fogs) == 2 and [f.ground for f in scene.fogs] == [False, True]
     messages = [(w.location.line, w.message) for w in scene.warnings if w.feature == "fog"]
-    assert [line for line, _ in messages] == [1, 2, 3]
-    assert "ground fog" in messages[0][1] and "turbulence" in messages[2][1]
+    assert [line for line, _ in messages] == [1, 2, 3, 4]
+    assert "fog_alt > 0" in messages[0][1] and "turbulence" in messages[2][1]
     with pytest.raises(SceneError, match=r"<string>:1:32: expected a fog item"):
         rt.load_scene("fog { distance 3 rgb 1 } fog { phong 1 }")

@@ -60,17 +60,28 @@ class SkySphere(Record):
 
 
 class Fog(Record):
-    """A constant ``fog`` (``fog_type 1``; semantics §2.8): a ray that travels a distance ``d``
-    before its hit (infinitely far where it hits nothing) keeps ``a = max(exp(−d/distance),
-    transmit)`` of its colour, tinted by the fog's filter, and takes ``1 − a`` of the fog's colour.
+    """A ``fog`` (semantics §2.8): a ray segment that crosses fog of optical depth ``L`` before
+    its hit (infinitely far where it hits nothing) keeps ``a = max(exp(−L/distance), transmit)`` of
+    its colour, tinted by the fog's filter, and takes ``1 − a`` of the fog's colour. A constant fog
+    (``ground`` False) has density 1 everywhere (``L`` is the segment's length); a ground fog
+    (``fog_type 2``) has density 1 below the height ``offset`` along ``up`` and
+    ``1/(1 + ((h − offset)/alt)²)`` above it.
 
     Attributes:
-        distance: () the distance at which ``exp(−d/distance)`` is 1/e.
+        distance: () the distance at which ``exp(−L/distance)`` is 1/e.
         color:    (5,) RGBFT: the fog's colour, its filter and its transmit.
+        offset:   () a ground fog's height of full density (``fog_offset``).
+        alt:      () the height over it at which the density is halved (``fog_alt``).
+        up:       (3,) the direction of height (unit).
+        ground:   static: a ground fog.
     """
 
     distance: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     color: Float[Array, "5"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0, 0.0, 0.0))
+    offset: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+    alt: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    up: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 1.0, 0.0))
+    ground: bool = eqx.field(static=True, default=False)
 
 
 class Scene(Record):

@@ -249,6 +249,13 @@ def output_transfer(p) -> tuple[str, float]:
     return "linear", 1.0
 
 
+def _lower_fog(f) -> S.Fog:
+    up = np.asarray(f.up, np.float64)
+    ground = f.fog_type == 2
+    return build(S.Fog, distance=f.distance, color=f.color, offset=f.offset, alt=f.alt if ground else 1.0,
+                 up=up / np.linalg.norm(up), ground=ground)
+
+
 def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
     low = Lowerer(fit_zero_terms)
     objects = []
@@ -279,6 +286,6 @@ def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
     try:
         return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
                      background=p.background, sky_sphere=sky, settings=settings, warnings=tuple(p.warnings),
-                     fogs=tuple(build(S.Fog, distance=f.distance, color=f.color) for f in p.fogs))
+                     fogs=tuple(_lower_fog(f) for f in p.fogs))
     except OutOfPrecision as e:  # the background is the only value not converted before
         raise SceneError(str(e), p.statement_locs.get("background")) from None

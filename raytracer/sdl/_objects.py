@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..scene._lights import (
@@ -601,10 +603,9 @@ _FOG_COLOUR_WORDS = ("color", "colour", "rgb", "rgbf", "rgbt", "rgbft", "srgb", 
 
 
 def parse_fog(p, t) -> FogRec:
-    """``fog { [FOG_IDENTIFIER] [fog_type 1|2] distance D COLOUR [turbulence …] [ground fog items]
-    [transformations] }`` (``fog`` already consumed). A constant fog (``fog_type 1``) is rendered
-    (semantics §2.8); its turbulence is not (a warning: the fog is then uniform), nor ground fog
-    (``fog_type 2``: a warning, the fog left out)."""
+    """``fog { [FOG_IDENTIFIER] [fog_type 1|2] distance D COLOUR [fog_offset O fog_alt A up V]
+    [turbulence …] [transformations] }`` (``fog`` already consumed). Constant and ground fogs are
+    rendered (semantics §2.8); turbulence is not (a warning: the fog is then smooth)."""
     p.expect_op("{", "'{' after fog")
     first = p.peek()
     fog = FogRec()
@@ -612,7 +613,7 @@ def parse_fog(p, t) -> FogRec:
         v = parse_expr(p)
         if not isinstance(v, FogRec):
             raise p.error(f"expected a fog, found {type_name(v)} '{first.value}'", first.loc)
-        fog = FogRec(v.fog_type, v.distance, v.color, v.turbulence)
+        fog = dataclasses.replace(v)
     while not p.accept_op("}"):
         k = p.peek()
         kw = k.value if k.kind == ID else None
@@ -624,7 +625,13 @@ def parse_fog(p, t) -> FogRec:
             fog.distance = float_(p)
         elif kw == "fog_type":
             fog.fog_type = int(float_(p))
-        elif kw in ("turbulence", "fog_offset", "fog_alt", "turb_depth", "omega", "lambda", "octaves", "up"):
+        elif kw == "fog_offset":
+            fog.offset = float_(p)
+        elif kw == "fog_alt":
+            fog.alt = float_(p)
+        elif kw == "up":
+            fog.up = tuple(vector3(p))
+        elif kw in ("turbulence", "turb_depth", "omega", "lambda", "octaves"):
             parse_expr(p)
             fog.turbulence = fog.turbulence or kw == "turbulence"
         elif kw in TRANSFORM_KEYWORDS:  # they move the turbulence and a ground fog's layer only
@@ -637,14 +644,20 @@ def parse_fog(p, t) -> FogRec:
 
 def fog_rendered(p, fog: FogRec, loc) -> bool:
     """Whether the fog ``fog`` placed at ``loc`` is rendered; warns where it is not, or only in part."""
-    if fog.fog_type != 1:
-        p.warn("fog", f"fog_type {fog.fog_type} (ground fog) is not rendered; the fog is left out", loc)
+    if fog.fog_type not in (1, 2):
+        p.warn("fog", f"fog_type {fog.fog_type} is not a fog type (1: constant, 2: ground); the fog is "
+               "left out", loc)
         return False
     if not fog.distance > 0:
         p.warn("fog", f"a fog distance of {fmt_number(fog.distance)} hides nothing; the fog is left out", loc)
         return False
+    if fog.fog_type == 2 and not (fog.alt > 0 and any(fog.up)):
+        # (POV-Ray's image is NaN there)
+        p.warn("fog", f"a ground fog needs fog_alt > 0 and an up vector (fog_alt {fmt_number(fog.alt)}); "
+               "the fog is left out", loc)
+        return False
     if fog.turbulence:
-        p.warn("fog", "fog turbulence is not rendered; the fog is uniform", loc)
+        p.warn("fog", "fog turbulence is not rendered; the fog is smooth", loc)
     return True
 
 

@@ -191,6 +191,9 @@ class FogRec:
     distance: float = 0.0
     color: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
     turbulence: bool = False
+    offset: float = 0.0
+    alt: float = 0.0
+    up: tuple = (0.0, 1.0, 0.0)
 
 
 @dataclasses.dataclass

@@ -251,7 +251,7 @@ class TraceContext:
     accel_filter_layers: int  # ... and the most texture layers one of them has
     sky: PackedMaterials | None = None  # the sky_sphere's pigments, rows bottom first (None: none)
     sky_emission: jax.Array | None = None  # (3,) multiplies them
-    fogs: tuple = ()  # (distance (), RGBFT (5,)) of each constant fog
+    fogs: tuple = ()  # the scene's fogs (``fog_arrays``)
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
@@ -267,7 +267,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
         background=background.astype(dtype), dtype=dtype,
         sky=None if sky_sphere is None else pack_pigments(sky_sphere.pigments, dtype),
         sky_emission=None if sky_sphere is None else jnp.asarray(sky_sphere.emission, dtype),
-        fogs=tuple((jnp.asarray(f.distance, dtype), jnp.asarray(f.color, dtype)) for f in fogs),
+        fogs=fog_arrays(fogs, dtype),
         eps=2e-5 if dtype == jnp.float32 else 1e-9,
         vis_camera=(bits[geo.cand_prim] & _accel.MASK_CAMERA) != 0,
         vis_reflect=(bits[geo.cand_prim] & _accel.MASK_REFLECT) != 0,
@@ -1052,8 +1052,10 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
         # ray inside an object (its interior list not empty: a transmitted ray that entered a
         # surface and has not left it, a sphere or a triangle alike) has no fog, as in POV-Ray
         d2 = jnp.maximum(jnp.dot(ray.direction, ray.direction), jnp.finfo(ctx.dtype).tiny)
-        near_scale, near_add = fog_factors(ctx.fogs, jnp.where(s.found, s.t * jnp.sqrt(d2), 0.0))
-        far_scale, far_add = fog_factors(ctx.fogs, None)
+        unit = ray.direction / jnp.sqrt(d2)
+        length = jnp.where(s.found, s.t * jnp.sqrt(d2), 0.0)
+        near_scale, near_add = fog_factors(ctx.fogs, ray.origin, unit, length)
+        far_scale, far_add = fog_factors(ctx.fogs, ray.origin, unit, None)
         scale = jnp.where(s.found, near_scale, far_scale)
         add = jnp.where(s.found, near_add, far_add)
         inside = jnp.any(ray.media >= 0) if ray.media.shape[-1] else False
@@ -1064,16 +1066,65 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
     return Shading(local=local, children=tuple(children))
 
 
-def fog_factors(fogs, distance):
-    """``(scale (3,), add (3,))``: a colour ``c`` seen through the constant fogs ``fogs`` ((distance,
-    RGBFT) each) over ``distance`` (None: infinitely far) is ``c·scale + add``. Each fog keeps
-    ``a = max(exp(−distance/D), transmit)`` of what lies behind it, tinted by its filter
-    (``1 − f + f·rgb``), and adds ``(1 − a)·rgb``; several fogs multiply what they keep and add
-    what they add, as POV-Ray renders them (semantics §2.8)."""
+class FogArrays(NamedTuple):
+    """A ``Fog`` as the shading reads it: its arrays in the working dtype, ``ground`` static."""
+
+    distance: jax.Array
+    color: jax.Array
+    offset: jax.Array
+    alt: jax.Array
+    up: jax.Array
+    ground: bool
+
+
+def fog_arrays(fogs, dtype) -> tuple[FogArrays, ...]:
+    """The scene's ``Fog``s as :class:`FogArrays`."""
+    names = ("distance", "color", "offset", "alt", "up")
+    return tuple(FogArrays(*(jnp.asarray(getattr(f, k), dtype) for k in names), f.ground) for f in fogs)
+
+
+def _fog_depth(fog: FogArrays, origin, unit, distance):
+    """The optical depth along the ray ``origin + s·unit`` (``unit`` a unit vector) for ``s`` in [0,
+    ``distance``] (None: to infinity; then ``inf`` where the ray does not climb out of a ground fog):
+    the length for a constant fog; for a ground fog the integral of its density, by its
+    antiderivative over the height ``h``: ``h − offset`` below the offset, ``alt·atan((h −
+    offset)/alt)`` above (semantics §2.8)."""
+    if not fog.ground:
+        return jnp.inf if distance is None else distance
+
+    def antiderivative(h):
+        u = (h - fog.offset) / fog.alt
+        return jnp.where(u < 0, h - fog.offset, fog.alt * jnp.arctan(jnp.maximum(u, 0.0)))
+
+    def density(h):
+        u = jnp.maximum((h - fog.offset) / fog.alt, 0.0)
+        return 1 / (1 + u * u)
+
+    h0, climb = jnp.dot(origin, fog.up), jnp.dot(unit, fog.up)
+    level = jnp.abs(climb) < 1e-6
+    safe = jnp.where(level, 1.0, climb)
+    if distance is None:
+        # to infinity: up and out of it (the antiderivative tends to alt·π/2), else all of it
+        out = (fog.alt * (jnp.pi / 2) - antiderivative(h0)) / safe
+        return jnp.where(climb > 1e-6, out, jnp.inf)
+    across = (antiderivative(h0 + climb * distance) - antiderivative(h0)) / safe
+    return jnp.where(level, distance * density(h0), across)
+
+
+def fog_factors(fogs, origin, unit, distance):
+    """``(scale (3,), add (3,))``: a colour ``c`` seen through the fogs ``fogs`` (``FogArrays``)
+    along the ray ``origin + s·unit`` over ``distance`` (None: infinitely far) is
+    ``c·scale + add``. Each fog keeps ``a = max(exp(−L/D), transmit)`` of what lies behind it, L
+    its optical depth there (:func:`_fog_depth`), tinted by its filter (``1 − f + f·rgb``), and
+    adds ``(1 − a)·rgb``; several fogs multiply what they keep and add what they add, as POV-Ray
+    renders them (semantics §2.8)."""
     scale, add = 1.0, 0.0
-    for fog_distance, color in fogs:
-        rgb, filt, transmit = color[:3], color[3], color[4]
-        keep = transmit if distance is None else jnp.maximum(jnp.exp(-distance / fog_distance), transmit)
+    for fog in fogs:
+        rgb, filt, transmit = fog.color[:3], fog.color[3], fog.color[4]
+        depth = _fog_depth(fog, origin, unit, distance)
+        finite = jnp.isfinite(depth)
+        keep = jnp.where(finite, jnp.exp(-jnp.where(finite, depth, 0.0) / fog.distance), 0.0)
+        keep = jnp.maximum(keep, transmit)
         scale = scale * keep * (1 - filt + filt * rgb)
         add = add + (1 - keep) * rgb
     return scale, add
