@@ -182,7 +182,7 @@ class Effects:
                         entries as the scene can put in it at once, at most ``MEDIA_SLOTS``.
         sky_sphere:     rays that hit nothing see a ``sky_sphere`` (its pigments' patterns are in
                         ``patterns`` too).
-        fog:            rays go through constant fogs (rays inside objects excepted: with
+        fog:            rays go through fogs (rays inside objects excepted: with
                         transmission, the rays then keep their interior list, ``media_slots``).
     """
 

@@ -500,16 +500,11 @@ def _image_of(colours, width: int, height: int):
 def _background_only(scene: Scene, width: int, height: int, k: int = 1):
     """The image of a scene without a rendered object: every ray sees the background or the sky,
     through the fogs."""
-    if scene.sky_sphere is not None or any(f.ground for f in scene.fogs):  # a colour per ray
+    if scene.sky_sphere is not None or scene.fogs:  # a colour per ray
         return _unlit_image(scene.camera, scene.sky_sphere, scene.background, scene.fogs, scene.settings,
                             width, height, k)
-    dtype = scene.camera.location.dtype
-    colour = scene.background.astype(dtype)
-    if scene.fogs:  # constant fogs, seen from infinitely far whatever the ray
-        zero = jnp.zeros(3, dtype)
-        scale, add = fog_factors(fog_arrays(scene.fogs, dtype), zero, zero.at[2].set(1), None)
-        colour = colour * scale + add
-    return _background_image(colour, scene.settings, width, height)
+    return _background_image(scene.background.astype(scene.camera.location.dtype), scene.settings,
+                             width, height)
 
 
 @eqx.filter_jit

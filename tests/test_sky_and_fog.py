@@ -73,7 +73,7 @@ fog { distance 30 color rgb <0.5, 0.5, 0.6> }
 @pytest.mark.povray
 @pytest.mark.parametrize("text", [LAYERED, DECLARED, UNDER_THE_SKY, FOGGY, FOG_ONLY, GROUND],
                          ids=["layered", "declared", "under", "foggy", "fog-only", "ground"])
-def test_the_sky_matches_povray(text):
+def test_sky_and_fog_match_povray(text):
     """Every pixel within POV-Ray's half-float EXR (the first two scenes have nothing but the sky:
     the program of camera rays alone)."""
     from validation.povray import render_povray

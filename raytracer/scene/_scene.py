@@ -93,7 +93,8 @@ class Scene(Record):
         lights:     light sources.
         background: (3,) colour of rays that hit nothing (default black).
         sky_sphere: what rays that hit nothing see instead, by direction (None: the background).
-        fogs:       constant fogs every camera, reflected and transmitted ray goes through.
+        fogs:       the fogs (constant or ground) every camera, reflected and transmitted ray
+                    goes through outside objects.
         settings:   global settings.
         warnings:   static: features parsed but not rendered, with locations.
     """
