@@ -136,3 +136,18 @@ def test_fogs_povray_does_not_render_are_left_out_with_a_warning():
     assert "fog_alt > 0" in messages[0][1] and "turbulence" in messages[2][1]
     with pytest.raises(SceneError, match=r"<string>:1:32: expected a fog item"):
         rt.load_scene("fog { distance 3 rgb 1 } fog { phong 1 }")
+
+
+def test_a_fogs_colour_is_any_colour_expression():
+    """POV-Ray reads a fog's colour as an expression: an identifier, arithmetic on one, a vector
+    (``lights/circular.pov``'s ``fog { distance 200 Wheat*.5 }``); a fog identifier still starts a
+    fog, and its items may follow."""
+    written = rt.load_scene("fog { distance 200 color rgb <0.4, 0.3, 0.2> }")
+    for text in ("#declare W = rgb <0.8, 0.6, 0.4>; fog { distance 200 W*.5 }",
+                 "#declare W = rgb <0.4, 0.3, 0.2>; fog { W distance 200 }",
+                 "fog { distance 200 <0.4, 0.3, 0.2> }",
+                 "#declare F = fog { distance 5 rgb 1 }; fog { F distance 200 rgb <0.4, 0.3, 0.2> }"):
+        scene = rt.load_scene(text)
+        assert scene.fogs == written.fogs, text
+    with pytest.raises(SceneError, match=r"<string>:1:36: expected a fog item"):
+        rt.load_scene("#declare S = 1; fog { S distance 3 phong 1 }")

@@ -609,15 +609,14 @@ def parse_fog(p, t) -> FogRec:
     p.expect_op("{", "'{' after fog")
     first = p.peek()
     fog = FogRec()
-    if declared(p, first):
-        v = parse_expr(p)
-        if not isinstance(v, FogRec):
-            raise p.error(f"expected a fog, found {type_name(v)} '{first.value}'", first.loc)
-        fog = dataclasses.replace(v)
+    if declared(p, first) and isinstance(p.lookup(first.value), FogRec):
+        fog = dataclasses.replace(parse_expr(p))
     while not p.accept_op("}"):
         k = p.peek()
         kw = k.value if k.kind == ID else None
-        if kw in _FOG_COLOUR_WORDS:
+        # a colour is a colour keyword or any colour expression: an identifier (`White`,
+        # `Wheat*.5`), a vector or a number (POV-Ray reads the fog's colour as an expression)
+        if kw in _FOG_COLOUR_WORDS or kw is None or declared(p, k):
             fog.color = tuple(parse_color(p).padded(5))
             continue
         p.next()
