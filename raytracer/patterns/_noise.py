@@ -57,8 +57,11 @@ def _lattice(p):
     f = p - cell  # in [0, 1)
     cell_i = jnp.mod(cell, _LATTICE_PERIOD).astype(jnp.int32)
     # corner (i, j, k)'s hash is lowbias(lowbias(lowbias(z_k ^ C) ^ y_j) ^ x_i): the first round
-    # has 2 distinct inputs and the second 4, so 14 rounds give the 8 corners' hashes, not 24
-    x, y, z = ((cell_i[a] + jnp.arange(2, dtype=jnp.int32)).astype(jnp.uint32) for a in range(3))
+    # has 2 distinct inputs and the second 4, so 14 rounds give the 8 corners' hashes, not 24.
+    # The corner's index wraps after the offset is added: cell -1's upper corner is cell 0's lower
+    # one (index 0, not the period), so the noise is continuous across the coordinate planes.
+    mask = jnp.uint32(_LATTICE_PERIOD - 1)
+    x, y, z = (((cell_i[a] + jnp.arange(2, dtype=jnp.int32)).astype(jnp.uint32) & mask) for a in range(3))
     h_z = _lowbias32(z ^ jnp.uint32(0x9E3779B9))  # (2,) over k
     h_yz = _lowbias32(h_z[None, :] ^ y[:, None])  # (2, 2) over j, k
     h = _lowbias32(h_yz[None, :, :] ^ x[:, None, None]).reshape(8)  # over i, j, k: _CORNERS' order
