@@ -178,7 +178,36 @@ def _object_arg(p, tok):
     v = p.parse_expr_paren()
     if not isinstance(v, ObjRec):
         raise p.error(f"expected an object identifier in {tok.value}(), found {type_name(v)}", t.loc)
+    _warn_unseen(p, tok, v)
     return v
+
+
+def _unrendered_kinds(rec: ObjRec) -> list[str]:
+    """The kinds of the parts of ``rec`` that are not rendered (so not seen by trace/inside)."""
+    if not rec.supported:
+        return [rec.kind]
+    kinds = []
+    for child in (*rec.children, *rec.clipped_by):
+        if isinstance(child, ObjRec):
+            kinds += [k for k in _unrendered_kinds(child) if k not in kinds]
+    return kinds
+
+
+def _warn_unseen(p, tok, rec: ObjRec) -> None:
+    """A trace()/inside() whose object has parts we do not render answers as if they were absent:
+    said at the call, at once (its answer already shapes the scene: placements, #if), once per
+    call site and set of kinds."""
+    kinds = _unrendered_kinds(rec)
+    if not kinds:
+        return
+    seen = p.__dict__.setdefault("_unseen_warned", set())
+    key = (tok.loc, tuple(kinds))
+    if key in seen:
+        return
+    seen.add(key)
+    what = ", ".join(kinds)
+    p.warn_now(kinds[0], f"{tok.value}() cannot see the {what} in this object (not rendered); it "
+               "answers as if that part were absent", tok.loc)
 
 
 def _trace(p, tok):

@@ -166,6 +166,7 @@ class Stream:
         self.warnings: list[SceneWarning] = []
         self.warning_capture: list[list[SceneWarning]] = []
         self.held_warnings: dict[tuple[int, str], tuple[dict, list[SceneWarning]]] = {}
+        self._emitted: set[int] = set()  # ids of the warnings in self.warnings
         self.token_cache: dict[str, list] = {}
         # (frame index, open conditionals) where each #declare being read started: see peek_op
         self.stop_marks: list[tuple[int, int]] = []
@@ -194,15 +195,25 @@ class Stream:
         return None
 
     def warn(self, feature: str, message: str, loc: SourceLoc | None = None) -> None:
-        w = SceneWarning(feature, message, loc or self.here())
+        self._report(SceneWarning(feature, message, loc or self.here()))
+
+    def warn_now(self, feature: str, message: str, loc: SourceLoc | None = None) -> None:
+        """Reports at once, even while a value is being declared: for what already changed the
+        parse (a ``trace()`` that cannot see an object decides ``#if``s and placements)."""
+        self._emit(SceneWarning(feature, message, loc or self.here()))
+
+    def _report(self, w: SceneWarning) -> None:
         if self.warning_capture:  # reading a #declare/#local value: reported when it is used
             self.warning_capture[-1].append(w)
         else:
             self._emit(w)
 
     def _emit(self, w: SceneWarning) -> None:
+        if id(w) in self._emitted:  # a held warning that several values carried
+            return
         if self.strict:
             raise self.error(f"{w.message} [{w.feature}]", w.location)
+        self._emitted.add(id(w))
         self.warnings.append(w)
         logger.warning("%s", w)
 
@@ -217,10 +228,14 @@ class Stream:
             self.held_warnings.pop((id(table), name), None)
 
     def _release_warnings(self, table: dict, name: str) -> None:
-        held = self.held_warnings.pop((id(table), name), None)
+        """The warnings held for ``table[name]``, now used. Read into a value being declared, they
+        pass to that value and stay held here too: the value may never be used while the name is
+        (``#declare P = trace(Land, …)`` before ``object { Land }``); each is reported once."""
+        key = (id(table), name)
+        held = self.held_warnings.get(key) if self.warning_capture else self.held_warnings.pop(key, None)
         if held is not None:
             for w in held[1]:
-                self.warn(w.feature, w.message, w.location)  # a value being declared holds them
+                self._report(w)
 
     # ---- files ---------------------------------------------------------------------------
     def file_tokens(self, path: str) -> list[Token]:

@@ -92,6 +92,18 @@ def test_warnings_of_a_declared_value_wait_until_it_is_used():
     assert e.location == SourceLoc("<string>", 1, 46)
 
 
+def test_a_warning_read_into_a_value_never_used_is_reported_where_its_source_is_used():
+    """``#declare P = f(Land)`` holds Land's warnings for P; when P is never used and Land is,
+    they are reported once, at their source (``language/trace2.pov`` lost its isosurface's)."""
+    text = ("#declare Bumpy = texture { pigment { rgb 1 } normal { bumps 0.5 } }\n"
+            "#declare Unused = texture { Bumpy }\n"
+            "#declare Also = texture { Bumpy }\n")
+    s = load_scene(text + "sphere { 0, 1 texture { Bumpy } }")
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("normal", 1)]
+    s = load_scene(text + "sphere { 0, 1 texture { Unused } } box { 0, 1 texture { Bumpy } }")
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("normal", 1)]  # once
+
+
 def test_a_macro_local_value_reports_its_warning_when_returned_and_forgets_it_otherwise():
     text = """#macro Bumpy(Used)
         #local T = texture { pigment { rgb 1 } normal { bumps 0.5 } }

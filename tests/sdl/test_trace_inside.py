@@ -80,3 +80,24 @@ def test_inside(obj, point, expected):
 def test_trace_needs_an_object_identifier():
     with pytest.raises(SceneError, match="expected an object identifier in trace"):
         run_sdl("#declare P = trace(1, 0, z);")
+
+
+def test_trace_and_inside_say_at_the_call_that_they_cannot_see_an_unrendered_part():
+    """The answer of a call that cannot see a part already shaped the scene (``#if``s, placements),
+    so it is said at once, once per call site, even inside a value that is never used; the part's
+    own warning comes where the object is placed."""
+    from raytracer.sdl import load_scene
+
+    s = load_scene("""#declare Land = union { isosurface { function { y } } sphere { 0, 1 } }
+        #declare I = 0;
+        #while (I < 3)
+          #declare P = trace(Land, <0, 5, 0>, -y);
+          #declare Q = inside(Land, <0, 0, 0>);
+          #declare I = I + 1;
+        #end
+        object { Land }""")
+    found = [(w.feature, w.location.line, w.location.col) for w in s.warnings]
+    assert found == [("isosurface", 4, 24), ("isosurface", 5, 24), ("isosurface", 1, 25)]
+    assert "trace() cannot see the isosurface" in s.warnings[0].message
+    s = load_scene("#declare S = sphere { 0, 1 } #declare P = trace(S, <0, 5, 0>, -y);")
+    assert s.warnings == ()
