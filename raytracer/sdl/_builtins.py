@@ -7,9 +7,11 @@ the function reads its own arguments with ``p.parse_expr_paren()`` (the expressi
 
 from __future__ import annotations
 
+import datetime
 import math
 
 from ._convert import as_float, as_int, as_vector, check_string_length, fmt_number, type_name
+from ._lexer import EOF, OP
 from ._values import ArrayValue, ObjRec, RandStream, Vec
 
 MAX_FORMAT_WIDTH = 1000  # str()/vstr() width and decimal places: beyond it only padding grows
@@ -37,6 +39,8 @@ def constant(p, name: str):
         return float(p.version)
     if name == "input_file_name":
         return p.input_file_name
+    if name == "now":
+        return _now()
     return None
 
 
@@ -245,6 +249,59 @@ def _inside(p, tok):
     return float(_tracer(p).inside(obj, pt))
 
 
+def _sum_or_prod(p, tok):
+    """``sum(I, B, N, A)`` / ``prod(I, B, N, A)`` in a function body: A evaluated for I = B, B + 1,
+    … up to N, added or multiplied (1 term per whole step, N included, as POV-Ray)."""
+    if not p.in_function():
+        raise p.error(f"{tok.value}() can only be used in a function body", tok.loc)
+    p.expect_op("(", f"'(' after {tok.value}")
+    name = p.raw_ident(f"an index name in {tok.value}()").value
+    p.expect_op(",", f"',' after the index name in {tok.value}()")
+    lo = as_float(p, p.parse_expr_paren(), tok.loc)
+    p.expect_op(",", f"',' after the first index in {tok.value}()")
+    hi = as_float(p, p.parse_expr_paren(), tok.loc)
+    p.expect_op(",", f"',' after the last index in {tok.value}()")
+    term, depth = [], 0
+    while True:  # the term's tokens, evaluated again for every index
+        t = p.next()
+        if t.kind == EOF:
+            raise p.error(f"expected ')' to close {tok.value}(, found the end of the function", tok.loc)
+        if t.kind == OP and t.value in "()":
+            if t.value == ")" and depth == 0:
+                break
+            depth += 1 if t.value == "(" else -1
+        term.append(t)
+    term.append(t)  # the closing ')' ends the term
+    total, i = (0.0 if tok.value == "sum" else 1.0), lo
+    while i <= hi:
+        v = as_float(p, p.evaluate_tokens(term, {name: i}, tok.loc), tok.loc)
+        total = total + v if tok.value == "sum" else total * v
+        i += 1.0
+    return total
+
+
+def _now() -> float:
+    """Days since 2000-01-01 00:00 UTC (POV-Ray's ``now``)."""
+    return (datetime.datetime.now(datetime.timezone.utc) - _EPOCH).total_seconds() / 86400.0
+
+
+_EPOCH = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
+
+
+def _datetime(p, tok):
+    """``datetime(DAYS [, FORMAT])``: the time DAYS after 2000-01-01 00:00 UTC as strftime text,
+    by default ``%Y-%m-%d %H:%M:%SZ`` (POV-Ray's)."""
+    args = _args(p, tok, 1, 2)
+    days = as_float(p, args[0], tok.loc)
+    fmt = _str_arg(p, tok, args[1]) if len(args) > 1 else "%Y-%m-%d %H:%M:%SZ"
+    try:
+        when = _EPOCH + datetime.timedelta(days=days)
+    except OverflowError:
+        raise p.error(f"expected a date in datetime(), found {fmt_number(days)} days after 2000-01-01",
+                      tok.loc) from None
+    return when.strftime(fmt)
+
+
 def _seed(p, tok):
     (a,) = _floats(p, tok, 1)
     return RandStream(int(a) & 0xFFFFFFFF)
@@ -392,10 +449,6 @@ def _bitwise(fn):
     return call
 
 
-def _now(p, tok):
-    return 0.0
-
-
 BUILTIN_FUNCTIONS = {
     "abs": _f1(abs), "acos": _f1(math.acos), "acosh": _f1(math.acosh), "asin": _f1(math.asin),
     "asinh": _f1(math.asinh), "atan": _f1(math.atan), "atanh": _f1(math.atanh),
@@ -414,4 +467,5 @@ BUILTIN_FUNCTIONS = {
     "defined": _defined, "dimensions": _dimensions, "dimension_size": _dimension_size,
     "bitwise_and": _bitwise(lambda a, b: a & b), "bitwise_or": _bitwise(lambda a, b: a | b),
     "bitwise_xor": _bitwise(lambda a, b: a ^ b),
+    "sum": _sum_or_prod, "prod": _sum_or_prod, "datetime": _datetime,
 }

@@ -240,14 +240,23 @@ class Interpreter(Stream, Directives):
         if len(args) != len(f.params):
             raise self.error(f"expected {len(f.params)} arguments to the function, found {len(args)}",
                              t.loc)
+        return self.evaluate_tokens(f.tokens, dict(zip(f.params, args, strict=True)), t.loc)
+
+    def in_function(self) -> bool:
+        """Whether a function body is being evaluated (``sum``/``prod`` exist only there)."""
+        return any(f.kind == "func" for f in self.frames)
+
+    def evaluate_tokens(self, tokens: list, scope: dict, call_loc):
+        """The expression ``tokens[:-1]`` (the last token ends it) with the names of ``scope``
+        bound: a function's body for one call, or ``sum``/``prod``'s term for one index."""
         if self.macro_depth >= self.limits.max_macro_depth:
             raise self.error(f"function calls nested deeper than {self.limits.max_macro_depth}",
-                             t.loc)
+                             call_loc)
         saved_la, saved_raw = self.la, self.la_raw
         self.la, self.la_raw = None, False
-        self.scopes.append(dict(zip(f.params, args, strict=True)))
+        self.scopes.append(scope)
         self.macro_depth += 1
-        self.frames.append(Frame(f.tokens, 0, len(f.tokens) - 1, "func", True, call_loc=t.loc))
+        self.frames.append(Frame(tokens, 0, len(tokens) - 1, "func", True, call_loc=call_loc))
         saved_gt, self.in_parens = self.in_parens, True
         try:
             v = parse_expr(self)

@@ -332,12 +332,16 @@ class _ShapeArgs:
         t = p.raw_peek(0) if p.la is not None else None
         return t is not None and t.kind == "num"
 
-    def texture(self) -> None:
+    def texture(self, identifier: str | None = None) -> None:
+        """A part's ``texture { … }`` or texture identifier; only an identifier where ``identifier``
+        names the list it is read in (``texture_list``)."""
         p, rec = self._p, self._rec
         loc = p.peek().loc
         tex = p.lookup(p.peek().value) if p.peek().kind == ID and not p.is_op("{") else None
         if isinstance(tex, TextureRec):
             p.next()
+        elif identifier is not None:
+            raise p.error(f"expected a texture identifier in {identifier}, found {p.peek().describe()}", loc)
         else:
             tex = parse_texture(p, p.default_layer)
         if not rec.flags.get("_part_texture_seen"):

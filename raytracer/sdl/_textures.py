@@ -214,14 +214,14 @@ def _map_ft(cmap) -> bool:
 
 
 def _starts_value(p) -> bool:
-    from ._builtins import _CONSTANTS, BUILTIN_FUNCTIONS
+    from ._builtins import _CONSTANTS, _VECTORS, BUILTIN_FUNCTIONS
 
     t = p.peek()
     if t.kind == NUM or (t.kind == OP and t.value in ("-", "+", "(", "<", "!")):
         return True
     if t.kind != ID:
         return False
-    if t.value in _CONSTANTS or t.value in BUILTIN_FUNCTIONS:
+    if t.value in _CONSTANTS or t.value in _VECTORS or t.value in BUILTIN_FUNCTIONS:
         return p.find(t.value)[0] is None or isinstance(p.lookup(t.value), (float, Vec))
     return isinstance(p.lookup(t.value), (float, Vec))
 

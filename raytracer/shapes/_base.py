@@ -116,9 +116,10 @@ class ShapeArgs(Protocol):
     def number_after_comma(self) -> bool:
         """Whether a comma follows and then a literal number (optional trailing indices)."""
 
-    def texture(self) -> None:
+    def texture(self, identifier: str | None = None) -> None:
         """Reads ``{…}`` of a ``texture`` (or a texture identifier) for the object being built;
-        the first one given is used for the whole object (per-part textures are not rendered)."""
+        the first one given is used for the whole object (per-part textures are not rendered).
+        With ``identifier`` (the list being read, ``texture_list``) only an identifier is accepted."""
 
     def skip_block(self) -> None:
         """Skips a ``{…}`` block."""

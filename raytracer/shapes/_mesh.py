@@ -104,6 +104,11 @@ def _parse_mesh(args) -> dict:
         while not args.accept("}"):
             if args.keyword("texture") is not None:
                 args.texture()
+            elif args.keyword("texture_list") is not None:  # a texture per vertex, interpolated
+                args.expect("{", "'{' after texture_list")
+                for _ in range(3):
+                    args.texture(identifier="texture_list")
+                args.expect("}", "'}' to close texture_list (three textures)")
             elif args.keyword("uv_vectors") is not None:
                 for i in range(3):
                     if i:

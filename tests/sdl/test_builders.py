@@ -351,3 +351,15 @@ def test_only_modifiers_may_follow_an_object_identifier():
     with pytest.raises(SceneError) as e:  # povray: "No matching } in 'union', sphere found instead"
         load_scene("#declare S = sphere { 0, 1 }\nunion { S sphere { x, 0.5 } }")
     assert e.value.location.line == 2 and e.value.location.col == 11
+
+
+def test_povray_syntax_that_loads_with_a_warning():
+    """Valid POV-Ray 3.7 (it parses each) that we read and do not render yet: a mesh triangle's
+    per-vertex ``texture_list`` (identifiers only, as POV-Ray) and the short form ``slope y``."""
+    text = ("#declare T1 = texture { pigment { rgb 1 } } #declare T2 = texture { pigment { rgb 0 } }\n"
+            "mesh { triangle { <0,0,0>, <1,0,0>, <0,1,0> texture_list { T1 T2 T1 } } }\n"
+            "sphere { 0, 1 pigment { slope y } }")
+    s = load_scene(text)
+    assert [w.feature for w in s.warnings] == ["mesh texture", "slope"]
+    with pytest.raises(SceneError, match="expected a texture identifier in texture_list, found 'texture'"):
+        load_scene("mesh { triangle { 0, x, y texture_list { texture { pigment { rgb 1 } } } } }")
