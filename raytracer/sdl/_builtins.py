@@ -282,10 +282,10 @@ def _sum_or_prod(p, tok):
 
 def _now() -> float:
     """Days since 2000-01-01 00:00 UTC (POV-Ray's ``now``)."""
-    return (datetime.datetime.now(datetime.timezone.utc) - _EPOCH).total_seconds() / 86400.0
+    return (datetime.datetime.now(datetime.UTC) - _EPOCH).total_seconds() / 86400.0
 
 
-_EPOCH = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
+_EPOCH = datetime.datetime(2000, 1, 1, tzinfo=datetime.UTC)
 
 
 def _datetime(p, tok):

@@ -41,6 +41,7 @@ from ._textures import (
     parse_transform_item,
     skip_braces,
     vector3,
+    warn_noise_generator,
 )
 from ._values import CameraRec, FogRec, LayerRec, LightRec, ObjRec, SkyRec, TextureRec, Vec
 
@@ -54,6 +55,14 @@ UNSUPPORTED_OBJECTS = tuple(kw for kw in POV_OBJECTS if kw not in SDL_KEYWORDS)
 OBJECT_KEYWORDS = PRIMITIVES + CSG_KEYWORDS + UNSUPPORTED_OBJECTS + ("object", "light_source",
                                                                      "light_group")
 FLAGS = ("no_shadow", "no_image", "no_reflection", "double_illuminate")
+
+
+# object flags that change an image and that we read without rendering (the others change
+# nothing we render: hollow, sturm, split_union, no_radiosity …)
+_IGNORED_FLAG_WARNINGS = {
+    "uv_mapping": "uv_mapping is not rendered; the textures use the object's x, y, z coordinates",
+    "cutaway_textures": "cutaway_textures is not rendered; every surface keeps its own texture",
+}
 
 
 def is_object_start(p, t) -> bool:
@@ -202,8 +211,9 @@ def _modifier(p, rec: ObjRec, t) -> None:
     elif kw in ("hollow", "sturm", "smooth", "split_union", "global_lights", "cutaway_textures",
                 "no_radiosity",
                 "uv_mapping", "hierarchy"):
-        if _starts_value(p):
-            float_(p)
+        on = float_(p) != 0 if _starts_value(p) else True
+        if on and kw in _IGNORED_FLAG_WARNINGS:
+            p.warn(kw, _IGNORED_FLAG_WARNINGS[kw], t.loc)
     elif kw == "clipped_by":
         _clipped_by(p, rec)
     elif kw == "bounded_by":
@@ -555,6 +565,8 @@ def parse_global_settings(p, t) -> None:
                 parse_color(p)
             elif kw == "charset":
                 p.next()
+            elif kw == "noise_generator":
+                warn_noise_generator(p, float_(p), k.loc)
             elif _starts_value(p):
                 float_(p)
         elif kw in ("radiosity", "photons", "subsurface"):

@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import patterns
 from ..scene._transform import pov_matrix, rotation_matrix, scale_matrix, translation_matrix
+from ._convert import fmt_number
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
 from ._lexer import ID, NUM, OP
 from ._values import InteriorRec, LayerRec, MaterialRec, PigRec, TextureRec, TransformRec, Vec
@@ -290,12 +291,22 @@ def _skip_args(p):
             return
 
 
+def warn_noise_generator(p, generator: float, loc) -> None:
+    """Our noise has the statistics of POV-Ray's generator 2 (its default); 1 and 3 differ."""
+    if generator != 2:
+        p.warn("noise_generator", f"noise_generator {fmt_number(generator)} is not simulated; the noise has "
+               "the statistics of generator 2", loc)
+
+
 def _ignored_modifier(p, kw, pig, loc):
-    if kw not in ("quick_color", "quick_colour", "noise_generator", "uv_mapping", "once",
+    if kw not in ("quick_color", "quick_colour", "noise_generator", "once",
                   "interpolate", "map_type", "use_color", "use_colour", "use_index", "accuracy"):
         p.warn(kw, f"pattern modifier '{kw}' is not supported; ignored", loc)
     if kw in ("quick_color", "quick_colour"):
         parse_color(p)
+        return pig
+    if kw == "noise_generator":
+        warn_noise_generator(p, float_(p), loc)
         return pig
     _skip_args(p)
     return pig
@@ -562,7 +573,10 @@ def texture_item(p, t, layers, default):
         return [layer.transformed(m) for layer in layers]
     if kw in TEXTURE_PATTERNS:
         return _patterned_texture(p, t, layers, default)
-    if kw in ("uv_mapping", "interior_texture"):
+    if kw == "uv_mapping":
+        p.warn(kw, "uv_mapping is not rendered; the texture uses the object's x, y, z coordinates", t.loc)
+        return layers
+    if kw == "interior_texture":
         return layers
     if kw in ("quick_color", "quick_colour"):
         parse_color(p)

@@ -363,3 +363,16 @@ def test_povray_syntax_that_loads_with_a_warning():
     assert [w.feature for w in s.warnings] == ["mesh texture", "slope"]
     with pytest.raises(SceneError, match="expected a texture identifier in texture_list, found 'texture'"):
         load_scene("mesh { triangle { 0, x, y texture_list { texture { pigment { rgb 1 } } } } }")
+
+
+def test_modifiers_that_change_the_image_are_warned_where_they_are_ignored():
+    """``uv_mapping`` (object, texture, pigment), ``cutaway_textures`` and a ``noise_generator``
+    other than POV-Ray's default 2 change POV-Ray's image; we read them, say so at their place."""
+    s = load_scene("global_settings { noise_generator 1 } global_settings { noise_generator 2 }\n"
+                   "sphere { 0, 1 pigment { bozo noise_generator 3 uv_mapping } uv_mapping }\n"
+                   "sphere { 0, 1 texture { uv_mapping pigment { rgb 1 } } }\n"
+                   "difference { sphere { 0, 1 } box { 0, 1 } cutaway_textures }\n"
+                   "sphere { 0, 1 hollow sturm uv_mapping off }")
+    assert [(w.feature, w.location.line) for w in s.warnings] == [
+        ("noise_generator", 1), ("noise_generator", 2), ("uv_mapping", 2), ("uv_mapping", 2),
+        ("uv_mapping", 3), ("cutaway_textures", 4)]

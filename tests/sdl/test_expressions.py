@@ -132,7 +132,8 @@ def test_sum_and_prod_in_a_function_body_run_their_index_over_whole_steps():
     # POV-Ray 3.7 prints 12 and 24 for these two (#debug), and refuses sum() outside a function
     assert value("#declare F = function(x) { sum(i, 0, 3, x*i) } #declare R = F(2);") == 12.0
     assert value("#declare F = function(x) { prod(i, 1, 4, x + i) } #declare R = F(0);") == 24.0
-    nested = "#declare F = function { sum(j, 1, 3, prod(k, 1, j, k)) + sum(i, 2, 1, 9) } #declare R = F(0, 0, 0);"
+    nested = ("#declare F = function { sum(j, 1, 3, prod(k, 1, j, k)) + sum(i, 2, 1, 9) }"
+              "#declare R = F(0, 0, 0);")
     assert value(nested) == 1.0 + 2.0 + 6.0  # 1! + 2! + 3!; an empty range adds nothing
     with pytest.raises(SceneError, match=r"t.pov:1:14: sum\(\) can only be used in a function body"):
         value("#declare R = sum(i, 1, 4, i);")
