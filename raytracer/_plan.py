@@ -144,9 +144,10 @@ class Prim:
 
     @property
     def fades(self) -> bool:
-        """Its interior attenuates light over distance (``fade_distance`` and ``fade_power``)."""
+        """Its interior attenuates light over distance (``fade_distance``; ``fade_power`` defaults to 0,
+        which fades transmitted rays by half, semantics §2.7)."""
         it = self.interior
-        return it is not None and it.fade_distance is not None and it.fade_power is not None
+        return it is not None and it.fade_distance is not None
 
     def world_from_object(self) -> Transform | None:
         return compose(*self.transforms)
@@ -483,8 +484,7 @@ def make_plan(scene: Scene) -> Plan:
         **light_effects(lights),  # fade, spotlights, area_lights, parallel_lights: from LIGHT_TYPES
         patterns=tuple(sorted({pig.pattern for pig in [*pigments, *sky]})),
         csg=any(p.conditions for p in prims),
-        interior_fade=transmission and any(p.interior is not None and p.interior.fade_distance is not None
-                                           and p.interior.fade_power is not None for p in rendered),
+        interior_fade=transmission and any(p.fades for p in rendered),
         straight_passes=straight_passes,
         depth=depth,
         # a fog needs to know which rays are inside objects (those have none)

@@ -101,6 +101,35 @@ def test_a_fading_interior_attenuates_shadows_by_its_chord():
         np.testing.assert_allclose(got, 0.1 + S * attenuation(0.8), rtol=1e-4)
 
 
+FADE_POWERS = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <0, 1.5, -6> look_at <0, 0.4, 0> right x*image_width/image_height angle 45 }
+light_source { <3, 8, -4> color rgb 1 }
+plane { y, -1 pigment { rgb 1 } finish { ambient 0.1 diffuse 0.8 } }
+plane { z, 4 pigment { rgb <0.9, 0.8, 0.7> } finish { ambient 1 diffuse 0 } }
+#declare Glass = texture { pigment { rgbf <1, 0.9, 0.8, 0.8> } finish { ambient 0 diffuse 0.1 } }
+sphere { <-1.6, 0, 0>, 0.7 texture { Glass }
+         interior { ior 1.2 fade_distance 0.5 fade_power 0 fade_color <0.5, 0.2, 0> } }
+sphere { 0, 0.7 texture { Glass } interior { ior 1.2 fade_distance 2 } }
+sphere { <1.6, 0, 0>, 0.7 texture { Glass }
+         interior { ior 1.2 fade_distance 0.8 fade_power -1 fade_color <0, 0.3, 0.6> } }
+"""
+
+
+@pytest.mark.povray
+def test_a_fade_power_of_zero_or_below_fades_what_passes_through_but_not_shadows():
+    """POV-Ray 3.7 (measured on slabs, semantics §2.7): ``fade_power 0``, its default, fades a
+    transmitted ray to ``(1 + fc)/2`` at any depth, a negative power by the same formula; a shadow
+    ray through such an interior is not faded. ``interior/atten1.pov`` writes ``fade_power 0``."""
+    from validation.metrics import psnr
+    from validation.povray import render_povray
+
+    scene = rt.load_scene(FADE_POWERS)
+    assert rt.plan(scene).effects.interior_fade
+    ours = np.asarray(rt.render(scene, width=80, height=60))
+    assert psnr(ours, render_povray(FADE_POWERS, 80, 60)) >= 40.0
+
+
 def test_interior_fade_gradients_are_finite_in_both_forms():
     from raytracer.shading.lighting import interior_fade
 

@@ -158,8 +158,9 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         fresnel=np.array([f.reflection is not None and f.reflection.fresnel for f in finishes]),
         conserve_energy=np.array([f.conserve_energy for f in finishes]),
         ior=stack([1.0 if it.ior is None else it.ior for it in interiors], dtype),
-        fade_distance=stack([0.0 if it.fade_distance is None or it.fade_power is None
-                             else it.fade_distance for it in interiors], dtype),
+        # a fade_power not written is POV-Ray's default 0 (which fades transmitted rays, §2.7)
+        fade_distance=stack([0.0 if it.fade_distance is None else it.fade_distance for it in interiors],
+                            dtype),
         fade_power=stack([0.0 if it.fade_power is None else it.fade_power for it in interiors], dtype),
         fade_color=stack([it.fade_color for it in interiors], dtype),
         transparent=np.array([p.transparent for p in plan.prims]),

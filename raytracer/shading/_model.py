@@ -421,7 +421,7 @@ def _shadow_fade(ctx: TraceContext, l, cand, crossed):
     exiting = ok & (jnp.einsum("ri,i->r", n, l) * sign > 0)
     att = lighting.interior_fade(jnp.where(exiting, tc - prev, 0.0)[:, None],
                                  m.fade_distance[prims][:, None], m.fade_power[prims][:, None],
-                                 m.fade_color[prims], on=exiting[:, None])
+                                 m.fade_color[prims], on=exiting[:, None], shadow_ray=True)
     return jnp.prod(att, axis=0)
 
 

@@ -23,11 +23,16 @@ def fade(dist, fade_distance, fade_power):
     return jnp.where(on, 2.0 / (1.0 + safe_pow(jnp.abs(ratio), jnp.where(on, fade_power, 1.0))), 1.0)
 
 
-def interior_fade(depth, fade_distance, fade_power, fade_color, on=True):
+def interior_fade(depth, fade_distance, fade_power, fade_color, on=True, *, shadow_ray=False):
     """Attenuation after ``depth`` inside an object (semantics §2.7): ``fc + (1 - fc)/(1 + (d/fd)^fp)``, or
-    ``exp(-(1 - fc)·d/fd)`` when ``fade_power >= 1000``; 1 where ``on`` is False or fading is off
-    (``fade_distance`` or ``fade_power`` 0). Used by transmitted rays and by shadow rays alike."""
-    on = on & (fade_distance != 0) & (fade_power > 0)
+    ``exp(-(1 - fc)·d/fd)`` when ``fade_power >= 1000``; 1 where ``on`` is False or ``fade_distance`` is 0.
+
+    As POV-Ray 3.7 renders it (measured): a transmitted ray fades for every ``fade_power``, 0 (its
+    default: ``(1 + fc)/2`` at any depth) and negative ones included; a shadow ray (``shadow_ray``,
+    static) only where ``fade_power > 0``."""
+    on = on & (fade_distance != 0)
+    if shadow_ray:
+        on = on & (fade_power > 0)
     fd = jnp.where(on, fade_distance, 1.0)
     ratio = jnp.where(on, depth / fd, 0.0)
     exponential = fade_power >= 1000
