@@ -143,6 +143,13 @@ class Prim:
         return known
 
     @property
+    def discrete(self) -> bool:
+        """Some layer's pigment is a discrete pattern (checker, brick, hexagon …): a face at an
+        exact coordinate decides its colour, so its hit points are computed at the surface
+        (``shading._geometry.closest_hit``'s ``refine``)."""
+        return any(patterns.REGISTRY[layer.pigment.pattern].discrete for layer in self.texture.layers)
+
+    @property
     def fades(self) -> bool:
         """Its interior attenuates light over distance (``fade_distance``; ``fade_power`` defaults to 0,
         which fades transmitted rays by half, semantics §2.7)."""

@@ -69,9 +69,12 @@ SDL_KEYWORDS: frozenset[str] = frozenset(n for n, r in REGISTRY.items() if r.key
 MODIFIERS: frozenset[str] = frozenset(k for r in REGISTRY.values() for k in r.modifiers)
 """Pattern-specific SDL keywords (``brick_size``, ``mortar``, ``agate_turb`` …)."""
 
+FACE_NUDGE = 1e-10
+"""POV-Ray's: what a discrete pattern adds to a coordinate so that a face belongs to the cell above."""
 
-def pattern_value(name: str, p, vector, turbulence, octaves: int = 6, omega=0.5, lambda_=2.0,
-                  **modifiers):
+
+def pattern_value(name: str, p, vector, turbulence, octaves: int = 6, omega=0.5, lambda_=2.0, *,
+                  face_nudge=None, **modifiers):
     """Raw value of pattern ``name`` at one pattern-space point, before frequency/phase/wave/map.
 
     Args:
@@ -81,6 +84,8 @@ def pattern_value(name: str, p, vector, turbulence, octaves: int = 6, omega=0.5,
         turbulence: (3,) turbulence amount, or None (static) for none. A warp ``p += DTurbulence(p)⊙T``
                     for ordinary patterns; used by the pattern itself for marble, wood and agate.
         octaves, omega, lambda_: turbulence parameters (octaves static).
+        face_nudge: a discrete pattern's nudge towards the cell above a face
+                    (``PatternInputs.face_nudge``); None: POV-Ray's ``FACE_NUDGE``.
         **modifiers: the pattern's own keywords (``Pattern.modifiers``: brick's ``brick_size`` and
                     ``mortar``, agate's ``agate_turb``); POV-Ray's defaults where not given.
 
@@ -98,5 +103,6 @@ def pattern_value(name: str, p, vector, turbulence, octaves: int = 6, omega=0.5,
     p = jnp.asarray(p)
     if turbulence is not None and record.turbulence == "warp":
         p = p + dturbulence(p, octaves, omega, lambda_) * jnp.asarray(turbulence, p.dtype)
-    inputs = PatternInputs(vector, turbulence, octaves, omega, lambda_)
+    inputs = PatternInputs(vector, turbulence, octaves, omega, lambda_,
+                           FACE_NUDGE if face_nudge is None else face_nudge)
     return record.evaluate(p, inputs, **{**record.modifiers, **modifiers})

@@ -21,6 +21,9 @@ class PatternInputs(NamedTuple):
         turbulence: (3,) amount, or None (static) for none.
         octaves:    static number of turbulence octaves.
         omega, lambda_: turbulence amplitude and frequency ratios between octaves.
+        face_nudge: what a discrete pattern adds to each coordinate so that a face at an integer
+                    coordinate belongs to the cell above it: POV-Ray's 1e-10 (``FACE_NUDGE``) unless
+                    the caller knows its point to be rounded more (float32 points in a rotated space).
     """
 
     vector: Float[Array, "3"]
@@ -28,6 +31,7 @@ class PatternInputs(NamedTuple):
     octaves: int
     omega: Float[Array, ""]
     lambda_: Float[Array, ""]
+    face_nudge: Float[Array, ""] | float = 1e-10
 
 
 Evaluator = Callable[..., Float[Array, ""]]

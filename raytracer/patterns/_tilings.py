@@ -11,23 +11,19 @@ import jax.numpy as jnp
 from ._common import frac
 from ._record import BLUE, GREEN, RED, WHITE, Pattern
 
-_CHECKER_OFFSET = 1e-10  # POV nudges each coordinate so that integer faces fall into the upper cell
 _SQRT3 = math.sqrt(3.0)
 
 
-def _face_offset(p):
-    """POV's 1e-10 in float64; 32 ulps of the coordinate's magnitude (at least 1e-6) in float32."""
-    if p.dtype == jnp.float64:
-        return _CHECKER_OFFSET
-    return jnp.maximum(1e-6, 32 * jnp.finfo(p.dtype).eps * jnp.abs(p))
-
-
 def checker(p, inputs):
-    """0 = first colour, 1 = second colour: the parity of the cell's integer coordinates."""
-    # POV's 1e-10 nudge assumes float64 hit points; a float32 hit on the face y = -1 lands ±1e-7 off
-    # it, so the nudge scales with the dtype's precision (a face at an integer coordinate must fall
-    # into one cell, not flicker between two).
-    k = jnp.sum(jnp.floor(p + _face_offset(p)))
+    """0 = first colour, 1 = second colour: the parity of the cell's integer coordinates.
+
+    POV-Ray adds 1e-10 to each coordinate, so that a face at an integer coordinate belongs to the
+    cell above it (``inputs.face_nudge``). So do we in float32 where the pattern space keeps the
+    surface's point exact (float32 points of discrete patterns are computed at the surface,
+    ``shading._geometry.closest_hit``'s refine): any nudge of an ulp or more would move the points of
+    a surface that only approaches a face (the top of a radius-1e6 ground sphere resting on y = -1,
+    x²/2e6 below it) into the wrong cell. Elsewhere the shader nudges by a few ulps."""
+    k = jnp.sum(jnp.floor(p + inputs.face_nudge))
     return k - 2.0 * jnp.floor(0.5 * k)
 
 

@@ -17,6 +17,7 @@ from .._packing import (
     as_dtype,
     bucket,
     inverse_affines,
+    is_traced,
     pad_rows,
     register_packed,
     stack,
@@ -69,8 +70,11 @@ class PackedMaterials:
     fade_power: jax.Array
     fade_color: jax.Array  # (N, 3)
     transparent: np.ndarray  # (N,) static: every layer's pigment can carry filter/transmit
+    # (N,) bool: the row's pattern space keeps a point exact (``_exact_spaces``); moved to ``tables``
+    # when padded (a value of the scene, not of the program's structure), then None
+    exact_space: np.ndarray | None = None
     # the static tables above as arrays (a traced row's lookups): layer_present, pattern_id, waves,
-    # fresnel, conserve_energy, transparent
+    # fresnel, conserve_energy, transparent; and exact_space
     tables: dict[str, jax.Array] = dataclasses.field(default_factory=dict)
 
 
@@ -164,8 +168,21 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         fade_power=stack([0.0 if it.fade_power is None else it.fade_power for it in interiors], dtype),
         fade_color=stack([it.fade_color for it in interiors], dtype),
         transparent=np.array([p.transparent for p in plan.prims]),
+        exact_space=_exact_spaces(world_from_pattern),
     )
     return _padded_to_bucket(mats, len(plan.prims))
+
+
+def _exact_spaces(world_from_pattern) -> np.ndarray:
+    """(N,) bool: the row's pattern space is its world point times powers of two, plus an offset:
+    a point exact in world is exact there too (no rotation, no other scale). Traced: all False."""
+    if is_traced(world_from_pattern):
+        return np.zeros(world_from_pattern.shape[0], bool)
+    a = np.asarray(world_from_pattern)[:, :3, :3]
+    diagonal = np.einsum("nii->ni", a)
+    mantissa, _ = np.frexp(diagonal)
+    off = a - np.einsum("ni,ij->nij", diagonal, np.eye(3))
+    return np.all(off == 0, axis=(1, 2)) & np.all(np.abs(mantissa) == 0.5, axis=1)
 
 
 @dataclasses.dataclass
@@ -205,7 +222,7 @@ def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
         mats,
         **{k: pad_rows(getattr(mats, k), rows) for k in _ROW_ARRAYS},
         **{k: pad_rows(getattr(mats, k), n) for k in _PRIM_ARRAYS},
-        finish={k: pad_rows(v, rows) for k, v in mats.finish.items()})
+        finish={k: pad_rows(v, rows) for k, v in mats.finish.items()}, exact_space=None)
     out.tables = {
         "layer_present": pad_rows(mats.layer_present, n, False),
         "pattern_id": pad_rows(mats.pattern_id, rows),
@@ -213,6 +230,7 @@ def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
         "fresnel": pad_rows(mats.fresnel, rows, False),
         "conserve_energy": pad_rows(mats.conserve_energy, rows, False),
         "transparent": pad_rows(mats.transparent, n, False),
+        "exact_space": pad_rows(mats.exact_space, rows, False),
     }
     return out
 
@@ -269,13 +287,24 @@ def _pattern_point(mats: PackedMaterials, row, p):
     return matvec(m[:3, :3], p) + m[:3, 3]
 
 
+# float32 pattern-space points of a rotated or scaled space are exact to a few ulps of their size:
+# a face the surface lies on (a rotated box's own faces) must not flicker between two cells
+_FACE_ULPS = 4
+
+
 def _raw_value(mats: PackedMaterials, k: int, row, q):
     """The raw value of the scene's pattern ``k`` (static) with row ``row``'s parameters at
     pattern-space point ``q``."""
     name = mats.pattern_names[k]
     turb = mats.turbulence[row] if mats.turbulent[k] else None
+    face_nudge = None
+    if patterns.REGISTRY[name].discrete and q.dtype == jnp.float32:
+        # POV-Ray's 1e-10 where the row's space keeps exact points exact (its hit points are
+        # computed at the surface: _geometry.closest_hit's refine), else a few ulps of the point
+        loose = _FACE_ULPS * jnp.finfo(q.dtype).eps * jnp.maximum(jnp.max(jnp.abs(q)), 1.0)
+        face_nudge = jnp.where(jnp.asarray(mats.tables["exact_space"])[row], patterns.FACE_NUDGE, loose)
     return patterns.pattern_value(name, q, mats.vector[row], turb, mats.octaves[name], mats.omega[row],
-                                  mats.lambda_[row])
+                                  mats.lambda_[row], face_nudge=face_nudge)
 
 
 def _pigment_of_value(mats: PackedMaterials, prim, v):

@@ -48,6 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import patterns
 from .._plan import Effects, InPrim, Plan, leaf_prims
 from ..kernels import matvec, safe_pow
 from ..scene import Light, Settings
@@ -803,8 +804,12 @@ def _surface(ctx: TraceContext, ray: Rays) -> _Surface:
     vis = jnp.where(ray.reflection, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
     scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
     want = jnp.where(ray.reflection, _accel.MASK_REFLECT, _accel.MASK_CAMERA)
-    hit = closest_hit(ctx.geo, ctx.plan, o, d, scale, vis, want)
-    p = o + hit.t * d
+    # float32 points of discrete patterns are computed at the surface (closest_hit's refine): in
+    # float64, o + t d is exact enough for POV-Ray's own 1e-10 face nudge
+    refine = o.dtype == jnp.float32 and any(patterns.REGISTRY[name].discrete
+                                            for name in ctx.plan.effects.patterns)
+    hit = closest_hit(ctx.geo, ctx.plan, o, d, scale, vis, want, refine=refine)
+    p = o + hit.t * d if hit.point is None else hit.point
     entering = jnp.dot(hit.normal, d) < 0
     n = jnp.where(entering, hit.normal, -hit.normal)  # faces the incoming ray
     offset = ctx.eps * (1.0 + jnp.max(jnp.abs(p)))
