@@ -459,35 +459,24 @@ def _kernel_hits(kernel, arrays, o, d, sub):
     return arrays.sub_hits(o, d, sub) if kernel is None else kernel(arrays, o, d)
 
 
-def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array,
-            refine: bool = False):
+def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array):
     """The closest item hit beyond ``t_min`` by rays whose visibility bit is ``want``, computed
-    again by its primitive's kernel: ``(found, t, prim, unit world normal, point)`` (``inverse`` not
+    again by its primitive's kernel: ``(found, t, prim, unit world normal)`` (``inverse`` not
     applied); ``t`` is +inf where nothing is found. A member of a CSG object answers with its
-    crossing nearest the one the query counted (its others may lie where the object is not).
-
-    ``point`` is None, or with ``refine`` the hit point: the kernel then runs from the query's
-    crossing ``o + t_q d`` (``t_q`` without gradient) instead of from ``o``, so the point is exact to
-    the kernel's precision at the surface, not at the ray's start (``_geometry.closest_hit``)."""
+    crossing nearest the one the query counted (its others may lie where the object is not)."""
     sg = jax.lax.stop_gradient
     want = jnp.asarray(want, jnp.int32)
     item, t_chosen = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
     chosen = jnp.maximum(item, 0)
-    # the query's t where it found one, else a finite stand-in: no inf in the gradient's path
-    t_query = jnp.where(jnp.isfinite(t_chosen), t_chosen, 0).astype(o.dtype)
-    start = t_query if refine else jnp.zeros((), o.dtype)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
-    best_rest = jnp.zeros((), o.dtype)
     for kernel, alike in _alike(accel, shapes, range(len(accel.groups))):
         mine, csg, arrays, m, sub = _chosen_members(accel, alike, shapes, object_from_world, item)
         o_obj, d_obj = matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d)  # the same t
-        if refine:
-            o_obj = o_obj + start * d_obj
-        # a shape that refines the query's crossing instead of finding all of its own again
+        # a shape that refines the query's crossing instead of finding all of its own again (the
+        # query's t where it found one, else a finite stand-in: no inf in the gradient's path)
         near = None if kernel is not None else arrays.near_hit(
-            o_obj, d_obj, jnp.where(mine, t_query - start, 0).astype(o.dtype))
-        rest, n = _kernel_hits(kernel, arrays, o_obj, d_obj, sub) if near is None else near
-        t = start + rest
+            o_obj, d_obj, jnp.where(mine & jnp.isfinite(t_chosen), t_chosen, 0).astype(o.dtype))
+        t, n = _kernel_hits(kernel, arrays, o_obj, d_obj, sub) if near is None else near
         ok = mine & (t > t_min) & jnp.isfinite(t) & (t < T_MAX)
         tt = jnp.where(ok, t, jnp.inf)
         c = jnp.argmin(tt)
@@ -496,9 +485,7 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
         closer = tt[c] < best_t
         best_t = jnp.where(closer, tt[c], best_t)
         best_n = jnp.where(closer, world_normal(n[c], m), best_n)
-        best_rest = jnp.where(closer, jnp.where(ok[c], rest[c], 0.0), best_rest)
-    point = (o + start * d) + best_rest * d if refine else None
-    return jnp.isfinite(best_t), best_t, accel.item_prim[chosen], best_n, point
+    return jnp.isfinite(best_t), best_t, accel.item_prim[chosen], best_n
 
 
 def blocked(accel: Accel, o, d, t_min, t_max):

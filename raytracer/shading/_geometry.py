@@ -864,11 +864,10 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     chosen primitive's kernel from ``o + t d`` along ``d``, its crossing nearest there. ``o + t d``
     itself is only as exact as ``eps · max(|o|, t)``: a float32 camera 500 units from a checker
     plane rounds the point 3e-5 off the plane, past a face the pattern must decide on; from a start
-    on the surface the kernel's point is exact to ``eps · |p|``. The hierarchy's items are refined
-    at no cost (their kernel runs from there instead of from ``o``); a candidate is refined where
-    its primitive has a discrete pattern (``Prim.discrete``), at one more evaluation of its kernel.
-    Values and derivatives are those of ``o + t d`` (the start's ``t`` is held fixed: the kernel's
-    crossing from there is the same function of the scene)."""
+    on the surface the kernel's point is exact to ``eps · |p|``. A primitive is refined where it
+    has a discrete pattern (``Prim.discrete``), at one more evaluation of its kernel per group that
+    has one. Values and derivatives are those of ``o + t d`` (the start's ``t`` is held fixed: the
+    kernel's crossing from there is the same function of the scene)."""
     ts, ns, prims = [], [], []
     if geo.n_candidates:
         # the object's normals: the closest slot's alone is made a world normal, below
@@ -879,11 +878,9 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
         ts.append(jnp.where(ok, t, jnp.inf))
         ns.append(n)
         prims.append(jnp.asarray(geo.cand_prim))
-    accel_point = None
     if geo.accel is not None:
-        found, t, prim, n, accel_point = _accel.closest(geo.accel, geo.shapes, geo.object_from_world, o,
-                                                        d, t_min, _accel.MASK_CAMERA if want is None else want,
-                                                        refine=refine)
+        found, t, prim, n = _accel.closest(geo.accel, geo.shapes, geo.object_from_world, o, d, t_min,
+                                           _accel.MASK_CAMERA if want is None else want)
         ts.append(jnp.where(found, t, jnp.inf)[None])
         ns.append(n[None])
         prims.append(jnp.asarray(prim, jnp.int32)[None])
@@ -901,21 +898,18 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     found = jnp.isfinite(best_t)
     normal = best_n * jnp.asarray(geo.prim_table["sign"], best_n.dtype)[best_prim]
     best_t = jnp.where(found, best_t, 0.0)
-    point = None
-    if refine:
-        point = _refined_point(geo, plan, o, d, best_t, best_prim)
-        if accel_point is not None:
-            point = accel_point if not geo.n_candidates else jnp.where(c < geo.n_candidates, point,
-                                                                       accel_point)
+    point = _refined_point(geo, plan, o, d, best_t, best_prim) if refine else None
     return Hit(found, best_t, best_prim, normal, point)
 
 
 def _refined_point(geo: PackedGeometry, plan: Plan, o, d, t, prim):
-    """The hit point of a candidate primitive ``prim`` at ``t`` computed again from ``o + t d``
-    (``closest_hit``'s ``refine``) where its group has a discrete pattern; ``o + t d`` elsewhere."""
+    """The hit point of primitive ``prim`` at ``t``, computed again by its kernel from ``o + t d``
+    (``closest_hit``'s ``refine``) where its group has a discrete pattern; ``o + t d`` elsewhere
+    (and for a mesh in the hierarchy, whose kernel would compute all of its triangles)."""
     sg = jax.lax.stop_gradient
+    per_item = {} if geo.accel is None else {ag.group: ag.per_member for ag in geo.accel.groups}
     refined = [g for g, group in enumerate(geo.groups)
-               if not group.accelerated and any(plan.prims[i].discrete for i in group.prims)]
+               if per_item.get(g, 1) == 1 and any(plan.prims[i].discrete for i in group.prims)]
     if not refined:
         return o + t * d
     n_prims = len(plan.prims)
