@@ -85,8 +85,8 @@ def fit(scene_true: rt.Scene, start: dict, target, width: int, height: int, *, m
     def record(loss):
         losses.append(float(loss))
 
-    # a colour's filter and transmit channels are held at their start values: an opaque pigment's
-    # colour is P·(1 − filter − transmit), so fitting them too leaves a valley of equal images
+    # a colour's filter and transmit channels are held at their start values: an opaque pigment
+    # does not use them (zero gradient, docs/gradients.md), and a glass's are not fitted here
     colours = {n: params.get(y0, n) for n in start if n.endswith(".colors")}
 
     def residuals(y, args):

@@ -74,11 +74,9 @@ def demo_scene(width: int = W, height: int = H, *, depth: int = 3) -> rt.Scene:
 
 
 def is_material(name: str) -> bool:
-    # reflection.exponent is left out of the joint direction: c^(1/exponent) is not differentiable
-    # jointly in (c, exponent) at c = 0 (reflection rays that see the black background), so a
-    # direction moving both the exponent and the background colour has FD ≠ JVP there (measured:
-    # 23 % of pixels, 0.19). Alone, the exponent matches FD to 5e-11 (and its closed form below).
-    return not params.moves_edges(name) and not name.endswith("reflection.exponent")
+    # reflection.exponent included: the mirror ray's colour c^(1/exponent) is continuous in
+    # (c, exponent) through c = 0 (odd in c), where reflection rays see the black background
+    return not params.moves_edges(name)
 
 
 def is_ior(name: str) -> bool:
@@ -294,6 +292,33 @@ def test_reflection_exponent_derivative_at_one():
     value, slope = jax.jit(lambda e: jax.jvp(centre, (e,), (jnp.ones_like(e),)))(jnp.float64(1.0))
     np.testing.assert_allclose(value, 0.25, rtol=1e-12)
     np.testing.assert_allclose(slope, -0.25 * math.log(0.5), rtol=1e-9)
+
+
+def test_filter_and_transmit_an_opaque_pigment_does_not_use_have_no_gradient(x64):
+    """A pigment written without filter or transmit is opaque in the program's structure: its
+    colours' filter and transmit channels change nothing (the image does not depend on them), so
+    their gradient is exactly 0, where it was −diffuse·(n·l)·P through the attenuation 1 − f − t
+    while no light passed (a colour fit drifted them negative). Written, even as 0, they are
+    rendered, and their gradient is the closed form's."""
+    cam = rt.Camera(location=(0, 0, -5), look_at=(0, 0, 0))
+    light = rt.Light(position=(0.0, 0.0, -10.0))
+    fin = rt.Finish(ambient=(0.0, 0.0, 0.0), diffuse=0.8)
+
+    def scene(pigment):
+        return rt.Scene(camera=cam, objects=(rt.Object(rt.Sphere((0, 0, 0), 1.0),
+                                                       texture=rt.Texture.of(pigment, fin)),),
+                        lights=(light,), settings=rt.Settings(adc_bailout=0.0))
+
+    def grad_of(pigment):
+        g = jax.grad(lambda s: rt.render(s, width=1, height=1)[0, 0].sum())(scene(pigment))
+        return np.asarray(g.objects[0].texture.layers[0].pigment.colors)[0]
+
+    opaque = grad_of(rt.Pigment.solid((0.8, 0.4, 0.2)))
+    np.testing.assert_allclose(opaque[:3], 0.8, rtol=1e-12)  # d (0.8 · P · n·l) / dP, n·l = 1
+    assert (opaque[3:] == 0).all()
+    # written: the centre pixel is 0.8·P·(1 − f − t) + (f·P + t)·background(0): d/df = d/dt = −0.8·ΣP
+    written = grad_of(rt.Pigment.solid((0.8, 0.4, 0.2), filter=0.0, transmit=0.0))
+    np.testing.assert_allclose(written[3:], -0.8 * 1.4, rtol=1e-12)
 
 
 # --------------------------------------------------------------------------------------------------

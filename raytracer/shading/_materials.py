@@ -150,7 +150,7 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         octaves={nm: max(pg["octaves"] for pg in pg_ if pg["pattern"] == nm) for nm in names},
         waves=np.array([pat_wave_index(pg) for pg in pigments], dtype=np.int32),
         values=_padded([pg["values"] for pg in pg_], m, dtype),
-        colors=_padded([pg["colors"] for pg in pg_], m, dtype),
+        colors=_padded([_structural_colors(pg) for pg in pg_], m, dtype),
         pattern_from_world=inverse_affines(world_from_pattern),
         vector=stack([pg["vector"] for pg in pg_], dtype),
         frequency=stack([pg["frequency"] for pg in pg_], dtype),
@@ -171,6 +171,22 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         exact_space=_exact_spaces(world_from_pattern),
     )
     return _padded_to_bucket(mats, len(plan.prims))
+
+
+def _structural_colors(pg: dict):
+    """A pigment's colours as its structure renders them: an opaque pigment (``transparent`` False:
+    no filter or transmit written) has filter and transmit 0 whatever its array holds, so the image
+    does not depend on them and their gradient is zero (docs/gradients.md)."""
+    c = pg["colors"]
+    if pg["transparent"]:
+        return c
+    if is_traced(c):
+        return jnp.concatenate([c[:, :3], jnp.zeros_like(c[:, 3:])], axis=1)
+    if not np.any(c[:, 3:]):
+        return c
+    c = np.array(c)
+    c[:, 3:] = 0
+    return c
 
 
 def _exact_spaces(world_from_pattern) -> np.ndarray:

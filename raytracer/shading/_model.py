@@ -896,7 +896,10 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
             return tmp, layer_fil, None, None
         reflec_k, w_k = _reflectivity(ctx, row, cos_i, eta_rel, rgb)
         conserve = jnp.asarray(mats.tables["conserve_energy"])[row]
-        layer_fil = jnp.where(conserve, layer_fil * jnp.minimum(1.0, 1.0 - reflec_k), layer_fil)
+        # 1 - reflection, at most 1 (POV-Ray's, measured: a negative reflection passes all); at a
+        # reflection of exactly 0 (a Fresnel exit, min 0) the derivative is the physical side's, -1
+        kept = jnp.where(reflec_k < 0, 1.0, 1.0 - reflec_k)
+        layer_fil = jnp.where(conserve, layer_fil * kept, layer_fil)
         return tmp, layer_fil, reflec_k, w_k
 
     # every layer in one vmapped evaluation: the program holds a layer's pigments, lights and

@@ -181,9 +181,13 @@ def _combine(colour_next, rec: LevelRecord):
     for link in rec.links:
         c = colour_next[link.dest]
         if link.power is not None:
-            # c^power written as c · c^(power-1): exact at power 1 (the default), where
-            # d/dpower = c·log c must survive (a where(power == 1, c, …) shortcut would drop it)
-            c = c * safe_pow(c, link.power[:, None] - 1.0)
+            # c^power written as c · |c|^(power-1): exact at power 1 (the default), where
+            # d/dpower = c·log c must survive (a where(power == 1, c, …) shortcut would drop it).
+            # Odd in c, so continuous in (c, power) through c = 0: a colour a perturbation makes
+            # negative (a mirror seeing black) stays c at power 1 and near it, where c·c^(power-1)
+            # jumped from c (power 1) to 0 (any other power): finite differences moving power and
+            # a black colour together disagreed with the derivative on 23 % of the demo's pixels
+            c = c * safe_pow(jnp.abs(c), link.power[:, None] - 1.0)
         out = out + jnp.where(link.alive[:, None], link.coef * c, 0.0)
     return out, None
 
