@@ -72,7 +72,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import JobFailed, MemoryExceeded, fmt, machine, md_table, run_job
-from .sample_scenes import SCENES
+from .sample_scenes import SCENES, animation_ini
 
 JSONL = "sample_renders.jsonl"
 TOP = 15  # rows of the worst-PSNR and slowest-compile tables
@@ -132,18 +132,6 @@ def select(
         return ordered
     random.Random(seed).shuffle(ordered)
     return ordered[: max(0, limit)]
-
-
-def animation_ini(scene: Path) -> Path | None:
-    """The ``.ini`` of the same name next to ``scene`` if it describes an animation (``Final_Frame`` ≠
-    ``Initial_Frame``), whose first frame both renderers then render; else None."""
-    ini = scene.with_suffix(".ini")
-    if not ini.is_file():
-        return None
-    from raytracer.sdl import Animation
-
-    anim = Animation.from_ini(ini)
-    return ini if anim.final_frame != anim.initial_frame else None
 
 
 def parse_size(text: str) -> tuple[int, int]:
