@@ -21,7 +21,8 @@ import sys
 from pathlib import Path
 
 from ._common import fmt, md_table
-from .sample_renders import both_ok, main as sample_renders_main, quantile, summarize
+from .sample_renders import both_ok, quantile, summarize
+from .sample_renders import main as sample_renders_main
 
 ROOT = Path(__file__).resolve().parent.parent
 RECORDS = ROOT / "benchmarks" / "results" / "sample_renders.jsonl"
@@ -65,7 +66,8 @@ def markdown(records: list[dict]) -> str:
         + "; POV-Ray: "
         + ", ".join(f"{k} {v}" for k, v in sorted(s["povray"].items(), key=lambda kv: -kv[1]))
         + ").",
-        f"- PSNR over the {q['psnr_db']['n']} scenes both finished: median **{fmt(q['psnr_db']['median'])} dB** "
+        f"- PSNR over the {q['psnr_db']['n']} scenes both finished: median "
+        f"**{fmt(q['psnr_db']['median'])} dB** "
         f"(quartiles {fmt(q['psnr_db']['q1'])}, {fmt(q['psnr_db']['q3'])}); over the {len(clean)} "
         f"scenes with no warning: median **{fmt(quantile(clean, 0.5))} dB**.",
         f"- Time: our warm render over POV-Ray's trace time, median {fmt(q['warm_over_trace']['median'])}× "
