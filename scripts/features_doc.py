@@ -76,6 +76,7 @@ def generated() -> str:
     parsed_only = sorted(n for n, r in patterns.REGISTRY.items() if not r.rendered)
     kinds = [t for t in LIGHT_TYPES if not t.modifier]
     modifiers = [t for t in LIGHT_TYPES if t.modifier]
+    objects = sorted(UNSUPPORTED_OBJECTS)
     literal = _literal_warnings()
     warned = sorted(literal | set(UNSUPPORTED_OBJECTS) | set(parsed_only) | set(_IGNORED_FLAG_WARNINGS))
 
@@ -121,7 +122,7 @@ def generated() -> str:
         "",
         "Each is a warning naming the feature at its `file:line:col` (`--strict` makes it an error).",
         "",
-        f"- **Objects without a shape** (left out): {', '.join(f'`{n}`' for n in sorted(UNSUPPORTED_OBJECTS))}.",
+        f"- **Objects without a shape** (left out): {', '.join(f'`{n}`' for n in objects)}.",
         f"- **Patterns parsed only** (a neutral colour): {', '.join(f'`{n}`' for n in parsed_only)}.",
         f"- **Every feature a warning names**: {', '.join(f'`{n}`' for n in warned)}.",
         "",
