@@ -409,12 +409,21 @@ def _split_cpu(devices: int | None) -> None:
     os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={devices}".strip()
 
 
+def _plugin(name: str):
+    """The ``raytracer.commands`` entry point ``name`` (``validate`` is ``validation``'s main, declared
+    in pyproject.toml): the package never imports ``validation``, which sits above it."""
+    from importlib.metadata import entry_points
+
+    found = list(entry_points(group="raytracer.commands", name=name))
+    if not found:
+        raise SystemExit(f"raytracer: the {name} command is not installed (pip install -e '.[validation]')")
+    return found[0].load()
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["validate"]:  # every option goes to python -m validation unchanged
-        from validation.__main__ import main as validate_main
-
-        return validate_main(argv[1:])
+        return _plugin("validate")(argv[1:])
     args = _parser().parse_args(argv)
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     if args.command == "render":  # must precede the first import of jax
@@ -426,9 +435,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "info":
             return _info(args)
         if args.command == "validate":
-            from validation.__main__ import main as validate_main
-
-            return validate_main(args.args)
+            return _plugin("validate")(args.args)
     except SceneError as e:
         if debug:
             traceback.print_exc()

@@ -89,3 +89,52 @@ def test_the_checker_finds_a_cycle_and_ignores_parent_packages(tmp_path):
 
 def test_no_import_cycle_in_the_package():
     assert import_cycles(top_level_only=False) == []  # deferred imports inside functions too
+
+
+# The package's layers, lowest first (docs/architecture.md's table): a module imports its own layer
+# and those below it, never one above.
+LAYERS = (
+    ("raytracer._dtype", "raytracer._build", "raytracer._gc", "raytracer.errors", "raytracer._xla"),
+    ("raytracer.kernels",),
+    ("raytracer.shapes", "raytracer.patterns"),
+    ("raytracer.scene",),
+    ("raytracer._packing", "raytracer._plan"),
+    ("raytracer.shading", "raytracer._native"),
+    ("raytracer.render", "raytracer.query", "raytracer.distributed"),
+    ("raytracer.sdl",),
+    ("raytracer.imageio", "raytracer.params", "raytracer.cli", "raytracer"),
+)
+OUTSIDE = ("validation", "benchmarks", "mitsuba", "drjit", "optimistix")
+
+
+def layer_of(module: str) -> int | None:
+    """The layer of ``module``: that of the longest prefix in ``LAYERS`` naming it or its package."""
+    best = None
+    for i, group in enumerate(LAYERS):
+        for prefix in group:
+            names_it = module == prefix or module.startswith(prefix + ".")
+            if names_it and (best is None or len(prefix) > best[1]):
+                best = (i, len(prefix))
+    return None if best is None else best[0]
+
+
+def test_no_import_runs_up_the_layers_or_out_of_the_package():
+    """Deferred imports inside functions count too; ``raytracer`` reaches ``validation`` only through
+    its ``raytracer.commands`` entry point."""
+    paths = {_module_name(p, PACKAGE.parent): p for p in PACKAGE.rglob("*.py")}
+    up, unplaced, outside = [], [], []
+    for name, path in sorted(paths.items()):
+        mine = layer_of(name)
+        if mine is None:
+            unplaced.append(name)
+            continue
+        imported = sorted(_imports(path, name, set(paths), False))
+        up += [f"{name} -> {m}" for m in imported if layer_of(m) > mine]
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            outside += [f"{name} imports {n}" for n in names if n.split(".")[0] in OUTSIDE]
+    assert not unplaced, f"modules in no layer (add them to LAYERS): {unplaced}"
+    assert not up, up
+    assert not outside, outside

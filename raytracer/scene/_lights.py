@@ -19,8 +19,7 @@ from jaxtyping import Array, Float
 
 from .._build import Record
 from .._dtype import as_float, as_float_or_none
-from ..kernels import safe_normalize
-from ..shading import lighting
+from ..kernels import safe_div, safe_normalize, safe_pow
 
 # POV-Ray's defaults, the one place they are written (the SDL parser's records take them from here).
 LIGHT_DEFAULTS: Mapping[str, Any] = {"color": (1.0, 1.0, 1.0), "point_at": (0.0, 0.0, 1.0)}
@@ -66,6 +65,26 @@ class AreaLight(Record):
 # 40 s and 2.2 GB, 512×512 176 s and 7.9 GB, 1024×1024 ran out of memory (session 13).
 MAX_AREA_SAMPLES = 256 * 256
 
+
+
+# POV-Ray's factors on the light arriving (semantics §2.4): the light types' own formulas
+def fade(dist, fade_distance, fade_power):
+    """``2 / (1 + (dist/fade_distance)^fade_power)``; 1 where fading is off (power or distance 0)."""
+    on = (fade_power > 0) & (jnp.abs(fade_distance) > 1e-10)
+    ratio = safe_div(dist, jnp.where(on, fade_distance, 1.0))
+    return jnp.where(on, 2.0 / (1.0 + safe_pow(jnp.abs(ratio), jnp.where(on, fade_power, 1.0))), 1.0)
+
+
+def spot(cos_theta, radius_degrees, falloff_degrees, tightness):
+    """Spotlight factor ``cosθ^tightness · cubic_spline(cos falloff, cos radius, cosθ)``."""
+    lo = jnp.cos(jnp.deg2rad(falloff_degrees))
+    hi = jnp.cos(jnp.deg2rad(radius_degrees))
+    span = hi - lo
+    s = jnp.clip(safe_div(cos_theta - lo, jnp.where(span > 0, span, 1.0)), 0.0, 1.0)
+    smooth = jnp.where(cos_theta >= hi, 1.0, jnp.where(cos_theta < lo, 0.0, (3 - 2 * s) * s * s))
+    c = jnp.maximum(cos_theta, 0.0)
+    tight = jnp.where(tightness != 0, safe_pow(c, tightness), 1.0)
+    return jnp.where(cos_theta > 0, tight * smooth, 0.0)
 
 def area_grid_too_large(n1: int, n2: int) -> str:
     return (f"an area_light grid of {n1}×{n2} = {n1 * n2:,} samples is more than this renderer "
@@ -113,12 +132,12 @@ def _parallel_geometry(light: Light, p):
 
 
 def _fade_factor(light: Light, l, dist):
-    return lighting.fade(dist, light.fade_distance, light.fade_power)
+    return fade(dist, light.fade_distance, light.fade_power)
 
 
 def _spot_factor(light: Light, l, dist):
     axis = safe_normalize(light.point_at - light.position)
-    return lighting.spot(jnp.dot(-l, axis), light.spot.radius_degrees, light.spot.falloff_degrees,
+    return spot(jnp.dot(-l, axis), light.spot.radius_degrees, light.spot.falloff_degrees,
                          light.spot.tightness)
 
 

@@ -16,13 +16,6 @@ GREY = (0.297, 0.589, 0.114)  # POV-Ray's grey weights for "trans" (semantics §
 NL_EPSILON = 1e-10  # lights with n·l below this do not light the point (semantics §2.4)
 
 
-def fade(dist, fade_distance, fade_power):
-    """``2 / (1 + (dist/fade_distance)^fade_power)``; 1 where fading is off (power or distance 0)."""
-    on = (fade_power > 0) & (jnp.abs(fade_distance) > 1e-10)
-    ratio = safe_div(dist, jnp.where(on, fade_distance, 1.0))
-    return jnp.where(on, 2.0 / (1.0 + safe_pow(jnp.abs(ratio), jnp.where(on, fade_power, 1.0))), 1.0)
-
-
 def interior_fade(depth, fade_distance, fade_power, fade_color, on=True, *, shadow_ray=False):
     """Attenuation after ``depth`` inside an object (semantics §2.7): ``fc + (1 - fc)/(1 + (d/fd)^fp)``, or
     ``exp(-(1 - fc)·d/fd)`` when ``fade_power >= 1000``; 1 where ``on`` is False or ``fade_distance`` is 0.
@@ -40,18 +33,6 @@ def interior_fade(depth, fade_distance, fade_power, fade_color, on=True, *, shad
     power = jnp.where(on & ~exponential, fade_power, 1.0)
     rational = fade_color + (1 - fade_color) / (1 + safe_pow(ratio, power))
     return jnp.where(on, jnp.where(exponential, jnp.exp(-(1 - fade_color) * ratio), rational), 1.0)
-
-
-def spot(cos_theta, radius_degrees, falloff_degrees, tightness):
-    """Spotlight factor ``cosθ^tightness · cubic_spline(cos falloff, cos radius, cosθ)``."""
-    lo = jnp.cos(jnp.deg2rad(falloff_degrees))
-    hi = jnp.cos(jnp.deg2rad(radius_degrees))
-    span = hi - lo
-    s = jnp.clip(safe_div(cos_theta - lo, jnp.where(span > 0, span, 1.0)), 0.0, 1.0)
-    smooth = jnp.where(cos_theta >= hi, 1.0, jnp.where(cos_theta < lo, 0.0, (3 - 2 * s) * s * s))
-    c = jnp.maximum(cos_theta, 0.0)
-    tight = jnp.where(tightness != 0, safe_pow(c, tightness), 1.0)
-    return jnp.where(cos_theta > 0, tight * smooth, 0.0)
 
 
 def empirical_fresnel(cos_angle):
