@@ -73,7 +73,7 @@ def markdown(records: list[dict]) -> str:
         f"- Time: our warm render over POV-Ray's trace time, median {fmt(q['warm_over_trace']['median'])}× "
         f"(quartiles {fmt(q['warm_over_trace']['q1'])}, {fmt(q['warm_over_trace']['q3'])}); a whole "
         f"process to the first image over POV-Ray's, median {fmt(q['process_over_process']['median'])}× "
-        f"(the first image pays for imports and compiling the program: issue 53).",
+        "(the first image pays for imports and compiling the program).",
         "",
         "## Missing features, by the scenes they hold back",
         "",

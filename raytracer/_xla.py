@@ -16,8 +16,8 @@ one run each; ``docs/performance.md``, "XLA's CPU flags"):
   ``glass.pov`` 3.3 → 2.6–3.0 s; compile within noise. Other JAX projects turn these fusions off for
   wrong results on CPU too.
 * ``--xla_cpu_use_fusion_emitters=false``: cold compiles 25–40 % shorter at the same warm time
-  (session 8: seed.pov 3.1–4.0 → 2.4–2.6 s, whitted.pov 7.5–9.2 → 5.5 s).
-* ``--xla_disable_hlo_passes=while-loop-invariant-code-motion`` (session 25): a render's shading
+  (seed.pov 3.1–4.0 → 2.4–2.6 s, whitted.pov 7.5–9.2 → 5.5 s when the flag was chosen).
+* ``--xla_disable_hlo_passes=while-loop-invariant-code-motion``: a render's shading
   body sits in nested ``while`` loops (tiles, levels, chunks), and this pass spent 0.6 s of
   ``advanced/pawns``' 5 s XLA compile on them. Without it (two alternating rounds, 160×120 and
   640×480–1024×768): pawns compiles in 6.2 / 6.0 s instead of 6.9 / 6.8, lamppost 6.2 / 6.7

@@ -284,8 +284,8 @@ def _signature(scene_plan: Plan, geo: PackedGeometry, mats: PackedMaterials) -> 
     """What the render program's trace reads of the packed objects beyond their arrays' shapes,
     for a scene whose objects vary only in the hierarchy's groups of one-item shapes: then scenes
     that differ only in how many objects those groups hold (in one ``_packing.bucket``) share one
-    compiled program, without a trace (issue 11). None for any other scene, whose program is
-    keyed by its whole skeleton as before.
+    compiled program, without a trace. None for any other scene, whose program is keyed by its
+    whole skeleton.
 
     The trace reads (``shading/_model.make_context``, ``_geometry``, ``_materials``): the effects;
     the candidates (their groups, slots, CSG conditions and the ``where`` of every primitive

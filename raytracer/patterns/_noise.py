@@ -123,7 +123,7 @@ def _octaves(p, octaves, omega, lambda_):
 
 
 # Every octave's noise is one vmapped evaluation over the stacked points, not one traced copy per
-# octave: POV-Ray's 6 octaves made 6 copies of the lattice in the program (session 24: a third of
+# octave: POV-Ray's 6 octaves made 6 copies of the lattice in the program (a third of
 # advanced/pawns' equations), the sums below still run octave by octave in the same order.
 
 

@@ -62,7 +62,7 @@ class AreaLight(Record):
 
 # Samples of one area light's grid. A shading point in a penumbra traces its whole grid at once
 # (``_model._adaptive_visibility``; without ``adaptive``, every point does): 256×256 at 160×120 took
-# 40 s and 2.2 GB, 512×512 176 s and 7.9 GB, 1024×1024 ran out of memory (session 13).
+# 40 s and 2.2 GB, 512×512 176 s and 7.9 GB, 1024×1024 ran out of memory.
 MAX_AREA_SAMPLES = 256 * 256
 
 

@@ -659,7 +659,7 @@ def _adaptive_visibility(ctx: TraceContext, groups, p_spawn, full=()) -> tuple[l
     as selects, round by round (one ``lax.scan``): a sample it never asks for is traced for a
     penumbra point but never read. Two phases per point rather than a round of (point, sample)
     pairs per level of the tree cost up to about twice the shadow rays in penumbrae
-    (``lights/soft``) and much less compaction (session 13: ``docs/performance.md``). The choice of
+    (``lights/soft``) and much less compaction. The choice of
     blocks is piecewise constant (no gradient); the samples' filters and the means differentiate
     as usual.
     """

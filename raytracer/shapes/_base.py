@@ -238,7 +238,7 @@ class AbstractShape(Record):
         """This shape with ``world_from_object`` (a concrete 4×4, at load time) folded into its own
         parameters, or None when it cannot be. A folded shape is intersected where it is, not
         through a ray moved into its object space: a float32 origin moved by a translation of
-        1e6 keeps 1/16 of a unit (issue 13 item 7). Textures are placed in world space, so only
+        1e6 keeps 1/16 of a unit. Textures are placed in world space, so only
         the geometry changes hands."""
         return None
 
