@@ -21,7 +21,7 @@ demo: setup
 # from a busy one, so no file's long tests pin the run to one core; tests/conftest.py gives the run
 # one JAX compilation cache that the workers share. Three workers on two cores: with two, the
 # cores were busy 88 % of the run (tests wait on POV-Ray, Mitsuba and their own subprocesses);
-# session 32, one run each: 2 workers 5.7 min, 3 workers 5.0, 4 workers 5.4.
+# measured, one run each: 2 workers 5.7 min, 3 workers 5.0, 4 workers 5.4.
 test: setup
 	$(PY) -m pytest -q -n 3 --dist worksteal -p no:cacheprovider
 

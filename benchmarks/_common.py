@@ -76,7 +76,7 @@ def run_job(job: dict, *, timeout: float = 1800.0, max_rss_mb: float | None = No
         if job["kind"] == "mitsuba":
             env["HOME"] = home  # Dr.Jit caches compiled kernels under ~/.drjit: start cold
         # ours starts cold too: a program an earlier run left in the persistent cache would be
-        # loaded, not compiled (session 9 found compile columns measured that way); a
+        # loaded, not compiled, and the compile columns would measure a cache load; a
         # RAYTRACER_CACHE_DIR of the caller's is kept
         env.setdefault("RAYTRACER_CACHE_DIR", str(Path(home) / "xla"))
         proc = subprocess.Popen(

@@ -1,4 +1,4 @@
-"""Issue 6: what accuracy costs in time, for our renderer and its peers (POV-Ray 3.7, Mitsuba 3).
+"""What accuracy costs in time, for our renderer and its peers (POV-Ray 3.7, Mitsuba 3).
 
     python -m benchmarks.accuracy [--quick] [--out DIR] [--repeats 3] [--scenes seed whitted …]
 
@@ -586,7 +586,7 @@ def write_outputs(doc: dict, out: Path) -> None:
         plot(rows, out / "accuracy.png")
     load = info["load_average_at_start"]
     md = [
-        "# Accuracy vs time (issue 6)",
+        "# Accuracy vs time",
         "",
         f"{info['cpu']}, {info['cores']} cores, load average at start {fmt(load[0]) if load else '?'}; "
         f"{'quick' if doc['quick'] else 'full'} run, {wall / 60:.1f} min; "

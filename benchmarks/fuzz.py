@@ -1,4 +1,4 @@
-"""A grammar-aware fuzz campaign of the scene loader (issue 13): mutated scenes must end as a scene,
+"""A grammar-aware fuzz campaign of the scene loader: mutated scenes must end as a scene,
 or as a ``SceneError`` that says where, and must not read outside the folders a scene may read.
 
     python -m benchmarks.fuzz [--cases N] [--minutes M] [--seed S] [--corpus examples|samples|all]
@@ -340,7 +340,7 @@ def campaign(cases: int, seed: int, corpus: str, folder: Path, minutes: float | 
         text = join(mutate(streams[index], plan))
         t0 = time.perf_counter()
         # renders only of mutants of the small seeds (examples, fuzz_seed.pov): the sample scenes'
-        # layered CSG can take minutes and gigabytes to compile (issue 11), which is not this test
+        # layered CSG can take minutes and gigabytes to compile, which is not this test
         small = SAMPLES not in files[index].parents
         render = small and render_every > 0 and counts["scene"] % render_every == render_every - 1
         outcome, detail = run_case(text, folder, parse_seconds=parse_seconds, render=render)

@@ -110,7 +110,7 @@ def main(argv=None) -> int:
     for label, x64 in (("float32", False), ("float64", True)):
         # compiled programs of the other precision: a packing op traced under one x64 setting
         # was reused under the other and failed to lower (operand f32 where f64 was expected;
-        # found in session 26, not investigated further: a fresh process is fine)
+        # the cause is not investigated further: a fresh process is fine)
         jax.clear_caches()
         with jax.enable_x64(x64):
             r = ours(demo_scene(WIDTH, HEIGHT, DEPTH), WIDTH, HEIGHT, args.repeats)

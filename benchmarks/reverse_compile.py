@@ -5,7 +5,7 @@
 For each scene (default: every ``examples/scenes/*.pov``), ``jax.jit(jax.grad(loss))`` of the
 image MSE ``mean(render(scene)²)`` at 8×6 is lowered (trace, linearise, transpose: ``lower_s``) and
 compiled by XLA (``compile_s``), in this process, with JAX's caches cleared between scenes and
-the persistent cache off (issue 12's "reverse-mode compile ≤ 10 s for every example scene").
+the persistent cache off (the target: reverse-mode compile ≤ 10 s for every example scene).
 XLA's flags are raytracer's defaults (``raytracer/_xla.py``), as a user gets them.
 """
 

@@ -1,4 +1,4 @@
-"""Issue 11 (item 4): how our renderer scales with the scene, next to POV-Ray 3.7 on the same files.
+"""How our renderer scales with the scene, next to POV-Ray 3.7 on the same files.
 
     python -m benchmarks.scaling [--quick] [--out DIR] [--repeats N] [--timeout S]
                                  [--max-n N] [--max-triangles T] [--only FAMILY …] [--keep-scenes]
@@ -28,7 +28,7 @@ Every measurement is a fresh worker process (``benchmarks/_worker.py``), one at 
 * ours (``kind: ours``): parse s (``load_scene``), compile s (``compile_render``: trace and XLA
   compile of the render for this scene structure and size), compile s for another N (spheres
   with N ≥ 8: ``compile_render`` of the nearest count whose arrays pad to the same sizes, after
-  the first in the same process: issue 11's "no compile for another object count"), warm s
+  the first in the same process: the rule is no compile for another object count), warm s
   (median of ``--repeats`` runs of the compiled function; fewer runs when they add up to more
   than a quarter of the timeout: ``runs`` in the JSON), peak MB (``VmHWM`` of the worker:
   interpreter and JAX included);
@@ -282,7 +282,7 @@ def cases(family: str, quick: bool, max_n: int | None, max_triangles: int | None
                 level,
                 *big,
                 lambda folder, level=level: scene_variant(SCENES["whitted"], folder, max_trace_level=level),
-                grad=True,  # reverse mode's memory must not grow with 2^depth (issue 11 item 3)
+                grad=True,  # reverse mode's memory must not grow with 2^depth
                 details={"max_trace_level": level},
             )
             for level in (1, 2, 5, 10, 20)
@@ -570,7 +570,7 @@ def write_outputs(doc: dict, out: Path) -> str:
         plot(rows, out / "scaling.png")
     load = info["load_average_at_start"]
     md = [
-        "# Scaling: our renderer vs POV-Ray 3.7 (issue 11, item 4)",
+        "# Scaling: our renderer vs POV-Ray 3.7",
         "",
         f"{info['cpu']}, {info['cores']} cores, load average at start {fmt(load[0]) if load else '?'}; "
         f"jax {info['versions']['jax']}, {info['versions']['povray']}; commit {info['commit']}. "

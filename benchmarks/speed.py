@@ -1,4 +1,4 @@
-"""Issue 3's speed benchmark: our renderer next to POV-Ray on the seed scene (640×480) and a Whitted scene
+"""Speed benchmark: our renderer next to POV-Ray on the seed scene (640×480) and a Whitted scene
 with a glass and a mirror sphere over a checker floor (1024×768, ``max_trace_level 5``).
 
     python -m benchmarks.speed [--quick] [--out DIR] [--repeats 3]
@@ -172,7 +172,7 @@ def main(argv=None) -> int:
     (args.out / "speed.json").write_text(json.dumps(doc, indent=1))
     load = info["load_average_at_start"]
     md = [
-        "# Speed: our renderer vs POV-Ray 3.7 (issue 3)",
+        "# Speed: our renderer vs POV-Ray 3.7",
         "",
         f"Machine: {info['cpu']}, {info['cores']} cores, load average at start "
         f"{fmt(load[0]) if load else '?'}; jax {info['versions']['jax']}, {info['versions']['povray']}. "

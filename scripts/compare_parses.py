@@ -1,5 +1,5 @@
 """Parse every POV-Ray sample scene and record a digest of each scene model, to compare two
-versions of the parser (session 20: the lexer and the vector fast path changed no scene).
+versions of the parser (by this check, the lexer and the vector fast path changed no scene).
 
     python scripts/compare_parses.py run OUT.jsonl          # one line per scene: time, digest,
                                                              # warnings (first 60), error

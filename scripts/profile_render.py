@@ -1,4 +1,4 @@
-"""Where a warm render's time goes, by raytracer source function (issue 12's profile).
+"""Where a warm render's time goes, by raytracer source function.
 
     python scripts/profile_render.py SCENE.pov WIDTH HEIGHT [--out DIR] [--top N] [--by func|line]
 
@@ -7,7 +7,7 @@ renders, records one with ``jax.profiler``, then prints each XLA operation's own
 events subtracted) grouped by how often it ran (per chunk, per tree level, per tile), and that time
 attributed to the innermost raytracer frame of each fused instruction (the HLO text's stack-frame
 tables). A fusion's time is split evenly over its instructions, so the attribution is a guide, not
-a measurement. Session 16 used it on ``whitted.pov`` (``docs/performance.md``).
+a measurement. ``docs/performance.md`` has its profile of ``whitted.pov``.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ leaves). ``--compile`` also lowers and compiles it and reports the times and XLA
 instruction and fusion counts.
 
 The jaxpr's size is a guide to XLA's compile time, not a measure of it: XLA's CPU compile is mostly
-LLVM's code generation of the fusions (session 22: 2.2 s of the seed scene's 3.3 s under the
+LLVM's code generation of the fusions (measured: 2.2 s of the seed scene's 3.3 s under the
 profiler, split over 32 modules that compile in parallel).
 """
 

@@ -14,7 +14,7 @@ float64 fixture, and the ``povray`` marker's skip.
   is generated as one part (``parallel_codegen_split_count=1``), not 32 compiled on a thread pool:
   the xdist workers (three for ``make test``, two for ``make test-fast``) keep both cores busy
   already, and splitting costs more than it saves (``tests/shapes/test_gradients.py``: XLA's
-  compile 49–51 → 41 CPU-s, session 31).
+  compile 49–51 → 41 CPU-s).
 * Reference images (POV-Ray, Mitsuba) of the validation suite are kept for the run in a folder of
   its own (``$RAYTRACER_REFERENCE_CACHE``), so a reference two tests need is rendered once.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist

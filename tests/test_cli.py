@@ -166,7 +166,7 @@ def test_an_internal_error_exits_70_in_one_line_and_shows_the_traceback_with_deb
 
 @pytest.mark.parametrize("suffix", [".png", ".exr"])
 def test_written_images_follow_the_umask_not_0600(tmp_path, suffix):
-    # issue 13 item 12: the atomic write's temporary file is 0600; the image must be 0666 & ~umask
+    # the atomic write's temporary file is 0600; the image must be 0666 & ~umask
     import os
 
     old = os.umask(0o027)

@@ -272,14 +272,14 @@ box { <-0.6, 0, -0.6>, <0.6, 1.2, 0.6> rotate <0, 45, 0>
 
 @pytest.mark.povray
 @pytest.mark.parametrize("text, precision, was", [
-    # issue 13 item 2: ten nested ior-1 shells at max_trace_level 2: 20 straight passes, which POV-Ray
+    # ten nested ior-1 shells at max_trace_level 2: 20 straight passes, which POV-Ray
     # does not count as levels (we stopped at 8: 17.7 dB)
     (_shells(10, ior=False), "float32", 17.7),
     # ten nested shells of iors 1.1–1.3: each surface refracts between the innermost two media
     # of the ray's interior list (we assumed air on the other side: 11.5 dB). float64: in float32
     # the grazing rays of ten concentric surfaces differ on 84 of 4,800 pixels (32.6 dB)
     (_shells(10, ior=True), "float64", 11.5),
-    # issue 13 item 4: the camera is inside plane { z, 3 }, so a ray leaving the box is inside two
+    # the camera is inside plane { z, 3 }, so a ray leaving the box is inside two
     # interiors, where POV-Ray's Fresnel amount and conserve_energy factor are 0 (its quirk,
     # semantics §2.7; we reflected at the exits: 37.7 dB)
     (GLASS_BOX_45, "float32", 37.7),

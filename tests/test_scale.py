@@ -1,4 +1,4 @@
-"""The compiled program does not grow with the scene (issue 11): the scene is packed before the jit
+"""The compiled program does not grow with the scene: the scene is packed before the jit
 boundary, so 20 and 200 spheres give programs of the same operations and a handful of arguments,
 not ~16 per object; and the ray tree is held in pools of a bounded width, forward and reverse."""
 
@@ -158,12 +158,13 @@ def _largest_array_bytes(jaxpr) -> int:
 
 @pytest.mark.parametrize("capacity", ["auto", None])
 def test_reverse_mode_program_of_a_depth_20_tree_holds_a_tile_not_the_full_tree(tmp_path, capacity):
-    # the glass box at max_trace_level 20 (issue 11: "Out of memory allocating 112457682608 bytes"):
-    # the exact full-width tree needs 2^19 slots per camera ray; the default compacts each level's
-    # live rays into FORWARD_CAPACITY slots per camera ray, so the largest array of jax.grad's
-    # program is bounded by pixels × capacity × depth × a few values per slot (16: the widest
-    # residual is a slot's vmapped pigments, RGBFT for each transparent crossing of a shadow ray;
-    # 10 here, 2.4 MB. The full tree's would be 2^19 / 4 / 20 ≈ 6,500 times larger per value)
+    # the glass box at max_trace_level 20 (its full-width tree: "Out of memory allocating
+    # 112457682608 bytes"): the exact full-width tree needs 2^19 slots per camera ray; the default
+    # compacts each level's live rays into FORWARD_CAPACITY slots per camera ray, so the largest
+    # array of jax.grad's program is bounded by pixels × capacity × depth × a few values per slot
+    # (16: the widest residual is a slot's vmapped pigments, RGBFT for each transparent crossing of
+    # a shadow ray; 10 here, 2.4 MB. The full tree's would be 2^19 / 4 / 20 ≈ 6,500 times larger
+    # per value)
     path = tmp_path / "box.pov"
     path.write_text(_GLASS_BOX)
     scene = load_scene(path, width=32, height=24)

@@ -1,4 +1,4 @@
-"""Validation of ``raytracer`` against Mitsuba 3 and POV-Ray 3.7 (issue 4).
+"""Validation of ``raytracer`` against Mitsuba 3 and POV-Ray 3.7.
 
 * :mod:`validation.povray`  — run the real ``povray`` binary to a linear float image.
 * :mod:`validation.mitsuba` — ``raytracer.Scene`` → Mitsuba scene dict; pixel-centre and film renders.

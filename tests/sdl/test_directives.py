@@ -204,7 +204,7 @@ union {
 
 @pytest.mark.povray
 def test_default_texture_is_the_one_current_when_the_object_is_placed(tmp_path):
-    # issue 13 item 3, measured with povray 3.7: an object without texture takes the #default of
+    # measured with povray 3.7: an object without texture takes the #default of
     # the end of its top-level statement (Bare and InUnion green, the last union's spheres both
     # blue); a partial texture is completed from the #default of when it was written
     # (FinishOnly black)

@@ -1,4 +1,4 @@
-"""A bounded run of the fuzz campaign (``benchmarks/fuzz.py``, issue 13): mutated scenes end as a
+"""A bounded run of the fuzz campaign (``benchmarks/fuzz.py``): mutated scenes end as a
 scene or as a located ``SceneError``, never as an internal error, an escaped exception, a hang, a
 read outside the scene's folders, or a non-finite image. Long campaigns: ``python -m benchmarks.fuzz``."""
 

@@ -206,7 +206,7 @@ def test_an_internal_failure_is_an_internal_error_with_the_scene_location(monkey
 
 
 def test_include_outside_the_scene_folders_is_refused_without_reading_it(tmp_path):
-    # issue 13 item 8: the scene's folder, -L folders and POV-Ray's include folder only
+    # includes are read from the scene's folder, -L folders and POV-Ray's include folder only
     secret = tmp_path / "private" / "secret.inc"
     secret.parent.mkdir()
     secret.write_text("#declare TOP_SECRET = 42;\n")
@@ -229,7 +229,7 @@ def test_include_outside_the_scene_folders_is_refused_without_reading_it(tmp_pat
 
 
 def test_runaway_strings_and_written_files_stop_at_their_limits():
-    # issue 13 item 10: doubling a string 34 times reached 6.4 GB; a written file has its own,
+    # doubling a string 34 times reached 6.4 GB; a written file has its own,
     # larger limit (POV-Ray's meshcam_persp_demo.pov writes 17 M characters at 640×480)
     assert Limits().max_written_chars > 17_000_000
     limits = Limits(max_string_length=4096, max_written_chars=4096)
@@ -246,7 +246,7 @@ def test_runaway_strings_and_written_files_stop_at_their_limits():
 
 
 def test_a_parse_past_its_time_limit_stops_with_a_located_error():
-    # issue 13 item 10: a loop that is legal but slow (10^6 iterations, each a few tokens) stops at
+    # a loop that is legal but slow (10^6 iterations, each a few tokens) stops at
     # the clock, wherever it is, with the limit named
     e = error_of("#declare I = 0;\n#while (I < 1000000) #declare I = I + 1; #end",
                  limits=Limits(max_parse_seconds=0.2))
@@ -255,7 +255,7 @@ def test_a_parse_past_its_time_limit_stops_with_a_located_error():
 
 
 def test_a_parse_that_accumulates_memory_stops_with_a_located_error():
-    # issue 13 item 10: every value within its own limit (strings of 131,072 characters), but 3,000
+    # every value within its own limit (strings of 131,072 characters), but 3,000
     # of them kept in an array: the growth of resident memory is checked with the clock
     text = ('#declare S = "ab"; #for (I, 1, 16) #declare S = concat(S, S); #end\n'
             '#declare A = array[3000];\n#for (J, 0, 2999) #declare A[J] = concat(S, str(J, 0, 0)); #end')
@@ -265,8 +265,8 @@ def test_a_parse_that_accumulates_memory_stops_with_a_located_error():
 
 
 @pytest.mark.parametrize("text, line, fragment", [
-    # found by benchmarks/fuzz.py (session 7). Session 6 located values beyond float32 at objects and
-    # the camera only: global_settings { adc_bailout 1e308 } was an internal error
+    # found by benchmarks/fuzz.py: values beyond float32 are located at their statement, not at
+    # objects and the camera only (global_settings { adc_bailout 1e308 } was an internal error)
     ("global_settings {\n adc_bailout 1e308 }", 1, "float32's range"),  # at the statement
     ("camera { location -5*z look_at 0 }\nbackground { rgb 1e308 }", 2, "float32's range"),
     # location <0, 0, -1e-320> differs from look_at 0 in float64 (the parser's check passed) but is 0

@@ -40,7 +40,7 @@ plane { z, -1 pigment { G } }
 @pytest.mark.povray
 @pytest.mark.parametrize("text", [BOUNDED, PLANE], ids=["bounded-objects", "plane"])
 def test_coincident_surfaces_show_the_one_povray_tests_first(tmp_path, text):
-    # issue 13 item 5, measured with povray 3.7 (semantics §4.4): an exact tie goes to the object
+    # measured with povray 3.7 (semantics §4.4): an exact tie goes to the object
     # whose bounding box the ray enters first, else to the earlier one in the file
     import raytracer as rt
     from validation import metrics

@@ -434,7 +434,7 @@ box { <1, -2, 0>, <3, 2, 1> pigment { brick rgb <0.8, 0.8, 0.7>, rgb <0.6, 0.2, 
 
 
 def test_discrete_pattern_colour_has_no_derivative_through_map_positions(x64):
-    # issue 13 item 6: checker, hexagon and brick pick their list entry by integer index; their
+    # checker, hexagon and brick pick their list entry by integer index; their
     # colour was a colour map over positions that were parameters, with a kink at them, so a JVP
     # moving the positions disagreed with central differences on every pixel of the pattern
     import equinox as eqx

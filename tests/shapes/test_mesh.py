@@ -89,7 +89,7 @@ plane { z, 1 pigment { rgb 0.6 } }
 
 @pytest.mark.povray
 def test_mesh_normals_are_kept_as_povray_keeps_them(tmp_path):
-    # issue 13 item 5, measured with povray 3.7: in a mesh a zero normal becomes <1,0,0> ("Normal
+    # measured with povray 3.7: in a mesh a zero normal becomes <1,0,0> ("Normal
     # vector in mesh cannot be zero"), and a face whose unit normals agree is flat (top left: all
     # zero; top right: parallel); the rest stay smooth (we used to leave the whole mesh out)
     from validation import metrics

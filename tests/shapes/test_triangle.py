@@ -64,7 +64,7 @@ plane {{ z, 1 pigment {{ rgb 0.6 }} }}
     ("<0,0,-1>", "<0,0,1e-9>", "<0,0,-1>"),  # one on the other side
 ], ids=["all-zero", "one-in-plane", "one-on-the-other-side"])
 def test_smooth_triangle_with_normals_not_on_one_side_is_left_out_as_povray_does(tmp_path, normals):
-    # issue 13 item 5: POV-Ray 3.7 warns "Degenerate triangle. Please remove." and draws nothing
+    # POV-Ray 3.7 warns "Degenerate triangle. Please remove." and draws nothing
     # unless the three normals point strictly to one side of the triangle (measured)
     import raytracer as rt
     from validation import metrics

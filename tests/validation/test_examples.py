@@ -1,6 +1,6 @@
 """Every example scene says what it checks, and every one is compared with POV-Ray exactly once: by
 its ``pov/<name>`` entry of the validation suite (``test_suite.py::test_our_renderer_passes_the_suite``),
-at issue 3's bar (≥ 40 dB at 160×120, spp = 1) and 99 % of the pixels within 0.01."""
+at the bar of ≥ 40 dB at 160×120 (spp = 1) and 99 % of the pixels within 0.01."""
 
 from pathlib import Path
 
