@@ -7,7 +7,7 @@ renders, records one with ``jax.profiler``, then prints each XLA operation's own
 events subtracted) grouped by how often it ran (per chunk, per tree level, per tile), and that time
 attributed to the innermost raytracer frame of each fused instruction (the HLO text's stack-frame
 tables). A fusion's time is split evenly over its instructions, so the attribution is a guide, not
-a measurement. ``docs/performance.md`` has its profile of ``whitted.pov``.
+a measurement.
 """
 
 from __future__ import annotations

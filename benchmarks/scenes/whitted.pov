@@ -1,4 +1,4 @@
-// Whitted's classic: a glass sphere and a mirror sphere over a checker floor (issue 3 benchmark).
+// Whitted's classic: a glass sphere and a mirror sphere over a checker floor (the speed benchmark).
 // Every setting the benchmarks sweep is in global_settings; the rest is fixed.
 #version 3.7;
 global_settings { assumed_gamma 1.0 adc_bailout 0 max_trace_level 5 }
