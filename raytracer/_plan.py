@@ -28,6 +28,7 @@ from .scene import (
     Texture,
     Transform,
 )
+from .scene._environment import environment_of
 from .scene._lights import light_effects
 from .scene._transform import compose
 
@@ -188,10 +189,10 @@ class Effects:
                         ``max_trace_level + straight_passes``.
         media_slots:    the length of a ray's interior list: 0 without refraction, else as many
                         entries as the scene can put in it at once, at most ``MEDIA_SLOTS``.
-        sky_sphere:     rays that hit nothing see a ``sky_sphere`` (its pigments' patterns are in
-                        ``patterns`` too).
-        fog:            rays go through fogs (rays inside objects excepted: with
-                        transmission, the rays then keep their interior list, ``media_slots``).
+        environment:    the environment effects the scene switches on (``scene.ENVIRONMENT``'s
+                        names, in its order: ``sky_sphere``, rays that hit nothing see it, its
+                        pigments' patterns in ``patterns`` too; ``fog``, rays outside objects go
+                        through it, and with transmission keep their interior list to know).
     """
 
     kinds: tuple[str, ...]
@@ -214,8 +215,15 @@ class Effects:
     straight_passes: int
     depth: int
     media_slots: int = 0
-    sky_sphere: bool = False
-    fog: bool = False
+    environment: tuple[str, ...] = ()
+
+    @property
+    def sky_sphere(self) -> bool:
+        return "sky_sphere" in self.environment
+
+    @property
+    def fog(self) -> bool:
+        return "fog" in self.environment
 
     @property
     def secondary_rays(self) -> bool:
@@ -225,7 +233,7 @@ class Effects:
         on = [name for name in ("shadows", "filtered_shadows", "reflection", "transmission",
                                 "refraction", "highlights", "metallic", "reflection_metallic",
                                 "fresnel", "fade", "spotlights", "area_lights", "parallel_lights",
-                                "csg", "interior_fade", "sky_sphere", "fog") if getattr(self, name)]
+                                "csg", "interior_fade") if getattr(self, name)] + list(self.environment)
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
                 f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}"
                 + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
@@ -449,7 +457,8 @@ def make_plan(scene: Scene) -> Plan:
                                      "are traced along the top layer's mirror ray with its exponent"))
     if any("double_illuminate" in p.flags for p in rendered):
         warnings.append(SceneWarning("double_illuminate", "double_illuminate is not rendered"))
-    sky = () if scene.sky_sphere is None else scene.sky_sphere.pigments
+    environment = environment_of(scene)
+    sky = [pig for e, v in environment if e.pigments is not None for pig in e.pigments(v)]
     for pig in [*pigments, *sky]:
         if pig.pattern not in SUPPORTED_PATTERNS:
             warnings.append(SceneWarning(pig.pattern, f"pattern {pig.pattern!r} is not rendered"))
@@ -495,9 +504,9 @@ def make_plan(scene: Scene) -> Plan:
         straight_passes=straight_passes,
         depth=depth,
         # a fog needs to know which rays are inside objects (those have none)
-        media_slots=_media_slots(prims, rendered) if refraction or (scene.fogs and transmission) else 0,
-        fog=bool(scene.fogs),
-        sky_sphere=scene.sky_sphere is not None,
+        media_slots=(_media_slots(prims, rendered)
+                     if refraction or (transmission and any(e.needs_media for e, _ in environment)) else 0),
+        environment=tuple(e.name for e, _ in environment),
     )
     units, prim_unit = bounding_units(scene.objects, roots, len(prims), fl.bounds)
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),

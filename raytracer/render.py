@@ -28,11 +28,11 @@ from ._packing import Frozen, is_traced, keyed, skeleton, with_field
 from ._plan import InPrim, Plan, leaf_prims, make_plan
 from ._xla import warn_if_untuned
 from .kernels import safe_pow
-from .scene import Scene
+from .scene import Scene, environment_of
 from .shading import _accel
 from .shading._geometry import PackedGeometry, hierarchy_filters, pack_geometry, prim_bits
-from .shading._materials import PackedMaterials, pack_materials, pack_pigments
-from .shading._model import fog_arrays, fog_factors, sky_colour
+from .shading._materials import PackedMaterials, pack_materials
+from .shading._model import pack_environment, segment_factors, unlit_colour
 from .shading.camera import camera_rays, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
 
@@ -375,7 +375,7 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
     scene = packed.rest
     dtype = scene.camera.location.dtype
     ctx = make_context(scene_plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
-                       dtype, scene.sky_sphere, scene.fogs)
+                       dtype, environment_of(scene))
     pool = tile * slots_per_camera_ray(scene_plan.effects, capacity)
     chunk = _chunk_size(tile, scene_plan.effects.depth)
     grad_chunk = pool if pool <= UNCHUNKED_POOL else chunk
@@ -498,33 +498,27 @@ def _image_of(colours, width: int, height: int):
 
 
 def _background_only(scene: Scene, width: int, height: int, k: int = 1):
-    """The image of a scene without a rendered object: every ray sees the background or the sky,
-    through the fogs."""
-    if scene.sky_sphere is not None or scene.fogs:  # a colour per ray
-        return _unlit_image(scene.camera, scene.sky_sphere, scene.background, scene.fogs, scene.settings,
-                            width, height, k)
+    """The image of a scene without a rendered object: every ray sees the background, or what the
+    environment effects make of it (a sky, through fogs)."""
+    environment = environment_of(scene)
+    if environment:  # a colour per ray
+        return _unlit_image(scene.camera, environment, scene.background, scene.settings, width, height, k)
     return _background_image(scene.background.astype(scene.camera.location.dtype), scene.settings,
                              width, height)
 
 
 @eqx.filter_jit
-def _unlit_image(camera, sky, background, fogs, settings, width: int, height: int, k: int):
-    """The image every ray of which hits nothing: the ``sky_sphere`` ``sky`` (None: the
-    background) through ``fogs`` (k×k samples a pixel)."""
+def _unlit_image(camera, environment, background, settings, width: int, height: int, k: int):
+    """The image every ray of which hits nothing: the background under the environment effects
+    ``environment`` (``environment_of``'s; the shading model's functions, k×k samples a pixel)."""
     dtype = camera.location.dtype
     o, d = camera_rays(camera, *sample_coords(jnp.arange(width * height * k * k), width, height, k, dtype))
     background = background.astype(dtype)
-    packed = None if sky is None else pack_pigments(sky.pigments, dtype)
-    arrays = fog_arrays(fogs, dtype)
+    packed = pack_environment(environment, dtype)
 
     def one(o_, d_):
-        c = background if sky is None else sky_colour(packed, jnp.asarray(sky.emission, dtype), background,
-                                                      d_)
-        if not arrays:
-            return c
-        u = d_ / jnp.linalg.norm(d_)
-        scale, add = fog_factors(arrays, o_, u, None)
-        return c * scale + add
+        scale, add = segment_factors(packed, o_, d_ / jnp.linalg.norm(d_), None)
+        return unlit_colour(packed, background, d_) * scale + add
 
     colours = jax.vmap(one)(o, d)
     image = colours.reshape(height * width, k * k, 3).mean(axis=1).reshape(height, width, 3)
@@ -919,7 +913,7 @@ def _adaptive_batch(width: int, height: int) -> int:
     quantum per device), rounded as ``_pixel_bucket`` rounds. A pass with more pending pixels
     traces them in several passes (the same image); one with fewer traces only the tiles that hold
     them (``_deal``). Measured against half the image (two rounds, whitted.pov 96×72 and seed.pov
-    128×96 at POV-Ray's five settings of docs/accuracy.md, and at three times those sizes): a
+    128×96 at POV-Ray's six settings of docs/accuracy.md, and at three times those sizes): a
     quarter as fast or faster at all but one setting, up to 25 %."""
     least = CHUNKS_PER_TILE * len(jax.local_devices())
     return _pixel_bucket(max(-(-width * height // 4), least), least)

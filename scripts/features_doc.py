@@ -37,7 +37,7 @@ def _effects() -> list[tuple[str, str]]:
             name, words[m.group(1)] = m.group(1), m.group(2).strip()
         elif name and line.startswith(" " * 12) and line.strip():
             words[name] += " " + line.strip()
-    skip = {"kinds", "patterns", "depth", "straight_passes", "media_slots"}
+    skip = {"kinds", "patterns", "depth", "straight_passes", "media_slots", "environment"}
     return [(n, words.get(n, "")) for n in Effects.__dataclass_fields__ if n not in skip]
 
 
@@ -59,6 +59,7 @@ def _literal_warnings() -> set[str]:
 
 def generated() -> str:
     from raytracer import patterns, shapes
+    from raytracer.scene._environment import ENVIRONMENT
     from raytracer.scene._lights import LIGHT_TYPES
     from raytracer.sdl._objects import _IGNORED_FLAG_WARNINGS, UNSUPPORTED_OBJECTS
 
@@ -111,6 +112,13 @@ def generated() -> str:
         "| type or modifier | its `light_source` items | |",
         "|---|---|---|",
         *(light(t) for t in kinds + modifiers),
+        "",
+        "### Environment effects (`scene.ENVIRONMENT`)",
+        "",
+        "| effect | scene field | a ray that hits nothing | a ray segment |",
+        "|---|---|---|---|",
+        *(f"| {e.name} | `{e.field}` | {'sees it' if e.miss else '—'} | "
+          f"{'goes through it' if e.segment else '—'} |" for e in ENVIRONMENT),
         "",
         "### Effects the compiled program simulates (when the scene asks for them)",
         "",

@@ -23,6 +23,11 @@ from ..shapes import Torus as Torus
 from ..shapes import Triangle as Triangle
 from ..shapes import polygon_from_points as polygon_from_points
 from ._camera import Camera as Camera
+from ._environment import ENVIRONMENT as ENVIRONMENT
+from ._environment import EnvironmentType as EnvironmentType
+from ._environment import Fog as Fog
+from ._environment import SkySphere as SkySphere
+from ._environment import environment_of as environment_of
 from ._lights import AreaLight as AreaLight
 from ._lights import Light as Light
 from ._lights import Spot as Spot
@@ -30,10 +35,8 @@ from ._objects import CSG as CSG
 from ._objects import CSG_OPERATIONS as CSG_OPERATIONS
 from ._objects import AbstractObject as AbstractObject
 from ._objects import Object as Object
-from ._scene import Fog as Fog
 from ._scene import Scene as Scene
 from ._scene import Settings as Settings
-from ._scene import SkySphere as SkySphere
 from ._texture import PATTERNS as PATTERNS
 from ._texture import WAVES as WAVES
 from ._texture import Finish as Finish

@@ -9,9 +9,9 @@ from .._build import Record
 from .._dtype import as_float
 from ..errors import SceneWarning
 from ._camera import Camera
+from ._environment import Fog, SkySphere
 from ._lights import Light
 from ._objects import AbstractObject
-from ._texture import Pigment
 
 OUTPUT_TRANSFERS = ("linear", "gamma", "srgb_decode")
 
@@ -40,48 +40,6 @@ class Settings(Record):
             raise ValueError(f"unknown output transfer {self.output_transfer!r}")
         if not 1 <= self.max_trace_level <= 256:
             raise ValueError("max_trace_level must be in 1…256")
-
-
-class SkySphere(Record):
-    """``sky_sphere`` (semantics §2.8): the colour a ray that hits nothing sees, as a function of its
-    direction.
-
-    Attributes:
-        pigments: layered bottom first: each later pigment lies on top, through its filter and
-                  transmit as texture layers are, and the scene's background shows through the
-                  bottom one. Each is evaluated at the ray's unit direction, in world space (the
-                  ``sky_sphere``'s own transformations are part of each pigment's transform).
-        emission: (3,) multiplies the opaque part of each pigment's colour (not what its filter
-                  and transmit let through).
-    """
-
-    pigments: tuple[Pigment, ...] = ()
-    emission: Float[Array, "3"] = eqx.field(converter=as_float, default=(1.0, 1.0, 1.0))
-
-
-class Fog(Record):
-    """A ``fog`` (semantics §2.8): a ray segment that crosses fog of optical depth ``L`` before
-    its hit (infinitely far where it hits nothing) keeps ``a = max(exp(−L/distance), transmit)`` of
-    its colour, tinted by the fog's filter, and takes ``1 − a`` of the fog's colour. A constant fog
-    (``ground`` False) has density 1 everywhere (``L`` is the segment's length); a ground fog
-    (``fog_type 2``) has density 1 below the height ``offset`` along ``up`` and
-    ``1/(1 + ((h − offset)/alt)²)`` above it.
-
-    Attributes:
-        distance: () the distance at which ``exp(−L/distance)`` is 1/e.
-        color:    (5,) RGBFT: the fog's colour, its filter and its transmit.
-        offset:   () a ground fog's height of full density (``fog_offset``).
-        alt:      () the height over it at which the density is halved (``fog_alt``).
-        up:       (3,) the direction of height (unit).
-        ground:   static: a ground fog.
-    """
-
-    distance: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    color: Float[Array, "5"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0, 0.0, 0.0))
-    offset: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
-    alt: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    up: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 1.0, 0.0))
-    ground: bool = eqx.field(static=True, default=False)
 
 
 class Scene(Record):

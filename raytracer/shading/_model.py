@@ -250,14 +250,18 @@ class TraceContext:
     accel_filters: bool  # the hierarchy holds transparent shadow-casting items (``MASK_FILTER``)
     accel_fades: bool  # ... and some of them have an interior that fades
     accel_filter_layers: int  # ... and the most texture layers one of them has
-    sky: PackedMaterials | None = None  # the sky_sphere's pigments, rows bottom first (None: none)
-    sky_emission: jax.Array | None = None  # (3,) multiplies them
-    fogs: tuple = ()  # the scene's fogs (``fog_arrays``)
+    # the scene's environment effects that are on, each with its packed arrays (``pack_environment``)
+    environment: tuple = ()
+
+
+def pack_environment(environment, dtype) -> tuple:
+    """``scene.environment_of(scene)``'s effects, each with the arrays its entry packs."""
+    return tuple((e, e.pack(v, dtype, pack_pigments)) for e, v in environment)
 
 
 def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights, settings,
-                 background, dtype, sky_sphere=None, fogs=()) -> TraceContext:
-    """``sky_sphere``: the scene's ``SkySphere`` or None; ``fogs``: its ``Fog``s."""
+                 background, dtype, environment=()) -> TraceContext:
+    """``environment``: ``scene.environment_of(scene)``."""
     prims = plan.prims
     bits = prim_bits(plan)  # the hierarchy's items use them too
     # shadow rays compute the crossings of shadow casters only (no_shadow objects are skipped)
@@ -266,9 +270,7 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
     return TraceContext(
         plan=plan, geo=geo, mats=mats, lights=tuple(lights), settings=settings,
         background=background.astype(dtype), dtype=dtype,
-        sky=None if sky_sphere is None else pack_pigments(sky_sphere.pigments, dtype),
-        sky_emission=None if sky_sphere is None else jnp.asarray(sky_sphere.emission, dtype),
-        fogs=fog_arrays(fogs, dtype),
+        environment=pack_environment(environment, dtype),
         eps=2e-5 if dtype == jnp.float32 else 1e-9,
         vis_camera=(bits[geo.cand_prim] & _accel.MASK_CAMERA) != 0,
         vis_reflect=(bits[geo.cand_prim] & _accel.MASK_REFLECT) != 0,
@@ -1053,111 +1055,48 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
         children.append(_mirror(ctx, ray, s, layers, tir))
     if transmitted is not None:
         children.append(transmitted)
-    local = jnp.where(s.found, layers.local, jnp.where(s.missed, _unlit(ctx, ray.direction), 0.0))
-    if ctx.fogs:
-        # the fogs along the ray, up to its hit or forever: a colour c seen through them is
-        # c·scale + add, and so is what the children bring back, through their coefficients. A
-        # ray inside an object (its interior list not empty: a transmitted ray that entered a
-        # surface and has not left it, a sphere or a triangle alike) has no fog, as in POV-Ray
+    local = jnp.where(s.found, layers.local,
+                      jnp.where(s.missed, unlit_colour(ctx.environment, ctx.background, ray.direction), 0.0))
+    if any(e.segment is not None for e, _ in ctx.environment):
+        # what the space along the ray, up to its hit or forever, does to what it carries: a
+        # colour c seen along it is c·scale + add, and so is what the children bring back,
+        # through their coefficients. A ray inside an object (its interior list not empty: a
+        # transmitted ray that entered a surface and has not left it, a sphere or a triangle
+        # alike) is not changed, as in POV-Ray's fog
         d2 = jnp.maximum(jnp.dot(ray.direction, ray.direction), jnp.finfo(ctx.dtype).tiny)
         unit = ray.direction / jnp.sqrt(d2)
         length = jnp.where(s.found, s.t * jnp.sqrt(d2), 0.0)
-        near_scale, near_add = fog_factors(ctx.fogs, ray.origin, unit, length)
-        far_scale, far_add = fog_factors(ctx.fogs, ray.origin, unit, None)
+        near_scale, near_add = segment_factors(ctx.environment, ray.origin, unit, length)
+        far_scale, far_add = segment_factors(ctx.environment, ray.origin, unit, None)
         scale = jnp.where(s.found, near_scale, far_scale)
         add = jnp.where(s.found, near_add, far_add)
         inside = jnp.any(ray.media >= 0) if ray.media.shape[-1] else False
-        fogged = (s.found | s.missed) & ~inside
-        scale, add = jnp.where(fogged, scale, 1.0), jnp.where(fogged, add, 0.0)
-        local = jnp.where(fogged, local * scale + add, local)
+        changed = (s.found | s.missed) & ~inside
+        scale, add = jnp.where(changed, scale, 1.0), jnp.where(changed, add, 0.0)
+        local = jnp.where(changed, local * scale + add, local)
         children = [c._replace(coef=c.coef * scale) for c in children]
     return Shading(local=local, children=tuple(children))
 
 
-class FogArrays(NamedTuple):
-    """A ``Fog`` as the shading reads it: its arrays in the working dtype, ``ground`` static."""
-
-    distance: jax.Array
-    color: jax.Array
-    offset: jax.Array
-    alt: jax.Array
-    up: jax.Array
-    ground: bool
-
-
-def fog_arrays(fogs, dtype) -> tuple[FogArrays, ...]:
-    """The scene's ``Fog``s as :class:`FogArrays`."""
-    names = ("distance", "color", "offset", "alt", "up")
-    return tuple(FogArrays(*(jnp.asarray(getattr(f, k), dtype) for k in names), f.ground) for f in fogs)
+def unlit_colour(environment, background, d):
+    """What a ray of direction ``d`` (3,) that hits nothing sees: the ``background`` (3,), under each
+    environment effect's ``miss`` colour in turn (``environment``: ``pack_environment``'s)."""
+    colour = background
+    for e, arrays in environment:
+        if e.miss is not None:
+            colour = e.miss(arrays, d, colour, pigment_at)
+    return colour
 
 
-def _fog_depth(fog: FogArrays, origin, unit, distance):
-    """The optical depth along the ray ``origin + s·unit`` (``unit`` a unit vector) for ``s`` in [0,
-    ``distance``] (None: to infinity; then ``inf`` where the ray does not climb out of a ground fog):
-    the length for a constant fog; for a ground fog the integral of its density, by its
-    antiderivative over the height ``h``: ``h − offset`` below the offset, ``alt·atan((h −
-    offset)/alt)`` above (semantics §2.8)."""
-    if not fog.ground:
-        return jnp.inf if distance is None else distance
-
-    def antiderivative(h):
-        u = (h - fog.offset) / fog.alt
-        return jnp.where(u < 0, h - fog.offset, fog.alt * jnp.arctan(jnp.maximum(u, 0.0)))
-
-    def density(h):
-        u = jnp.maximum((h - fog.offset) / fog.alt, 0.0)
-        return 1 / (1 + u * u)
-
-    h0, climb = jnp.dot(origin, fog.up), jnp.dot(unit, fog.up)
-    level = jnp.abs(climb) < 1e-6
-    safe = jnp.where(level, 1.0, climb)
-    if distance is None:
-        # to infinity: up and out of it (the antiderivative tends to alt·π/2), else all of it
-        out = (fog.alt * (jnp.pi / 2) - antiderivative(h0)) / safe
-        return jnp.where(climb > 1e-6, out, jnp.inf)
-    across = (antiderivative(h0 + climb * distance) - antiderivative(h0)) / safe
-    return jnp.where(level, distance * density(h0), across)
-
-
-def fog_factors(fogs, origin, unit, distance):
-    """``(scale (3,), add (3,))``: a colour ``c`` seen through the fogs ``fogs`` (``FogArrays``)
-    along the ray ``origin + s·unit`` over ``distance`` (None: infinitely far) is
-    ``c·scale + add``. Each fog keeps ``a = max(exp(−L/D), transmit)`` of what lies behind it, L
-    its optical depth there (:func:`_fog_depth`), tinted by its filter (``1 − f + f·rgb``), and
-    adds ``(1 − a)·rgb``; several fogs multiply what they keep and add what they add, as POV-Ray
-    renders them (semantics §2.8)."""
+def segment_factors(environment, origin, unit, distance):
+    """``(scale, add)``: a colour ``c`` carried along ``origin + s·unit`` over ``distance`` (None:
+    infinitely far) arrives as ``c·scale + add``, through each effect's ``segment`` in turn."""
     scale, add = 1.0, 0.0
-    for fog in fogs:
-        rgb, filt, transmit = fog.color[:3], fog.color[3], fog.color[4]
-        depth = _fog_depth(fog, origin, unit, distance)
-        finite = jnp.isfinite(depth)
-        keep = jnp.where(finite, jnp.exp(-jnp.where(finite, depth, 0.0) / fog.distance), 0.0)
-        keep = jnp.maximum(keep, transmit)
-        scale = scale * keep * (1 - filt + filt * rgb)
-        add = add + (1 - keep) * rgb
+    for e, arrays in environment:
+        if e.segment is not None:
+            s, a = e.segment(arrays, origin, unit, distance)
+            scale, add = scale * s, add * s + a
     return scale, add
-
-
-def _unlit(ctx: TraceContext, d):
-    """What a ray of direction ``d`` (3,) that hits nothing sees: the background, or the
-    ``sky_sphere`` over it: its pigments at the unit direction, bottom first, each over what lies
-    below as a texture layer is (filter multiplies, transmit passes), the opaque part of their
-    colour times the emission (as POV-Ray renders it: not the filtered part; semantics §2.8)."""
-    if ctx.sky is None:
-        return ctx.background
-    return sky_colour(ctx.sky, ctx.sky_emission, ctx.background, d)
-
-
-def sky_colour(sky: PackedMaterials, emission, background, d):
-    """:func:`_unlit` with a sky: ``sky`` the sky's pigments packed (``pack_pigments``), bottom
-    first, ``emission`` (3,), ``background`` (3,), ``d`` (3,) a direction."""
-    u = d / jnp.sqrt(jnp.maximum(jnp.dot(d, d), jnp.finfo(d.dtype).tiny))
-    below = background
-    for row in range(len(sky.pattern_id)):
-        rgbft = pigment_at(sky, row, u)
-        rgb, f, t = rgbft[:3], rgbft[3], rgbft[4]
-        below = (1 - f - t) * rgb * emission + f * rgb * below + t * below
-    return below
 
 
 def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
