@@ -651,6 +651,25 @@ def _scan_flags(centre, refined, threshold, gamma=2.5, native: bool | None = Non
     return _rule(_seen(centre, gamma), _seen(refined, gamma), threshold, native)
 
 
+class _RowsState(NamedTuple):
+    """The rule's repetition over rows (``_rule``)."""
+
+    kept: jax.Array  # (H, W) bool: the pixels refined so far
+    up: jax.Array  # (H, W) bool: those set off by the row above
+    changed: jax.Array  # () bool: the last repetition changed something
+
+
+class _PassState(NamedTuple):
+    """The adaptive program's loop over passes (``_adaptive_program``)."""
+
+    seen: jax.Array  # (H, W, 3) each pixel's value as the rule compares it, refined where known
+    out: jax.Array  # (H, W, 3) the image so far
+    flag: jax.Array  # (H, W) bool: the pixels the rule refines
+    have: jax.Array  # (H, W) bool: the pixels refined so far
+    dropped: jax.Array  # () int32: rays that found no room
+    passes: jax.Array  # () int32
+
+
 def _rule(c, a, threshold, native: bool | None = None):
     """``_scan_flags`` of the centres and refined values as POV-Ray compares them (``_seen``).
 
@@ -687,16 +706,15 @@ def _rule(c, a, threshold, native: bool | None = None):
         # refined_x is the last constant's value before it, negated once per negation since
         return _chain(up | plain, up | fine) | right, up
 
-    def changed(state):
-        return state[2]
+    def changed(state: _RowsState):
+        return state.changed
 
-    def again(state):
-        kept, _, _ = state
-        new, up = rows(kept)
-        return new, up, jnp.any(new != kept)
+    def again(state: _RowsState) -> _RowsState:
+        new, up = rows(state.kept)
+        return _RowsState(new, up, jnp.any(new != state.kept))
 
     start = jnp.zeros(c.shape[:2], bool)
-    kept, up, _ = jax.lax.while_loop(changed, again, (start, start, jnp.bool_(True)))
+    kept, up, _ = jax.lax.while_loop(changed, again, _RowsState(start, start, jnp.bool_(True)))
     # the row below may set a pixel off too, once its own row is done
     return kept | jnp.concatenate([up[1:], jnp.zeros_like(up[:1])])
 
@@ -948,15 +966,14 @@ def _adaptive_program(packed: Packed, width: int, height: int, n: int, batch: in
         value = _refined(centre, pixel, grid, n)
         return jnp.concatenate([_seen(value, gamma), _output_transfer(value, settings)], -1)
 
-    def pending(state):
-        _, _, flag, have, _, passes = state
+    def pending(state: _PassState):
         # each pass refines at least one pending pixel: at most one pass a pixel
-        return jnp.any(flag & ~have) & (passes < size)
+        return jnp.any(state.flag & ~state.have) & (state.passes < size)
 
     def shifted(x, down, right):  # x moved down and right, zeros shifted in, none wrapped
         return jnp.pad(x, ((down, 0), (right, 0)))[:height, :width]
 
-    def one_pass(state):
+    def one_pass(state: _PassState) -> _PassState:
         seen, out, flag, have, dropped, passes = state
         todo = flag & ~have
         # the two to the right of and the one below each pending pixel
@@ -966,9 +983,9 @@ def _adaptive_program(packed: Packed, width: int, height: int, n: int, batch: in
         (dest, six), lost = _pixel_colours(packed, width, height, n, pixels, capacity, n_dev, post)
         seen, out = _put(seen, dest, six[:, :3]), _put(out, dest, six[:, 3:])
         have = have.ravel().at[dest].set(True, mode="drop").reshape(have.shape)
-        return seen, out, _rule(seen_centre, seen, threshold), have, dropped + lost, passes + 1
+        return _PassState(seen, out, _rule(seen_centre, seen, threshold), have, dropped + lost, passes + 1)
 
-    state = seen_centre, out_centre, flag, jnp.zeros_like(flag), dropped, jnp.int32(0)
+    state = _PassState(seen_centre, out_centre, flag, jnp.zeros_like(flag), dropped, jnp.int32(0))
     _, out, flag, _, dropped, _ = jax.lax.while_loop(pending, one_pass, state)
     return (jnp.where(flag[..., None], out, out_centre), flag), dropped
 

@@ -337,7 +337,7 @@ def test_materials_pack_shared_finishes_and_colour_maps_of_every_length_row_by_r
     shared = rt.Finish(diffuse=0.5, ambient=0.1)
     maps = [np.array([0.0]), np.array([0.0, 1.0]), np.array([0.0, 0.5, 1.0])]
     colours = [np.tile(np.arange(5.0), (len(v), 1)) * (1 + np.arange(len(v)))[:, None] for v in maps]
-    pigments = [rt.Pigment(pattern=p, values=v, colors=c)
+    pigments = [rt.Pigment(pattern=p, values=v, colors=c, transparent=True)
                 for p, v, c in zip(("solid", "checker", "gradient"), maps, colours, strict=True)]
     finishes = [shared, rt.Finish(diffuse=0.9, ambient=0.2), shared]
     objects = tuple(rt.Object(rt.Sphere((3.0 * i, 0, 0), 1.0),
@@ -345,8 +345,8 @@ def test_materials_pack_shared_finishes_and_colour_maps_of_every_length_row_by_r
                     for i, (pg, f) in enumerate(zip(pigments, finishes, strict=True)))
     mats = pack_materials(make_plan(rt.Scene(camera=rt.Camera(), objects=objects)), np.float64)
     # rows past the objects' (padding to ``bucket(3)`` = 8 primitives) repeat the last one
-    np.testing.assert_array_equal(mats.finish["diffuse"], np.float32([0.5, 0.9] + [0.5] * 6))
-    np.testing.assert_array_equal(mats.finish["ambient"][:3], np.float32([0.1, 0.2, 0.1]))
+    np.testing.assert_array_equal(mats.finish.diffuse, np.float32([0.5, 0.9] + [0.5] * 6))
+    np.testing.assert_array_equal(mats.finish.ambient[:3], np.float32([0.1, 0.2, 0.1]))
     for row, (v, c) in enumerate(zip(maps, colours, strict=True)):
         n = len(v)
         np.testing.assert_array_equal(mats.values[row], np.concatenate([v, np.repeat(v[-1], 3 - n)]))

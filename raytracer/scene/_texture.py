@@ -67,6 +67,10 @@ class Pigment(Record):
             raise ValueError(f"unknown wave {self.wave!r}")
         if self.colors.ndim != 2 or self.colors.shape[-1] != 5 or self.values.shape != self.colors.shape[:1]:
             raise ValueError("colors must be (M, 5) and values (M,)")
+        if not self.transparent and isinstance(self.colors, np.ndarray) and np.any(self.colors[:, 3:] != 0):
+            # an opaque pigment's filter and transmit are 0 in the program (docs/gradients.md)
+            raise ValueError("colors carry filter or transmit, but the pigment is not transparent: "
+                             "pass transparent=True to render them")
 
     @classmethod
     def solid(cls, rgb, filter=None, transmit=None) -> Pigment:  # noqa: A002 - POV's name

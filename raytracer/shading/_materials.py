@@ -5,6 +5,7 @@ see ``raytracer/_packing.py``), and pigment evaluation at a hit point (semantics
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -62,7 +63,7 @@ class PackedMaterials:
     turbulence: jax.Array  # (N, 3) (zeros where absent)
     omega: jax.Array
     lambda_: jax.Array
-    finish: dict[str, jax.Array]  # name -> (N,) or (N, 3)
+    finish: FinishArrays  # every row's finish
     fresnel: np.ndarray  # (N,) bool static
     conserve_energy: np.ndarray  # (N,) bool static
     ior: jax.Array  # (N,) (1 where absent)
@@ -76,6 +77,26 @@ class PackedMaterials:
     # the static tables above as arrays (a traced row's lookups): layer_present, pattern_id, waves,
     # fresnel, conserve_energy, transparent; and exact_space
     tables: dict[str, jax.Array] = dataclasses.field(default_factory=dict)
+
+
+class FinishArrays(NamedTuple):
+    """The finishes of every material row, a field a stack: (N,) or (N, 3). What is absent in a
+    finish is the value that adds nothing (0), or POV-Ray's default."""
+
+    ambient: jax.Array
+    emission: jax.Array
+    diffuse: jax.Array
+    brilliance: jax.Array
+    phong: jax.Array
+    phong_size: jax.Array
+    specular: jax.Array
+    roughness: jax.Array
+    metallic: jax.Array
+    refl_min: jax.Array
+    refl_max: jax.Array
+    refl_falloff: jax.Array
+    refl_exponent: jax.Array
+    refl_metallic: jax.Array
 
 
 def _finish_arrays(f: Finish, no_reflection: Reflection) -> dict:
@@ -158,7 +179,7 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         turbulence=stack([zero3 if pg["turbulence"] is None else pg["turbulence"] for pg in pg_], dtype),
         omega=stack([pg["omega"] for pg in pg_], dtype),
         lambda_=stack([pg["lambda_"] for pg in pg_], dtype),
-        finish={k: stack([fi[k] for fi in fin], dtype)[fin_row] for k in fin[0]},
+        finish=FinishArrays(*(stack([fi[k] for fi in fin], dtype)[fin_row] for k in FinishArrays._fields)),
         fresnel=np.array([f.reflection is not None and f.reflection.fresnel for f in finishes]),
         conserve_energy=np.array([f.conserve_energy for f in finishes]),
         ior=stack([1.0 if it.ior is None else it.ior for it in interiors], dtype),
@@ -238,7 +259,7 @@ def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
         mats,
         **{k: pad_rows(getattr(mats, k), rows) for k in _ROW_ARRAYS},
         **{k: pad_rows(getattr(mats, k), n) for k in _PRIM_ARRAYS},
-        finish={k: pad_rows(v, rows) for k, v in mats.finish.items()}, exact_space=None)
+        finish=FinishArrays(*(pad_rows(v, rows) for v in mats.finish)), exact_space=None)
     out.tables = {
         "layer_present": pad_rows(mats.layer_present, n, False),
         "pattern_id": pad_rows(mats.pattern_id, rows),

@@ -229,7 +229,7 @@ def initial_media(ctx: TraceContext, eye) -> jax.Array:
     return jnp.nonzero(present, size=slots, fill_value=-1)[0].astype(jnp.int32)
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(frozen=True)
 class TraceContext:
     """The scene as the shading model sees it (packed arrays and static masks over candidates)."""
 
@@ -758,12 +758,12 @@ def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, a
     """Diffuse and highlight terms of one texture layer (material ``row``) for one light."""
     l, c, cos_nl, lit = arrival
     fin = ctx.mats.finish
-    out = lighting.diffuse(att, fin["diffuse"][row], fin["brilliance"][row], cos_nl, rgb) * c
+    out = lighting.diffuse(att, fin.diffuse[row], fin.brilliance[row], cos_nl, rgb) * c
     eff = ctx.plan.effects
     if eff.highlights and all(t.shadows for t in light_types(light, eff)):
-        h = lighting.phong(fin["phong"][row], fin["phong_size"][row], d, n, l)
-        h = h + lighting.specular(fin["specular"][row], fin["roughness"][row], d, n, l)
-        tint = lighting.metallic_tint(fin["metallic"][row], cos_nl, rgb) if eff.metallic else 1.0
+        h = lighting.phong(fin.phong[row], fin.phong_size[row], d, n, l)
+        h = h + lighting.specular(fin.specular[row], fin.roughness[row], d, n, l)
+        tint = lighting.metallic_tint(fin.metallic[row], cos_nl, rgb) if eff.metallic else 1.0
         out = out + h * c * tint
     return jnp.where(lit, out, 0.0)
 
@@ -771,8 +771,8 @@ def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, a
 def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
     """Reflection colour (semantics §2.6) and its ray weight."""
     fin, mats = ctx.mats.finish, ctx.mats
-    rmin, rmax = fin["refl_min"][row], fin["refl_max"][row]
-    frac = safe_pow(1.0 - cos_i, fin["refl_falloff"][row])
+    rmin, rmax = fin.refl_min[row], fin.refl_max[row]
+    frac = safe_pow(1.0 - cos_i, fin.refl_falloff[row])
     reflec = frac * rmax + (1 - frac) * rmin
     weight = jnp.maximum(jnp.max(rmax), jnp.max(rmin))
     if ctx.plan.effects.fresnel:
@@ -782,7 +782,7 @@ def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
         reflec = jnp.where(is_f, fres, reflec)
         weight = jnp.where(is_f, jnp.max(reflec), weight)
     if ctx.plan.effects.reflection_metallic:
-        reflec = reflec * lighting.metallic_tint(fin["refl_metallic"][row], cos_i, rgb)
+        reflec = reflec * lighting.metallic_tint(fin.refl_metallic[row], cos_i, rgb)
     return reflec, weight
 
 
@@ -889,7 +889,7 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
         pig = pigment_at(mats, row, s.p) if pigments is None else pigments[k]
         rgb, f, t = pig[:3], pig[3], pig[4]
         att = 1.0 - f - t
-        tmp = att * rgb * (fin["ambient"][row] * ctx.settings.ambient_light + fin["emission"][row])
+        tmp = att * rgb * (fin.ambient[row] * ctx.settings.ambient_light + fin.emission[row])
         for (_, lights, _), arrival in zip(classes, arrivals, strict=True):
             terms = _batched(lambda lt, a: _layer_light(ctx, lt, a, row, rgb, att, d, n), lights, arrival)
             tmp = tmp + (terms if lights.count == 1 else jnp.sum(terms, axis=0))
@@ -977,7 +977,7 @@ def _mirror(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers, tir) -> 
     settings = ctx.settings
     w = jax.lax.stop_gradient(ray.weight * layers.r_weight)
     r_alive = s.found & jnp.any(layers.reflec != 0) & ~tir & (w >= settings.adc_bailout)
-    expo = ctx.mats.finish["refl_exponent"][s.prim * ctx.mats.n_layers]  # top layer's
+    expo = ctx.mats.finish.refl_exponent[s.prim * ctx.mats.n_layers]  # top layer's
     child = Rays(origin=s.p_out, direction=lighting.reflect(ray.direction, s.n), weight=w,
                  alive=r_alive & (ray.level < settings.max_trace_level), reflection=jnp.asarray(True),
                  level=ray.level + 1, media=ray.media)

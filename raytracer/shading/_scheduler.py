@@ -48,6 +48,26 @@ from ._chunks import (
 from ._model import Rays, Shading, dead_rays
 
 
+class _LevelState(NamedTuple):
+    """The live tree's loop over levels (``_live_tree``)."""
+
+    level: jax.Array  # () int32: the level being shaded
+    pool: Rays  # its rays, the live ones first
+    chunks: jax.Array  # () int32: its chunks up to the last live one
+    spare: Rays  # the buffer the next level's rays are written into
+    records: "LevelRecord"  # every level's local colours and links
+    dropped: jax.Array  # () int32: children that found no room
+
+
+class _ChunkState(NamedTuple):
+    """One level's loop over its chunks (``_live_tree``)."""
+
+    chunk: jax.Array  # () int32: the next chunk
+    pool: Rays  # the next level's rays so far
+    count: jax.Array  # () int32: children written so far (some past the room: dropped)
+    records: "LevelRecord"
+
+
 class Link(NamedTuple):
     """How one child slot of a pool comes back to its parents: ``coef · colour[dest]^power``.
 
@@ -294,11 +314,11 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
                  alive=record(c.ray.alive), dest=record(c.ray.level, jnp.int32)) for c in shapes.children))
         first_end = last_live_end(jnp.any(pool.alive[:size].reshape(size // chunk, chunk), axis=1))
 
-        def level(state):
+        def level(state: _LevelState) -> _LevelState:
             k, cur, end, nxt, records, dropped = state
             has_next = k + 1 < depth
 
-            def step(cs):
+            def step(cs: _ChunkState) -> _ChunkState:
                 j, nxt, count, records = cs
                 at = j * chunk
                 it = jax.tree.map(lambda a: jax.lax.dynamic_slice_in_dim(a, at, chunk), cur)
@@ -325,18 +345,18 @@ def _live_tree(shade_rays: Callable[[Rays], Shading], rays: Rays, *, depth: int,
                                       power=None if c.power is None else put(link.power, c.power),
                                       alive=put(link.alive, keep[part]), dest=put(link.dest, dest[part])))
                 records = LevelRecord(local=put(records.local, sh.local), links=tuple(links))
-                return j + 1, nxt, count + jnp.sum(every, dtype=jnp.int32), records
+                return _ChunkState(j + 1, nxt, count + jnp.sum(every, dtype=jnp.int32), records)
 
-            _, nxt, count, records = jax.lax.while_loop(lambda cs: cs[0] < end, step,
-                                                        (jnp.int32(0), nxt, jnp.int32(0), records))
+            _, nxt, count, records = jax.lax.while_loop(
+                lambda cs: cs.chunk < end, step, _ChunkState(jnp.int32(0), nxt, jnp.int32(0), records))
             kept = jnp.minimum(count, size)
             nxt = nxt._replace(alive=jnp.arange(spare) < kept)
-            return k + 1, nxt, (kept + chunk - 1) // chunk, cur, records, dropped + count - kept
+            return _LevelState(k + 1, nxt, (kept + chunk - 1) // chunk, cur, records, dropped + count - kept)
 
-        def more(state):  # a level with a live ray, and not past the depth
-            return (state[2] > 0) & (state[0] < depth)
+        def more(state: _LevelState):  # a level with a live ray, and not past the depth
+            return (state.chunks > 0) & (state.level < depth)
 
-        state = (jnp.int32(0), pool, first_end, pool, records, jnp.int32(0))
+        state = _LevelState(jnp.int32(0), pool, first_end, pool, records, jnp.int32(0))
         used, _, _, _, records, dropped = jax.lax.while_loop(more, level, state)
 
         def combine(i, colour):
