@@ -78,6 +78,7 @@ jit, warm; the native code uses XLA's thread pool):
 from __future__ import annotations
 
 import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -387,57 +388,96 @@ def _slab(box, o, inv, tmin, tmax):
     return near <= far, near
 
 
+class _Tables(NamedTuple):
+    """The query's tables as columns (``_prepare``)."""
+
+    box: tuple  # six (nodes,) columns: lo x, y, z, hi x, y, z
+    first: jax.Array  # (nodes,) a leaf's first item slot, an inner node's left child
+    count: jax.Array  # (nodes,) a leaf's items (0: an inner node)
+    right: jax.Array  # (nodes,) an inner node's right child
+    item: jax.Array  # (slots,) the item of each leaf slot
+    kind: jax.Array  # (slots,) its kernel
+    mask: jax.Array  # (slots,) its visibility bits
+    params: jax.Array  # (slots, 12) its kernel's numbers
+    present: tuple | None  # per kernel, whether some item has it (``PER_KIND``)
+
+
+class _Traversal(NamedTuple):
+    """One ray's traversal (``_ray_loop``): its stack of nodes and entry distances, its nearest hit
+    so far and its cursor in the leaf being read."""
+
+    sp: jax.Array  # () the stack's height
+    node: jax.Array  # (STACK + 2,) nodes
+    near: jax.Array  # (STACK + 2,) their entry distances
+    best_t: jax.Array  # () the nearest hit so far (tmax: none)
+    best: jax.Array  # () its slot (-1: none)
+    j: jax.Array  # () the next slot of the open leaf
+    end: jax.Array  # () past its last slot
+
+
+class _Lane(NamedTuple):
+    """One lane's ray (``_trace_lanes``)."""
+
+    o: tuple
+    d: tuple
+    inv: tuple
+    tmin: jax.Array
+    tmax: jax.Array
+    want: jax.Array
+
+
 def _prepare(tables):
     """The query's tables as columns (gathering one value of a column per ray is several times
     faster on the CPU than gathering rows), the items in leaf order (a leaf slot indexes them)."""
     node_box, node_info, order, kind, mask, params = tables[:6]  # (no tie rule: the unit tables)
-    return dict(box=tuple(node_box[:, k] for k in range(6)), first=node_info[:, 0], count=node_info[:, 1],
-                right=node_info[:, 2], item=order, kind=kind[order], mask=mask[order], params=params[order],
-                present=tuple(jnp.any(kind == k) for k in _KERNELS) if PER_KIND else None)
+    return _Tables(box=tuple(node_box[:, k] for k in range(6)), first=node_info[:, 0],
+                   count=node_info[:, 1], right=node_info[:, 2], item=order, kind=kind[order],
+                   mask=mask[order], params=params[order],
+                   present=tuple(jnp.any(kind == k) for k in _KERNELS) if PER_KIND else None)
 
 
 def _ray_loop(t, any_hit: bool):
     """(init, active, step, result) of one ray's traversal over the prepared tables ``t`` (vmapped
     by the caller). The stack holds nodes and their entry distances."""
-    n_nodes, n_items = t["first"].shape[0], t["item"].shape[0]
-    dtype = t["params"].dtype
+    n_nodes, n_items = t.first.shape[0], t.item.shape[0]
+    dtype = t.params.dtype
 
     def init(o, d, tmin, tmax):
         valid = jnp.isfinite(o[0] + o[1] + o[2] + d[0] + d[1] + d[2]) & (tmin < tmax)
         # two spare slots: pushes write past the top; the root is entered at tmin
-        return dict(sp=valid.astype(jnp.int32), node=jnp.zeros(STACK + 2, jnp.int32),
-                    near=jnp.full(STACK + 2, tmin), best_t=tmax, best=jnp.int32(-1), j=jnp.int32(0),
-                    end=jnp.int32(0))
+        return _Traversal(sp=valid.astype(jnp.int32), node=jnp.zeros(STACK + 2, jnp.int32),
+                          near=jnp.full(STACK + 2, tmin), best_t=tmax, best=jnp.int32(-1), j=jnp.int32(0),
+                          end=jnp.int32(0))
 
     def active(s):
-        live = (s["sp"] > 0) | (s["j"] < s["end"])
-        return (live & (s["best"] < 0)) if any_hit else live
+        live = (s.sp > 0) | (s.j < s.end)
+        return (live & (s.best < 0)) if any_hit else live
 
     def step(s, o, d, inv, tmin, want):
         live = active(s)
-        cursor = s["j"] < s["end"]  # inside a leaf of several items (the native tree's)
+        cursor = s.j < s.end  # inside a leaf of several items (the native tree's)
         pop = live & ~cursor
-        top = jnp.maximum(s["sp"] - 1, 0)
-        node, near = jnp.clip(s["node"][top], 0, n_nodes - 1), s["near"][top]
-        sp = jnp.where(pop, s["sp"] - 1, s["sp"])
-        best_t, best = s["best_t"], s["best"]
+        top = jnp.maximum(s.sp - 1, 0)
+        node, near = jnp.clip(s.node[top], 0, n_nodes - 1), s.near[top]
+        sp = jnp.where(pop, s.sp - 1, s.sp)
+        best_t, best = s.best_t, s.best
         visit = pop & (near <= best_t)
-        first, count = t["first"][node], t["count"][node]
+        first, count = t.first[node], t.count[node]
         leaf = count > 0
         # one item: the next of the current leaf, or the first of the leaf just popped
-        slot = jnp.clip(jnp.where(cursor, s["j"], first), 0, n_items - 1)
-        test = live & (cursor | (visit & leaf)) & ((t["mask"][slot] & want) != 0)
-        hit_t = _item_hit(t["kind"][slot], t["params"][slot], o, d, tmin, best_t, t["present"])
+        slot = jnp.clip(jnp.where(cursor, s.j, first), 0, n_items - 1)
+        test = live & (cursor | (visit & leaf)) & ((t.mask[slot] & want) != 0)
+        hit_t = _item_hit(t.kind[slot], t.params[slot], o, d, tmin, best_t, t.present)
         closer = test & (hit_t < best_t)
         best_t, best = jnp.where(closer, hit_t, best_t), jnp.where(closer, slot, best)
         opened = visit & leaf
-        j = jnp.where(cursor, s["j"] + 1, jnp.where(opened, first + 1, s["j"]))
-        end = jnp.where(opened, first + count, s["end"])
+        j = jnp.where(cursor, s.j + 1, jnp.where(opened, first + 1, s.j))
+        end = jnp.where(opened, first + count, s.end)
         # an inner node: its children's boxes, those hit pushed with the nearer on top
         inner = visit & ~leaf
-        kid_l, kid_r = jnp.clip(first, 0, n_nodes - 1), jnp.clip(t["right"][node], 0, n_nodes - 1)
-        hit_l, near_l = _slab([c[kid_l] for c in t["box"]], o, inv, tmin, best_t)
-        hit_r, near_r = _slab([c[kid_r] for c in t["box"]], o, inv, tmin, best_t)
+        kid_l, kid_r = jnp.clip(first, 0, n_nodes - 1), jnp.clip(t.right[node], 0, n_nodes - 1)
+        hit_l, near_l = _slab([c[kid_l] for c in t.box], o, inv, tmin, best_t)
+        hit_r, near_r = _slab([c[kid_r] for c in t.box], o, inv, tmin, best_t)
         hit_l, hit_r = inner & hit_l, inner & hit_r
         both = hit_l & hit_r
         left_first = near_l <= near_r
@@ -447,16 +487,16 @@ def _ray_loop(t, any_hit: bool):
         upper_t = jnp.where(left_first, near_l, near_r)
         pushed = hit_l.astype(jnp.int32) + hit_r.astype(jnp.int32)
         # slots sp and sp + 1 are above the top: writing them is harmless when nothing is pushed
-        nodes = s["node"].at[sp].set(lower).at[sp + 1].set(upper)
-        nears = s["near"].at[sp].set(lower_t).at[sp + 1].set(upper_t)
+        nodes = s.node.at[sp].set(lower).at[sp + 1].set(upper)
+        nears = s.near.at[sp].set(lower_t).at[sp + 1].set(upper_t)
         # a full stack drops the children (as bvh.cc; unreachable for the depths either build makes)
         sp = jnp.where(sp + pushed <= STACK, sp + pushed, sp)
-        return dict(sp=sp, node=nodes, near=nears, best_t=best_t, best=best, j=j, end=end)
+        return _Traversal(sp=sp, node=nodes, near=nears, best_t=best_t, best=best, j=j, end=end)
 
     def result(s):
-        found = s["best"] >= 0
-        item = jnp.where(found, t["item"][jnp.maximum(s["best"], 0)], -1)
-        return item, jnp.where(found, s["best_t"], jnp.inf).astype(dtype)
+        found = s.best >= 0
+        item = jnp.where(found, t.item[jnp.maximum(s.best, 0)], -1)
+        return item, jnp.where(found, s.best_t, jnp.inf).astype(dtype)
 
     return init, active, step, result
 
@@ -476,11 +516,11 @@ def _trace_lanes(t, o, d, tmin, tmax, want, any_hit: bool):
 
     def fetch(ray):
         c = [x[jnp.minimum(ray, rays - 1)] for x in columns]
-        return dict(o=tuple(c[0:3]), d=tuple(c[3:6]), inv=tuple(c[6:9]), tmin=c[9], tmax=c[10], want=c[11])
+        return _Lane(o=tuple(c[0:3]), d=tuple(c[3:6]), inv=tuple(c[6:9]), tmin=c[9], tmax=c[10], want=c[11])
 
     ray = jnp.arange(lanes, dtype=jnp.int32)
     lane = fetch(ray)
-    state = jax.vmap(init)(lane["o"], lane["d"], lane["tmin"], lane["tmax"])
+    state = jax.vmap(init)(lane.o, lane.d, lane.tmin, lane.tmax)
     out_item, out_t = jnp.full(rays, -1, jnp.int32), jnp.full(rays, jnp.inf, tmin.dtype)
     batched_step, batched_active = jax.vmap(step), jax.vmap(active)
 
@@ -495,17 +535,17 @@ def _trace_lanes(t, o, d, tmin, tmax, want, any_hit: bool):
         take = done & (new < rays)
         fresh = fetch(new)
         lane = jax.tree_util.tree_map(lambda a, b: jnp.where(take, a, b), fresh, lane)
-        start = jax.vmap(init)(fresh["o"], fresh["d"], fresh["tmin"], fresh["tmax"])
+        start = jax.vmap(init)(fresh.o, fresh.d, fresh.tmin, fresh.tmax)
         # a new ray needs its own scalars and the first stack entry (the rest is above the top)
-        state = {k: (v.at[:, 0].set(jnp.where(take, start[k][:, 0], v[:, 0])) if v.ndim == 2
-                     else jnp.where(take, start[k], v)) for k, v in state.items()}
+        state = _Traversal(*(v.at[:, 0].set(jnp.where(take, new_v[:, 0], v[:, 0])) if v.ndim == 2
+                             else jnp.where(take, new_v, v) for v, new_v in zip(state, start, strict=True)))
         ray = jnp.where(take, new, jnp.where(done, rays, ray))
         next_ray = jnp.minimum(next_ray + jnp.sum(done, dtype=jnp.int32), rays)
         return state, lane, ray, next_ray, out_item, out_t
 
     def body(carry):
         state, lane, ray, next_ray, out_item, out_t = carry
-        state = batched_step(state, lane["o"], lane["d"], lane["inv"], lane["tmin"], lane["want"])
+        state = batched_step(state, lane.o, lane.d, lane.inv, lane.tmin, lane.want)
         carry = (state, lane, ray, next_ray, out_item, out_t)
         idle = jnp.sum(~batched_active(state) & (ray < rays))
         busy = jnp.sum(ray < rays)
@@ -520,7 +560,7 @@ def _trace(tables, o, d, tmin, tmax, want, any_hit: bool):
     """Rays of any leading shape S (o, d: S + (3,); tmin, tmax, want broadcast to S)."""
     sg = lax.stop_gradient
     tables = _prepare(tuple(sg(x) for x in tables))
-    dtype = tables["params"].dtype
+    dtype = tables.params.dtype
     o, d = sg(jnp.asarray(o, dtype)), sg(jnp.asarray(d, dtype))
     shape = o.shape[:-1]
     tmin = jnp.broadcast_to(sg(jnp.asarray(tmin, dtype)), shape).reshape(-1)
