@@ -8,7 +8,7 @@ OUT    := out
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml setup.py raytracer/_native/bvh.cc raytracer/_native/antialias.cc scripts/setup.sh
+$(STAMP): pyproject.toml setup.py raytracer/_native/bvh.cc raytracer/_native/kinds.h raytracer/_native/antialias.cc scripts/setup.sh
 	bash scripts/setup.sh
 	touch $(STAMP)
 

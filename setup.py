@@ -28,6 +28,7 @@ setup(
         Extension(
             "raytracer._native._bvh",
             ["raytracer/_native/bvh.cc", "raytracer/_native/antialias.cc"],
+            depends=["raytracer/_native/kinds.h"],
             language="c++",
             extra_compile_args=["-std=c++17", "-O3", "-fno-math-errno"],
             optional=True,

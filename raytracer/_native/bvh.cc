@@ -39,23 +39,14 @@
 #include <vector>
 
 #include "xla/ffi/api/ffi.h"
+#include "kinds.h"
 
 namespace ffi = xla::ffi;
 
 namespace {
 
 constexpr int ITEM_PARAMS = 24;
-constexpr int KIND_SPHERE = 0;
-constexpr int KIND_BOX = 1;
-constexpr int KIND_TRIANGLE = 2;
-constexpr int KIND_FRUSTUM = 3;  // cylinder and cone: base, base radius, cap, cap radius, open
-constexpr int KIND_DISC = 4;     // centre, normal, radius, hole radius
-constexpr int KIND_TORUS = 5;    // major and minor radius (the x-z plane, the y axis through the hole)
-constexpr int KIND_PLANE = 6;    // unit normal, distance: a member of a CSG unit only (it is unbounded)
-constexpr int KIND_CSG = 7;      // a CSG unit: params[0] is its program's offset (see CSG units)
-constexpr int KIND_SUPERELLIPSOID = 8;  // e, n (the unit box; shapes/_superellipsoid.py)
-constexpr int KIND_QUADRIC = 9;  // A … J of Q(x) = 0 (shapes/_quadric.py): a member of a CSG unit only
-constexpr int KIND_POLY = 10;    // 35 coefficients, two rows (see polynomial): a member of a CSG unit only
+// the kernels' numbers: kinds.h, which the Python side reads too
 constexpr int MEMBER_INTS = 4;  // a CSG member's entry in its unit's program (see CSG units)
 constexpr int MAX_CROSSINGS = 8; // crossings of one member a CSG unit looks at (a frustum has 4)
 constexpr int BINS = 16;

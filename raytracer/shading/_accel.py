@@ -51,7 +51,7 @@ from jax.custom_batching import custom_vmap
 
 from .._packing import any_traced, bucket, is_traced, pad_rows, register_packed
 from ..kernels import matvec, world_normal
-from ..shapes._base import AbstractShape
+from ..shapes._base import AbstractShape, native_kinds
 
 ITEM_PARAMS = 24  # object_from_world (12) + the shape's parameters (12): see bvh.cc
 MIN_ITEMS = 8  # fewer items: every primitive is a candidate (measured: no faster either way at 10)
@@ -60,7 +60,7 @@ T_MAX = 1e7  # crossings beyond are ignored (the hierarchy's queries and ``_geom
 # blocks shadow rays (opaque), filters them (transparent: every crossing multiplies the light)
 MASK_CAMERA, MASK_REFLECT, MASK_SHADOW, MASK_FILTER = 1, 2, 4, 8
 JAX_TWIN_KERNELS = frozenset(range(5))  # the kernels ``_accel_jax`` has (sphere … disc: no torus)
-KIND_CSG = 7  # an item that is a CSG object (bvh.cc's CSG units: its members and program)
+KIND_CSG = native_kinds()["CSG"]  # an item that is a CSG object (bvh.cc's CSG units: its members and program)
 MEMBER_INTS = 4  # a CSG member's entry in its object's program (bvh.cc's CSG units)
 # the box of a CSG object without one (``_geometry.csg_units``): holds every point within T_MAX of
 # a ray's origin in any scene of sizes below ~1e7 (the build's centroids and areas stay finite)

@@ -32,6 +32,8 @@ ray and ONE shape; batch with ``jax.vmap`` over a stacked shape (``tree_map(jnp.
 from __future__ import annotations
 
 import abc
+import re
+from pathlib import Path
 from typing import Any, ClassVar, NamedTuple, Protocol
 
 import jax
@@ -254,11 +256,20 @@ def read_arguments(cls: type[AbstractShape], args: ShapeArgs) -> dict:
 
 
 # the kernels of raytracer/_native/bvh.cc
-NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE, NATIVE_FRUSTUM, NATIVE_DISC, NATIVE_TORUS = 0, 1, 2, 3, 4, 5
-NATIVE_PLANE = 6  # unbounded: only a member of a CSG object the hierarchy holds (``_accel``)
-NATIVE_SUPERELLIPSOID = 8  # (7 is a CSG object: ``_accel.KIND_CSG``)
-NATIVE_QUADRIC = 9  # unbounded, as a plane: only a member of a CSG object the hierarchy holds
-NATIVE_POLY = 10  # unbounded, as a plane; two rows of parameters (``native_rows``)
+def native_kinds() -> dict[str, int]:
+    """The native kernels' numbers, ``KIND_<NAME>`` → n, from ``raytracer/_native/kinds.h``: the one
+    place both the C++ code and ours read them from."""
+    text = (Path(__file__).resolve().parent.parent / "_native" / "kinds.h").read_text()
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r"constexpr int KIND_(\w+) = (\d+);", text)}
+
+
+_KINDS = native_kinds()
+NATIVE_SPHERE, NATIVE_BOX, NATIVE_TRIANGLE = _KINDS["SPHERE"], _KINDS["BOX"], _KINDS["TRIANGLE"]
+NATIVE_FRUSTUM, NATIVE_DISC, NATIVE_TORUS = _KINDS["FRUSTUM"], _KINDS["DISC"], _KINDS["TORUS"]
+NATIVE_PLANE = _KINDS["PLANE"]  # unbounded: only a member of a CSG object the hierarchy holds (``_accel``)
+NATIVE_SUPERELLIPSOID = _KINDS["SUPERELLIPSOID"]
+NATIVE_QUADRIC = _KINDS["QUADRIC"]  # unbounded, as a plane: only a member of a CSG object the hierarchy holds
+NATIVE_POLY = _KINDS["POLY"]  # unbounded, as a plane; two rows of parameters (``native_rows``)
 UNBOUNDED_KERNELS = frozenset({NATIVE_PLANE, NATIVE_QUADRIC, NATIVE_POLY})
 
 
