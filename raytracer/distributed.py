@@ -32,17 +32,10 @@ import jax.numpy as jnp
 import numpy as np
 from jax.experimental import multihost_utils
 
-from .render import (
-    FIRST_CAPACITY,
-    _assemble,
-    _background_only,
-    _check,
-    _render_part,
-    _warn_dropped,
-    make_plan,
-    pack,
-    use_compilation_cache,
-)
+from ._packed import pack
+from ._plan import make_plan
+from ._tiles import FIRST_CAPACITY, _assemble, _background_only, _render_part, _warn_dropped
+from .render import _check, use_compilation_cache
 from .scene import Scene
 
 

@@ -80,20 +80,21 @@ def main(argv=None) -> int:
 
     from raytracer import SceneError, load_scene
 
-    render = importlib.import_module("raytracer.render")
+    packing = importlib.import_module("raytracer._packed")
+    tiles = importlib.import_module("raytracer._tiles")
     folder = os.path.dirname(os.path.abspath(args.scene))
     try:
         scene = load_scene(args.scene, include_paths=[folder, "/usr/share/povray-3.7/include"])
     except (SceneError, OSError) as e:
         print(f"program_size: {e}", file=sys.stderr)
         return 2
-    packed = render.pack(scene)
+    packed = packing.pack(scene)
     arrays, static = eqx.partition(packed, eqx.is_array)
 
     def program(a):
         p = eqx.combine(a, static)
-        return render._render_tiles(p, render._plan_of(p), width, height, 1, 1, jnp.asarray(0),
-                                    render.FIRST_CAPACITY)
+        return tiles._render_tiles(p, packing._plan_of(p), width, height, 1, 1, jnp.asarray(0),
+                                   tiles.FIRST_CAPACITY)
 
     start = time.perf_counter()
     closed = jax.make_jaxpr(program)(arrays)
@@ -109,8 +110,8 @@ def main(argv=None) -> int:
         print(f"{n:8d}  {key}")
     if args.compile:
         start = time.perf_counter()
-        lowered = render._render_part.lower(packed, width, height, 1, 1, jnp.asarray(0),
-                                            render.FIRST_CAPACITY)
+        lowered = tiles._render_part.lower(packed, width, height, 1, 1, jnp.asarray(0),
+                                           tiles.FIRST_CAPACITY)
         middle = time.perf_counter()
         compiled = lowered.compile()
         end = time.perf_counter()

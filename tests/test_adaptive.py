@@ -95,14 +95,15 @@ TWO_DEVICES = """
 import importlib, json, sys
 import equinox as eqx, jax, jax.numpy as jnp, numpy as np
 from raytracer import load_scene, render
-R = importlib.import_module("raytracer.render")
+R = importlib.import_module("raytracer._tiles")
+pack = importlib.import_module("raytracer._packed").pack
 scene = load_scene(sys.argv[1])
 image = render(scene, width={W}, height={H}, adaptive=(0.3, 3))
 every = render(scene, width={W}, height={H}, adaptive=(0.0, 3))  # every pixel: a pass split over both
 devices = len(jax.local_devices())  # enough pixels of 9 rays to be split: MIN_SHARD_RAYS a device
 quantum = 4 * devices
 pixels = jnp.arange(-(-devices * R.MIN_SHARD_RAYS // (9 * quantum)) * quantum, dtype=jnp.int32)
-program = R._render_pixels.lower(R.pack(scene), {W}, {H}, 3, pixels, 2).as_text()
+program = R._render_pixels.lower(pack(scene), {W}, {H}, 3, pixels, 2).as_text()
 large = render(scene, width=128, height=96)  # two tiles: sharded over both devices, committed
 mixed = float(jnp.sum(large[:{H}, :{W}] + image))  # raised "incompatible devices" when the adaptive
                                                    # image was committed to the first device only
@@ -221,7 +222,7 @@ def test_native_and_jax_rules_are_the_plain_loop():
     centres; a dozen images of 1×1 to 19×13; thresholds 0 to 0.6): the native loop
     (``_native/antialias.cc``, under jit as in a pass's program) and the JAX program both flag what
     a loop over the pixels in scan order flags."""
-    render_module = importlib.import_module("raytracer.render")
+    adaptive = importlib.import_module("raytracer._adaptive")
     rng = np.random.default_rng(27)
 
     def plain(c, a, threshold):
@@ -237,7 +238,7 @@ def test_native_and_jax_rules_are_the_plain_loop():
         return flag
 
     flagged = 0
-    rule = jax.jit(render_module._rule, static_argnames="native")
+    rule = jax.jit(adaptive._rule, static_argnames="native")
     for k in range(12):
         h, w = ((1, 1), (7, 5), (19, 13), (12, 17))[k % 4]  # a program per size for the JAX rule
         patches = np.round(rng.random((h, w, 3)) * 4) / 4  # flat colours: equal neighbours

@@ -636,16 +636,16 @@ def test_a_small_image_is_split_over_the_devices_only_where_its_rays_branch(monk
 
     from raytracer._plan import make_plan
 
-    render_module = importlib.import_module("raytracer.render")  # ``rt.render`` is the function
+    tiles = importlib.import_module("raytracer._tiles")
     mirror = rt.Finish(reflection=rt.Reflection(min=(0.3, 0.3, 0.3), max=(0.3, 0.3, 0.3)))
     tree, flat = make_plan(sphere_scene(mirror)), make_plan(sphere_scene(rt.Finish()))
     assert tree.effects.depth > 1 and flat.effects.depth == 1
     monkeypatch.setattr(jax, "local_devices", lambda: [object(), object()])
-    least = 2 * render_module.MIN_SHARD_RAYS
-    assert render_module._layout(tree, 6912, 1, 1, 2) == (3456, 2, 2)
-    assert render_module._layout(flat, 6912, 1, 1, 2) == (6912, 1, 1)
-    assert render_module._layout(tree, least - 4, 1, 1, 2)[2] == 1
-    assert render_module._layout(tree, least, 1, 1, 2)[2] == 2
+    least = 2 * tiles.MIN_SHARD_RAYS
+    assert tiles._layout(tree, 6912, 1, 1, 2) == (3456, 2, 2)
+    assert tiles._layout(flat, 6912, 1, 1, 2) == (6912, 1, 1)
+    assert tiles._layout(tree, least - 4, 1, 1, 2)[2] == 1
+    assert tiles._layout(tree, least, 1, 1, 2)[2] == 2
 
 
 def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable(monkeypatch):
@@ -655,12 +655,12 @@ def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable
     ``PLACED_BYTES`` in all: the oldest make room, and a larger scene is not kept."""
     import importlib
 
-    render_module = importlib.import_module("raytracer.render")
+    packing = importlib.import_module("raytracer._packed")
     scene = sphere_scene(rt.Finish())
     first = np.asarray(rt.render(scene, width=4, height=3))
-    packed = render_module.pack(scene)
-    placed = render_module._placed(packed, 1)
-    assert render_module._placed(packed, 1) is placed
+    packed = packing.pack(scene)
+    placed = packing._placed(packed, 1)
+    assert packing._placed(packed, 1) is placed
     leaves = [x for x in jax.tree.leaves(placed) if hasattr(x, "shape")]
     assert leaves and not any(isinstance(x, np.ndarray) for x in leaves)
     image = rt.render(scene, width=4, height=3)
@@ -672,10 +672,10 @@ def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable
     # second took the first one's float32 arrays, and rendered a float32 image). Only placing is
     # switched here: JAX reuses compiled programs across such switches in one process.
     with jax.enable_x64(True):
-        wide = render_module.pack(sphere_scene(rt.Finish()))
+        wide = packing.pack(sphere_scene(rt.Finish()))
         with jax.enable_x64(False):
-            narrow = render_module._placed(wide, 1)
-        full = render_module._placed(wide, 1)
+            narrow = packing._placed(wide, 1)
+        full = packing._placed(wide, 1)
 
     def dtypes(tree):
         return {x.dtype for x in jax.tree.leaves(tree) if hasattr(x, "dtype") and x.dtype.kind == "f"}
@@ -686,15 +686,15 @@ def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable
     def size(p):
         return sum(x.nbytes for x in jax.tree.leaves(p) if isinstance(x, np.ndarray))
 
-    one, two = render_module.pack(sphere_scene(rt.Finish())), render_module.pack(sphere_scene(rt.Finish()))
-    monkeypatch.setattr(render_module, "PLACED_BYTES", size(one) + size(two) // 2)  # room for one
-    render_module._PLACED.clear()
-    kept = render_module._placed(one, 1)
-    assert render_module._placed(two, 1) is not two
-    assert render_module._placed(one, 1) is not kept  # dropped to make room for two
-    monkeypatch.setattr(render_module, "PLACED_BYTES", size(one) - 1)
-    three = render_module.pack(sphere_scene(rt.Finish()))
-    assert render_module._placed(three, 1) is three  # too large to keep: its NumPy arrays, copied per call
+    one, two = packing.pack(sphere_scene(rt.Finish())), packing.pack(sphere_scene(rt.Finish()))
+    monkeypatch.setattr(packing, "PLACED_BYTES", size(one) + size(two) // 2)  # room for one
+    packing._PLACED.clear()
+    kept = packing._placed(one, 1)
+    assert packing._placed(two, 1) is not two
+    assert packing._placed(one, 1) is not kept  # dropped to make room for two
+    monkeypatch.setattr(packing, "PLACED_BYTES", size(one) - 1)
+    three = packing.pack(sphere_scene(rt.Finish()))
+    assert packing._placed(three, 1) is three  # too large to keep: its NumPy arrays, copied per call
 
 
 def test_a_scene_with_nothing_to_render_is_its_background_through_the_output_transfer():

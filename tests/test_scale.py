@@ -15,11 +15,15 @@ import pytest
 
 import raytracer as rt
 from raytracer import load_scene
+from raytracer._packed import pack
 from raytracer._packing import skeleton
-from raytracer.render import FORWARD_CAPACITY, PROGRESS_PARTS, _render_part, compile_render, pack
+from raytracer._tiles import FORWARD_CAPACITY, _render_part
+from raytracer.render import PROGRESS_PARTS, compile_render
 from raytracer.shading import _accel
 
 render_module = sys.modules["raytracer.render"]  # the package's `render` is the function
+packing = sys.modules["raytracer._packed"]
+tiles = sys.modules["raytracer._tiles"]
 
 
 def _spheres(n: int) -> str:
@@ -222,8 +226,8 @@ def test_auto_room_starts_small_grows_once_and_is_remembered(tmp_path, monkeypat
     rooms = []
     real = render_module._render_packed
     monkeypatch.setattr(render_module, "_render_packed", lambda *a: (rooms.append(a[4]), real(*a))[1])
-    monkeypatch.setattr(render_module, "_ROOM", {})
-    monkeypatch.setattr(render_module, "FIRST_CAPACITY", 1)
+    monkeypatch.setattr(tiles, "_ROOM", {})
+    monkeypatch.setattr(tiles, "FIRST_CAPACITY", 1)
     rt.render(scene, width=8, height=6)
     assert rooms == [1, 4]
     rt.render(scene, width=8, height=6)
@@ -257,7 +261,8 @@ def test_the_compiled_program_takes_the_plan_packing_made_and_only_for_the_same_
     whose objects match but whose lights differ gets a plan of its own, with its own lights."""
     calls = []
     made = render_module.make_plan
-    monkeypatch.setattr(render_module, "make_plan", lambda s: calls.append(1) or made(s))
+    for module in (render_module, packing):  # compile_render's plan, and the packing's
+        monkeypatch.setattr(module, "make_plan", lambda s: calls.append(1) or made(s))
     scene = load_scene(_spheres(3))
     compile_render(scene, width=8, height=6)
     assert len(calls) == 1
@@ -265,8 +270,8 @@ def test_the_compiled_program_takes_the_plan_packing_made_and_only_for_the_same_
     two_lights = eqx.tree_at(lambda s: s.lights, packed.rest, packed.rest.lights * 2)
     other = packed._replace(rest=two_lights)
     calls.clear()
-    plan = render_module._plan_of(other)
-    assert len(calls) == 1 and len(plan.lights) == 2 * len(render_module._plan_of(packed).lights)
+    plan = packing._plan_of(other)
+    assert len(calls) == 1 and len(plan.lights) == 2 * len(packing._plan_of(packed).lights)
 
 
 def test_the_skeleton_key_tells_structures_apart_and_builds_the_placeholder_tree():
@@ -425,21 +430,21 @@ def test_a_scene_with_another_number_of_items_runs_the_program_compiled_for_the_
         scenes[n] = load_scene(path, width=16, height=12)
         assert any(g.csg_member for g in pack(scenes[n]).geo.groups) == csg
     traced = []
-    make_context = render_module.make_context
-    monkeypatch.setattr(render_module, "make_context", lambda *a: traced.append(1) or make_context(*a))
+    make_context = tiles.make_context
+    monkeypatch.setattr(tiles, "make_context", lambda *a: traced.append(1) or make_context(*a))
     rt.render(scenes[counts[0]], width=16, height=12)
     assert traced
     traced.clear()
     shared = rt.render(scenes[counts[1]], width=16, height=12)
     assert not traced  # the program of the first count ran
-    monkeypatch.setattr(render_module, "_signature", lambda *a: None)
-    render_module._PACKED.clear()
+    monkeypatch.setattr(packing, "_signature", lambda *a: None)
+    packing._PACKED.clear()
     own = rt.render(scenes[counts[1]], width=16, height=12)
     assert traced  # keyed by its skeleton: a program of its own
     np.testing.assert_array_equal(np.asarray(shared), np.asarray(own))
     assert np.asarray(own).std() > 0.05  # spheres, a checker floor, shadows: not a blank image
     monkeypatch.undo()
-    render_module._PACKED.clear()
+    packing._PACKED.clear()
     keyed = pack(scenes[counts[1]]).objects  # keyed by the signature; its skeleton made when asked for
     assert keyed != skeleton(scenes[counts[1]].objects)
     assert keyed.value == skeleton(scenes[counts[1]].objects).value
