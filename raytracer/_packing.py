@@ -88,7 +88,7 @@ def register_packed(cls, arrays: tuple[str, ...]):
 def keyed(x, key) -> None:
     """Gives packed value ``x`` (of a :func:`register_packed` class) the static half compared by
     ``key`` instead of by its content: a program is then keyed by what its trace reads of ``x``
-    (the caller's promise), not by every static table (``render._signature``)."""
+    (the caller's promise), not by every static table (``_packed._signature``)."""
     static = {n: getattr(x, n) for n in type(x)._packed_static_names}
     object.__setattr__(x, "_packed_static", Frozen(static, key=key))
 

@@ -1,5 +1,5 @@
 // POV-Ray's adaptive anti-aliasing rule (method 1) as the plain loop it is, called from JAX through
-// XLA's FFI (render._scan_flags; semantics §3.3).
+// XLA's FFI (_adaptive._scan_flags; semantics §3.3).
 //
 // In scan order (rows top to bottom, each left to right) a pixel's centre is compared with its left
 // and upper neighbours' values as they are then: the neighbour's refined value once that neighbour
@@ -7,7 +7,7 @@
 // the absolute differences) flags both. The colours come in already raised to 1/Antialias_Gamma and
 // without a gradient: this only chooses which pixels are refined.
 //
-// render._scan_flags computes the same flags with cumulative operations (rows repeated to a fixed
+// _adaptive._scan_flags computes the same flags with cumulative operations (rows repeated to a fixed
 // point), for devices other than the CPU and where this library is not built; on the CPU that
 // program costs ~0.4 ms a call at 128×96, this loop a few microseconds.
 

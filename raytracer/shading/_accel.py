@@ -81,7 +81,7 @@ class AccelUnavailable(RuntimeError):
 @functools.cache
 def _library() -> str | None:
     """Loads the native library and registers its FFI targets (the hierarchy's, and POV-Ray's
-    anti-aliasing rule, ``render._scan_flags``); the reason it failed otherwise."""
+    anti-aliasing rule, ``_adaptive._scan_flags``); the reason it failed otherwise."""
     folder = Path(__file__).resolve().parent.parent / "_native"
     found = sorted(folder.glob("_bvh*.so"))
     if not found:
