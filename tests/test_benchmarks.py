@@ -108,7 +108,10 @@ def test_reverse_compile_entry_point_times_each_scene(tmp_path):
     (row,) = [line for line in out.read_text().splitlines() if line.startswith("| s |")]
     lower_s, compile_s, total_s = (float(x) for x in row.strip("|").split("|")[1:])
     assert lower_s > 0 and compile_s > 0 and abs(total_s - lower_s - compile_s) <= 0.11
-    assert "0 of 1 over 10 s" in out.read_text()
+    # the summary line counts the scenes over the 10 s aim (a count, not a timing the test asserts:
+    # the machine may be busy)
+    over = 1 if total_s > 10 else 0
+    assert f"{over} of 1 over 10 s" in out.read_text()
 
 
 @pytest.mark.povray

@@ -15,12 +15,12 @@ def _rays(seed, count, spread=2.0):
     return jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32)
 
 
-def _assert_same_hits(t_a, n_a, t_b, n_b):
+def _assert_same_hits(t_a, n_a, t_b, n_b, normal_atol=1e-4):
     t_a, t_b, n_a, n_b = map(np.asarray, (t_a, t_b, n_a, n_b))
     np.testing.assert_array_equal(np.isfinite(t_a), np.isfinite(t_b))
     finite = np.isfinite(t_a)
     np.testing.assert_allclose(t_a[finite], t_b[finite], rtol=1e-4, atol=1e-5)
-    np.testing.assert_allclose(n_a[finite], n_b[finite], atol=1e-4)
+    np.testing.assert_allclose(n_a[finite], n_b[finite], atol=normal_atol)
 
 
 def test_quadric_reproduces_the_sphere():
@@ -40,7 +40,10 @@ def test_quadric_reproduces_the_cylinder_side():
     )
     tall = jnp.array([0.0, 1e3, 0.0])
     t_c, n_c = jax.vmap(lambda o_, d_: k.cylinder_hits(-tall, tall, 1.0, o_, d_, open=True))(o, d)
-    _assert_same_hits(t_q, n_q, t_c[:, :2], n_c[:, :2])
+    # the cylinder's axis is 2,000 long: its float32 unit vector, computed in the program, is 1 to
+    # an ulp (6e-8), which leaves up to 1,000·6e-8·2 = 1.2e-4 of the axis in a side normal (seen on
+    # an Intel Xeon's XLA; 0 where the normalisation rounds to exactly 1)
+    _assert_same_hits(t_q, n_q, t_c[:, :2], n_c[:, :2], normal_atol=3e-4)
 
 
 def test_cone_with_equal_radii_is_the_cylinder():
