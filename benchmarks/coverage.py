@@ -40,7 +40,7 @@ def _status(r: dict) -> str:
     return "ok" if ours == pov == "ok" else f"ours {ours}, POV-Ray {pov}"
 
 
-def markdown(records: list[dict]) -> str:
+def markdown(records: list[dict], note: str | None = None) -> str:
     s = summarize(records)
     commits = sorted({r.get("commit") or "?" for r in records})
     finished = [r for r in records if both_ok(r)]
@@ -54,10 +54,11 @@ def markdown(records: list[dict]) -> str:
         f"All {s['tried']} scenes of Debian's `povray-examples` at 160×120, one ray per pixel centre "
         "(POV-Ray `-A`, ours spp 1, float32), both renderers in the same run, one scene at a time; "
         f"commit {', '.join(commits)}, run started {first[:10] or '?'}. Regenerate with "
-        "`python -m benchmarks.coverage` (about two hours on 2 cores); the records are "
+        "`python -m benchmarks.coverage` (two to three hours on 2 cores); the records are "
         "`benchmarks/results/sample_renders.jsonl`. PSNR: our linear image against POV-Ray's `+FE` "
         "EXR, peak 1. *Warned*: features we parse but do not render, each said at its place in the "
         "scene (`raytracer render` prints them).",
+        *(["", note] if note else []),
         "",
         "## Summary",
         "",
@@ -98,6 +99,7 @@ def markdown(records: list[dict]) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--from-jsonl", type=Path, metavar="F", help="write the doc from this finished run")
+    ap.add_argument("--note", help="a line about how the run was made (the machine's load, a split run)")
     args = ap.parse_args(argv)
     if args.from_jsonl is None:
         shutil.rmtree(RUN, ignore_errors=True)  # one commit's run, never appended to
@@ -110,7 +112,7 @@ def main(argv=None) -> int:
     records = [json.loads(line) for line in src.read_text().splitlines() if line.strip()]
     if src.resolve() != RECORDS.resolve():
         RECORDS.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in records))
-    DOC.write_text(markdown(records))
+    DOC.write_text(markdown(records, args.note))
     print(f"wrote {DOC} ({len(records)} scenes) at {datetime.datetime.now():%Y-%m-%d %H:%M}")
     return 0
 
