@@ -28,9 +28,9 @@ from .scene import (
     Texture,
     Transform,
 )
-from .scene._environment import environment_of
 from .scene._lights import light_effects
 from .scene._transform import compose
+from .scene.environment import environment_of
 
 # straight (ior 1) surfaces a ray path may cross beyond max_trace_level: as many as the scene's
 # straight-transmitting primitives can put on one line, up to this bound (the plan warns beyond it)

@@ -59,8 +59,8 @@ def _literal_warnings() -> set[str]:
 
 def generated() -> str:
     from raytracer import patterns, shapes
-    from raytracer.scene._environment import ENVIRONMENT
     from raytracer.scene._lights import LIGHT_TYPES
+    from raytracer.scene.environment import ENVIRONMENT
     from raytracer.sdl._objects import _IGNORED_FLAG_WARNINGS, UNSUPPORTED_OBJECTS
 
     by_class: dict[type, list[str]] = {}
@@ -115,10 +115,11 @@ def generated() -> str:
         "",
         "### Environment effects (`scene.ENVIRONMENT`)",
         "",
-        "| effect | scene field | a ray that hits nothing | a ray segment |",
+        "| effect | its values in `Scene.environment` | a ray that hits nothing | a ray segment |",
         "|---|---|---|---|",
-        *(f"| {e.name} | `{e.field}` | {'sees it' if e.miss else '—'} | "
-          f"{'goes through it' if e.segment else '—'} |" for e in ENVIRONMENT),
+        *(f"| {e.name} | `{e.record.__name__}`{' (they add up)' if e.many else ' (one)'} | "
+          f"{'sees it' if e.miss else '—'} | {'goes through it' if e.segment else '—'} |"
+          for e in ENVIRONMENT),
         "",
         "### Effects the compiled program simulates (when the scene asks for them)",
         "",

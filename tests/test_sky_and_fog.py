@@ -2,6 +2,7 @@
 they pass through, against POV-Ray's images, their derivatives against central differences, and
 their syntax."""
 
+import equinox as eqx
 import jax
 import numpy as np
 import pytest
@@ -94,10 +95,10 @@ def test_sky_and_fog_parameters_have_the_derivatives_of_finite_differences(x64):
         "fog { distance 5 color rgbft <0.6, 0.7, 0.8, 0.3, 0.2> }"
         "fog { fog_type 2 distance 2 color rgb <0.3, 0.4, 0.5> fog_offset 0.4 fog_alt 0.6 }")
     scene = rt.load_scene(text, width=8, height=6)  # (the second sky replaces the first)
-    params = {name: x for name, x in rt.params.parameters(scene).items()
-              if name.startswith(("sky_sphere.", "fogs["))}
-    assert {"sky_sphere.emission", "sky_sphere.pigments[0].colors", "fogs[0].distance",
-            "fogs[0].color", "fogs[1].offset", "fogs[1].alt"} <= set(params)
+    params = {name: x for name, x in rt.params.parameters(scene).items() if name.startswith("environment[")}
+    # the environment's values in the order of ``scene.ENVIRONMENT``: the sky, then the fogs as written
+    assert {"environment[0].emission", "environment[0].pigments[0].colors", "environment[1].distance",
+            "environment[1].color", "environment[2].offset", "environment[2].alt"} <= set(params)
     rng = np.random.default_rng(2)
     tangent = {name: rng.normal(size=np.shape(x)) for name, x in params.items()}
 
@@ -115,11 +116,13 @@ def test_sky_and_fog_parameters_have_the_derivatives_of_finite_differences(x64):
 
 def test_a_sky_without_pigment_shows_the_background_and_a_stray_item_is_an_error():
     scene = rt.load_scene("background { rgb <0, 0, 1> } sky_sphere { scale 2 }")
-    assert scene.sky_sphere is None
+    assert scene.environment == ()
     with pytest.raises(SceneError, match=r"<string>:1:32: expected pigment, a transformation or emission"):
         rt.load_scene("sky_sphere { pigment { rgb 1 } phong 1 }")
-    with pytest.raises(SceneError, match="expected a sky_sphere, found float 'S'"):
+    with pytest.raises(SceneError, match="in sky_sphere, found float 'S'"):
         rt.load_scene("#declare S = 1; sky_sphere { S }")
+    with pytest.raises(SceneError, match=r"<string>:2:7: expected a fog, found sky_sphere 'S'"):
+        rt.load_scene("#declare S = sky_sphere { pigment { rgb 1 } }\nfog { S }")
 
 
 def test_fogs_povray_does_not_render_are_left_out_with_a_warning():
@@ -130,7 +133,8 @@ def test_fogs_povray_does_not_render_are_left_out_with_a_warning():
                           "fog { distance 3 rgb 0.5 turbulence 0.4 octaves 3 scale 2 }\n"
                           "fog { fog_type 3 distance 3 rgb 1 }\n"
                           "fog { fog_type 2 distance 3 rgb 1 fog_alt 0.5 }")
-    assert len(scene.fogs) == 2 and [f.ground for f in scene.fogs] == [False, True]
+    fogs = [v for v in scene.environment if isinstance(v, rt.Fog)]
+    assert len(fogs) == 2 and [f.ground for f in fogs] == [False, True]
     messages = [(w.location.line, w.message) for w in scene.warnings if w.feature == "fog"]
     assert [line for line, _ in messages] == [1, 2, 3, 4]
     assert "fog_alt > 0" in messages[0][1] and "turbulence" in messages[2][1]
@@ -148,6 +152,24 @@ def test_a_fogs_colour_is_any_colour_expression():
                  "fog { distance 200 <0.4, 0.3, 0.2> }",
                  "#declare F = fog { distance 5 rgb 1 }; fog { F distance 200 rgb <0.4, 0.3, 0.2> }"):
         scene = rt.load_scene(text)
-        assert scene.fogs == written.fogs, text
+        assert scene.environment == written.environment, text
     with pytest.raises(SceneError, match=r"<string>:1:36: expected a fog item"):
         rt.load_scene("#declare S = 1; fog { S distance 3 phong 1 }")
+
+
+def test_a_scene_holds_its_environment_effects_as_records_of_the_environment_record():
+    """The Python API: ``Scene.environment`` holds the effects' records in any order (a fog before a
+    sky renders as the SDL scene does); an effect that does not add up appears once, and what is
+    not an environment effect is refused."""
+    text = ("sky_sphere { pigment { gradient y color_map { [0 rgb 0.2] [1 rgb <0.3, 0.5, 0.9>] } } }"
+            "fog { distance 4 rgb <0.6, 0.6, 0.7> }")
+    loaded = rt.load_scene(UNDER_THE_SKY + text, width=8, height=6)
+    sky, fog = loaded.environment
+    assert isinstance(sky, rt.SkySphere) and isinstance(fog, rt.Fog)
+    built = eqx.tree_at(lambda s: s.environment, loaded, (fog, sky))
+    np.testing.assert_array_equal(np.asarray(rt.render(built, width=8, height=6)),
+                                  np.asarray(rt.render(loaded, width=8, height=6)))
+    with pytest.raises(ValueError, match="more than one SkySphere"):
+        rt.Scene(environment=(sky, fog, sky))
+    with pytest.raises(TypeError, match="not an environment effect"):
+        rt.Scene(environment=(rt.Settings(),))

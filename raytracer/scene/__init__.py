@@ -23,11 +23,6 @@ from ..shapes import Torus as Torus
 from ..shapes import Triangle as Triangle
 from ..shapes import polygon_from_points as polygon_from_points
 from ._camera import Camera as Camera
-from ._environment import ENVIRONMENT as ENVIRONMENT
-from ._environment import EnvironmentType as EnvironmentType
-from ._environment import Fog as Fog
-from ._environment import SkySphere as SkySphere
-from ._environment import environment_of as environment_of
 from ._lights import AreaLight as AreaLight
 from ._lights import Light as Light
 from ._lights import Spot as Spot
@@ -51,3 +46,10 @@ from ._transform import pov_matrix as pov_matrix
 from ._transform import rotation_matrix as rotation_matrix
 from ._transform import scale_matrix as scale_matrix
 from ._transform import translation_matrix as translation_matrix
+from .environment import ENVIRONMENT as ENVIRONMENT
+from .environment import EnvironmentArgs as EnvironmentArgs
+from .environment import EnvironmentLowering as EnvironmentLowering
+from .environment import EnvironmentType as EnvironmentType
+from .environment import Fog as Fog
+from .environment import SkySphere as SkySphere
+from .environment import environment_of as environment_of

@@ -9,9 +9,9 @@ from .._build import Record
 from .._dtype import as_float
 from ..errors import SceneWarning
 from ._camera import Camera
-from ._environment import Fog, SkySphere
 from ._lights import Light
 from ._objects import AbstractObject
+from .environment import ENVIRONMENT
 
 OUTPUT_TRANSFERS = ("linear", "gamma", "srgb_decode")
 
@@ -50,9 +50,10 @@ class Scene(Record):
         objects:    top-level objects (primitives or CSG trees).
         lights:     light sources.
         background: (3,) colour of rays that hit nothing (default black).
-        sky_sphere: what rays that hit nothing see instead, by direction (None: the background).
-        fogs:       the fogs (constant or ground) every camera, reflected and transmitted ray
-                    goes through outside objects.
+        environment: the environment effects' values (``scene.ENVIRONMENT``): a ``SkySphere``
+                    (what rays that hit nothing see instead of the background, by direction), the
+                    ``Fog``s (constant or ground) every ray goes through outside objects …; at
+                    most one of an effect whose values do not add up.
         settings:   global settings.
         warnings:   static: features parsed but not rendered, with locations.
     """
@@ -61,7 +62,15 @@ class Scene(Record):
     objects: tuple[AbstractObject, ...] = ()
     lights: tuple[Light, ...] = ()
     background: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
-    sky_sphere: SkySphere | None = None
-    fogs: tuple[Fog, ...] = ()
+    environment: tuple[Record, ...] = ()
     settings: Settings = eqx.field(default_factory=Settings)
     warnings: tuple[SceneWarning, ...] = eqx.field(static=True, default=())
+
+    def __check_init__(self):
+        for value in self.environment:
+            entry = next((e for e in ENVIRONMENT if isinstance(value, e.record)), None)
+            if entry is None:
+                raise TypeError(f"Scene.environment holds a {type(value).__name__}, not an environment "
+                                f"effect ({', '.join(e.record.__name__ for e in ENVIRONMENT)})")
+            if not entry.many and sum(isinstance(v, entry.record) for v in self.environment) > 1:
+                raise ValueError(f"Scene.environment holds more than one {type(value).__name__}")

@@ -30,13 +30,16 @@ def type_name(v) -> str:
         return "vector"
     if isinstance(v, str):
         return "string"
+    own = getattr(v, "sdl_type_name", None)  # a value that names itself (an environment statement)
+    if own is not None:
+        return own
     return _TYPE_NAMES.get(type(v).__name__) or type(v).__name__.replace("Value", "").lower()
 
 
 _TYPE_NAMES = {"PigRec": "pigment", "LayerRec": "texture layer", "TextureRec": "texture",
                "InteriorRec": "interior", "MaterialRec": "material", "LightRec": "light_source",
                "ObjRec": "object", "CameraRec": "camera", "TransformRec": "transform",
-               "SkyRec": "sky_sphere", "FogRec": "fog", "ArrayValue": "array", "MacroDef": "macro",
+               "ArrayValue": "array", "MacroDef": "macro",
                "RandStream": "seed() stream"}
 
 

@@ -4,19 +4,17 @@ from __future__ import annotations
 
 from ._convert import fmt_number
 from ._directives import Directives, skip_block
+from ._environment import ENVIRONMENT_KEYWORDS, parse_environment, place_environment
 from ._expr import as_float, as_int, binop, parse_expr, parse_expr_paren, type_name
 from ._keywords import KEYWORDS
 from ._lexer import EOF, ID, OP, STR
 from ._objects import (
-    fog_rendered,
     is_object_start,
     parse_background,
     parse_camera,
     parse_default,
-    parse_fog,
     parse_global_settings,
     parse_object,
-    parse_sky_sphere,
 )
 from ._stream import Frame, Stream
 from ._textures import (
@@ -68,8 +66,7 @@ class Interpreter(Stream, Directives):
         self.settings = {}
         self.statement_locs = {}  # global_settings, background: where the last one was (for errors)
         self.background = (0.0, 0.0, 0.0)
-        self.sky_sphere = None  # SkyRec
-        self.fogs = []  # FogRec, those rendered
+        self.environment = []  # EnvRec: the environment statements that took effect (sky_sphere, fog …)
         self.default_layer = LayerRec()
         self.camera = None
         self.items: list = []  # ObjRec and LightRec in file order
@@ -117,15 +114,9 @@ class Interpreter(Stream, Directives):
         elif kw == "background":
             self.next()
             parse_background(self, t)
-        elif kw == "fog":  # fogs add up (semantics §2.8)
+        elif kw in ENVIRONMENT_KEYWORDS:  # fogs add up; a later sky_sphere replaces an earlier one
             self.next()
-            fog = parse_fog(self, t)
-            if fog_rendered(self, fog, t.loc):
-                self.fogs.append(fog)
-        elif kw == "sky_sphere":  # a later one replaces an earlier one, as in POV-Ray
-            self.next()
-            self.statement_locs["sky_sphere"] = t.loc
-            self.sky_sphere = parse_sky_sphere(self, t)
+            place_environment(self, parse_environment(self, t, ENVIRONMENT_KEYWORDS[kw]), t.loc)
         elif kw == "default":  # the old spelling of #default
             self.next()
             parse_default(self, t)
@@ -357,12 +348,13 @@ _RVALUE_BLOCKS = {
     "colour_map": lambda p, t: parse_color_map(p),
     "array": _array_handler,
     "spline": lambda p, t: p.parse_spline(t),
-    "media": _opaque("media"), "density": _opaque("density"), "fog": lambda p, t: parse_fog(p, t),
-    "rainbow": _opaque("rainbow"), "sky_sphere": lambda p, t: parse_sky_sphere(p, t),
+    "media": _opaque("media"), "density": _opaque("density"), "rainbow": _opaque("rainbow"),
     "pigment_map": _opaque("pigment_map"), "normal_map": _opaque("normal_map"),
     "slope_map": _opaque("slope_map"), "texture_map": _opaque("texture_map"),
     "density_map": _opaque("density_map"), "photons": _opaque("photons"),
     "interior_texture": _opaque("interior_texture"),
+    **{name: (lambda e: lambda p, t: parse_environment(p, t, e))(entry)
+       for name, entry in ENVIRONMENT_KEYWORDS.items()},
 }
 
 __all__ = ["Interpreter", "LightRec", "ObjRec", "Vec", "STR", "skip_block"]

@@ -11,6 +11,7 @@ from .._build import build
 from .._dtype import OutOfPrecision
 from ..errors import SceneError
 from ..scene._lights import light_fields
+from ..scene.environment import ENVIRONMENT
 from ..shapes import SDL_KEYWORDS
 from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
 
@@ -249,11 +250,31 @@ def output_transfer(p) -> tuple[str, float]:
     return "linear", 1.0
 
 
-def _lower_fog(f) -> S.Fog:
-    up = np.asarray(f.up, np.float64)
-    ground = f.fog_type == 2
-    return build(S.Fog, distance=f.distance, color=f.color, offset=f.offset, alt=f.alt if ground else 1.0,
-                 up=up / np.linalg.norm(up), ground=ground)
+class _Lowering:
+    """The lowering as ``scene.EnvironmentLowering``."""
+
+    def __init__(self, fit_zero_terms: bool):
+        self._fit = fit_zero_terms
+
+    def pigment(self, pigment, transform):
+        return lower_pigment(pigment, transform, self._fit)
+
+
+def lower_environment(p, fit_zero_terms: bool) -> tuple:
+    """The scene's environment values (``Scene.environment``) of the statements that took effect, in
+    the order of ``ENVIRONMENT`` and, within an effect, as written."""
+    low = _Lowering(fit_zero_terms)
+    values = []
+    for entry in ENVIRONMENT:
+        for rec in p.environment:
+            if rec.entry is entry:
+                try:
+                    v = entry.sdl_lower(rec.state, low)
+                except OutOfPrecision as e:
+                    raise SceneError(str(e), rec.loc) from None
+                if v is not None:
+                    values.append(v)
+    return tuple(values)
 
 
 def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
@@ -275,17 +296,10 @@ def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
         camera = lower_camera(p.camera, lambda f, m: p.warn(f, m, p.camera.loc))
     except OutOfPrecision as e:
         raise SceneError(str(e), p.camera.loc) from None
-    sky = None
-    if p.sky_sphere is not None and p.sky_sphere.pigments:  # without a pigment: the background
-        try:
-            sky = build(S.SkySphere, pigments=tuple(lower_pigment(pig, p.sky_sphere.transform, fit_zero_terms)
-                                                    for pig in p.sky_sphere.pigments),
-                        emission=p.sky_sphere.emission)
-        except OutOfPrecision as e:
-            raise SceneError(str(e), p.statement_locs.get("sky_sphere")) from None
+    environment = lower_environment(p, fit_zero_terms)
     try:
         return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                     background=p.background, sky_sphere=sky, settings=settings, warnings=tuple(p.warnings),
-                     fogs=tuple(_lower_fog(f) for f in p.fogs))
+                     background=p.background, environment=environment, settings=settings,
+                     warnings=tuple(p.warnings))
     except OutOfPrecision as e:  # the background is the only value not converted before
         raise SceneError(str(e), p.statement_locs.get("background")) from None

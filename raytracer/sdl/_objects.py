@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from ..scene._lights import (
@@ -13,7 +11,7 @@ from ..scene._lights import (
     area_grid_too_large,
 )
 from ..shapes import SDL_KEYWORDS
-from ._convert import as_int, fmt_number
+from ._convert import as_int
 from ._expr import (
     COLOR_KEYWORDS,
     as_color,
@@ -43,7 +41,7 @@ from ._textures import (
     vector3,
     warn_noise_generator,
 )
-from ._values import CameraRec, FogRec, LayerRec, LightRec, ObjRec, SkyRec, TextureRec, Vec
+from ._values import CameraRec, LayerRec, LightRec, ObjRec, TextureRec, Vec
 
 PRIMITIVES = tuple(SDL_KEYWORDS)
 CSG_KEYWORDS = ("union", "intersection", "difference", "merge")
@@ -583,97 +581,6 @@ def parse_background(p, t) -> None:
     p.expect_op("}", "'}' to close background")
     # POV 3.7 pre-multiplies the background by (1 - transmit) at parse time (semantics §2.2)
     p.background = tuple(v * (1.0 - c.c[4]) for v in c.c[:3])
-
-
-def parse_sky_sphere(p, t) -> SkyRec:
-    """``sky_sphere { [SKY_IDENTIFIER] [pigment {…}]… [transformations]… [emission COLOUR] }``
-    (``sky_sphere`` already consumed). Later pigments lie on top of earlier ones; the
-    transformations move the whole sky, wherever they stand among the pigments (semantics §2.8)."""
-    p.expect_op("{", "'{' after sky_sphere")
-    sky = SkyRec()
-    first = p.peek()
-    if declared(p, first):
-        v = parse_expr(p)
-        if not isinstance(v, SkyRec):
-            raise p.error(f"expected a sky_sphere, found {type_name(v)} '{first.value}'", first.loc)
-        sky = SkyRec(list(v.pigments), v.transform, v.emission)
-    while not p.accept_op("}"):
-        k = p.next()
-        kw = k.value if k.kind == ID else None
-        if kw == "pigment":
-            sky.pigments.append(parse_pigment(p))
-        elif kw in TRANSFORM_KEYWORDS:
-            m = parse_transform_item(p, k)
-            sky.transform = m if sky.transform is None else m @ sky.transform
-        elif kw == "emission":
-            c = as_color(p, parse_expr(p), k.loc)
-            sky.emission = tuple(c.c[:3])
-        else:
-            raise p.error(f"expected pigment, a transformation or emission in sky_sphere, found "
-                          f"'{k.value}'", k.loc)
-    return sky
-
-
-_FOG_COLOUR_WORDS = ("color", "colour", "rgb", "rgbf", "rgbt", "rgbft", "srgb", "srgbf", "srgbt", "srgbft",
-                     "red", "green", "blue", "filter", "transmit")
-
-
-def parse_fog(p, t) -> FogRec:
-    """``fog { [FOG_IDENTIFIER] [fog_type 1|2] distance D COLOUR [fog_offset O fog_alt A up V]
-    [turbulence …] [transformations] }`` (``fog`` already consumed). Constant and ground fogs are
-    rendered (semantics §2.8); turbulence is not (a warning: the fog is then smooth)."""
-    p.expect_op("{", "'{' after fog")
-    first = p.peek()
-    fog = FogRec()
-    if declared(p, first) and isinstance(p.lookup(first.value), FogRec):
-        fog = dataclasses.replace(parse_expr(p))
-    while not p.accept_op("}"):
-        k = p.peek()
-        kw = k.value if k.kind == ID else None
-        # a colour is a colour keyword or any colour expression: an identifier (`White`,
-        # `Wheat*.5`), a vector or a number (POV-Ray reads the fog's colour as an expression)
-        if kw in _FOG_COLOUR_WORDS or kw is None or declared(p, k):
-            fog.color = tuple(parse_color(p).padded(5))
-            continue
-        p.next()
-        if kw == "distance":
-            fog.distance = float_(p)
-        elif kw == "fog_type":
-            fog.fog_type = int(float_(p))
-        elif kw == "fog_offset":
-            fog.offset = float_(p)
-        elif kw == "fog_alt":
-            fog.alt = float_(p)
-        elif kw == "up":
-            fog.up = tuple(vector3(p))
-        elif kw in ("turbulence", "turb_depth", "omega", "lambda", "octaves"):
-            parse_expr(p)
-            fog.turbulence = fog.turbulence or kw == "turbulence"
-        elif kw in TRANSFORM_KEYWORDS:  # they move the turbulence and a ground fog's layer only
-            parse_transform_item(p, k)
-        else:
-            raise p.error(f"expected a fog item (distance, a colour, fog_type, turbulence …), found "
-                          f"'{k.value}'", k.loc)
-    return fog
-
-
-def fog_rendered(p, fog: FogRec, loc) -> bool:
-    """Whether the fog ``fog`` placed at ``loc`` is rendered; warns where it is not, or only in part."""
-    if fog.fog_type not in (1, 2):
-        p.warn("fog", f"fog_type {fog.fog_type} is not a fog type (1: constant, 2: ground); the fog is "
-               "left out", loc)
-        return False
-    if not fog.distance > 0:
-        p.warn("fog", f"a fog distance of {fmt_number(fog.distance)} hides nothing; the fog is left out", loc)
-        return False
-    if fog.fog_type == 2 and not (fog.alt > 0 and any(fog.up)):
-        # (POV-Ray's image is NaN there)
-        p.warn("fog", f"a ground fog needs fog_alt > 0 and an up vector (fog_alt {fmt_number(fog.alt)}); "
-               "the fog is left out", loc)
-        return False
-    if fog.turbulence:
-        p.warn("fog", "fog turbulence is not rendered; the fog is smooth", loc)
-    return True
 
 
 def parse_default(p, tok) -> None:

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from typing import Any
 
 import numpy as np
 
 from ..errors import SourceLoc
 from ..scene._lights import LIGHT_DEFAULTS
+from ..scene.environment import EnvironmentType
 
 
 class Vec:
@@ -174,26 +176,18 @@ class PigRec:
 
 
 @dataclasses.dataclass
-class SkyRec:
-    """A ``sky_sphere`` as parsed: pigments bottom first (as written), the sky's world_from_sky
-    matrix (its transformations, whatever their place among the pigments) and its emission."""
+class EnvRec:
+    """An environment statement as read (and as ``#declare`` keeps it): its entry, the entry's parse
+    state, and where it stands."""
 
-    pigments: list = dataclasses.field(default_factory=list)
-    transform: np.ndarray | None = None
-    emission: tuple = (1.0, 1.0, 1.0)
+    entry: EnvironmentType
+    state: Any
+    loc: Any
 
-
-@dataclasses.dataclass
-class FogRec:
-    """A ``fog`` as parsed: its type, distance and RGBFT colour, and whether it has turbulence."""
-
-    fog_type: int = 1
-    distance: float = 0.0
-    color: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
-    turbulence: bool = False
-    offset: float = 0.0
-    alt: float = 0.0
-    up: tuple = (0.0, 1.0, 0.0)
+    @property
+    def sdl_type_name(self) -> str:
+        """What an error message calls it: the statement's keyword."""
+        return self.entry.name
 
 
 @dataclasses.dataclass
