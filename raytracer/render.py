@@ -12,19 +12,23 @@ import math
 import os
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from ._adaptive import Adaptive, _render_adaptive
+from ._edges import EDGE_LATTICE, boundary_term
 from ._gc import paused, without_collections
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
 from ._plan import Plan, make_plan
 from ._tiles import (
     FIRST_CAPACITY,
+    FORWARD_CAPACITY,
     _assemble,
     _background_only,
     _image_placed,
     _layout,
+    _output_transfer,
     _render_packed,
     _render_part,
     _room_key,
@@ -76,7 +80,8 @@ def _check(width: int, height: int, spp: int) -> int:
 
 @without_collections  # a trace makes few cycles (a reverse-mode one of glass.pov: 139 objects)
 def render(scene: Scene, *, width: int, height: int, spp: int = 1,
-           capacity: int | None | str = "auto", adaptive: tuple | None = None) -> jax.Array:
+           capacity: int | None | str = "auto", adaptive: tuple | None = None,
+           edges: bool = False) -> jax.Array:
     """Renders ``scene`` to a linear RGB image of shape (height, width, 3), row 0 at the top.
 
     One jit-compiled program (cached per scene structure, image size, spp and capacity);
@@ -110,11 +115,20 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
                 from values, like a hit: piecewise constant). Under ``jit`` or ``vmap`` that choice
                 is known only at run time, so every pixel is refined and the flagged ones kept:
                 the same image, without the saving.
+        edges:  derivatives see the edges of what camera rays see (``raytracer/_edges.py``): where a
+                parameter moves an object's outline or the seam of two surfaces, the pixels it
+                crosses get the boundary term of their box-filtered integral, computed on the k×k
+                lattice (deterministic; the image is unchanged). Without it a derivative holds the
+                primitive each ray sees fixed: an outline's motion is invisible to it.
     """
     k = _check(width, height, spp)
     use_compilation_cache()
     if capacity != "auto" and capacity is not None and (type(capacity) is not int or capacity < 1):
         raise ValueError(f"capacity must be a positive int, None or 'auto', got {capacity!r}")
+    if edges:
+        if adaptive is not None:
+            raise ValueError("edges=True takes a lattice of spp samples; adaptive anti-aliasing has none")
+        return _render_with_edges(scene, width, height, k, capacity)
     if adaptive is not None:
         if spp != 1:
             raise ValueError("adaptive anti-aliasing starts from one ray per pixel centre: leave spp at 1")
@@ -122,10 +136,43 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
     scene_plan = _scene_plan(scene)
     if not any(prim.rendered for prim in scene_plan.prims):  # every ray sees the background or sky
         return _background_only(scene, width, height, math.isqrt(spp))
+    return _image(scene, scene_plan, width, height, k, capacity)
+
+
+def _image(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, capacity, linear: bool = False):
+    """The image of a scene with something rendered (``linear``: before the output transfer)."""
     packed = pack(scene, scene_plan)
     return _with_room(lambda room: _render_packed(_image_placed(packed, scene_plan, width * height, k, room),
-                                                  width, height, k, room),
-                      capacity, _room_key(packed, width, height, k))
+                                                  width, height, k, room, linear),
+                      capacity, _room_key(packed, width, height, k, linear))
+
+
+def _render_with_edges(scene: Scene, width: int, height: int, k: int, capacity):
+    """``render`` whose derivatives add the boundary term (``_edges.boundary_term``): a
+    ``jax.custom_jvp`` of the linear image in the scene's inexact arrays, its tangent the render's
+    own plus the boundary term's (linear in the tangent, so reverse mode transposes it)."""
+    scene_plan = _scene_plan(scene)
+    if not any(prim.rendered for prim in scene_plan.prims):  # nothing rendered: no edge
+        return _background_only(scene, width, height, k)
+    dynamic, static = eqx.partition(scene, eqx.is_inexact_array)
+
+    def linear_image(dyn):
+        s = eqx.combine(dyn, static)
+        return _image(s, _scene_plan(s), width, height, k, capacity, linear=True)
+
+    @jax.custom_jvp
+    def image(dyn):
+        return linear_image(dyn)
+
+    @image.defjvp
+    def _image_jvp(primals, tangents):
+        (dyn,), (dyn_dot,) = primals, tangents
+        value, value_dot = jax.jvp(linear_image, (dyn,), (dyn_dot,))
+        room = FORWARD_CAPACITY if capacity in ("auto", None) else capacity
+        lattice = max(k, EDGE_LATTICE)
+        return value, value_dot + boundary_term(dyn, dyn_dot, static, width, height, lattice, room).tangent
+
+    return _output_transfer(image(dynamic), scene.settings)
 
 
 def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progress=None,

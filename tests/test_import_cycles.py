@@ -100,8 +100,8 @@ LAYERS = (
     ("raytracer.scene",),
     ("raytracer._packing", "raytracer._plan"),
     ("raytracer.shading", "raytracer._native"),
-    ("raytracer._packed", "raytracer._tiles", "raytracer._adaptive", "raytracer.render", "raytracer.query",
-     "raytracer.distributed"),
+    ("raytracer._packed", "raytracer._tiles", "raytracer._adaptive", "raytracer._edges", "raytracer.render",
+     "raytracer.query", "raytracer.distributed"),
     ("raytracer.sdl",),
     ("raytracer.imageio", "raytracer.params", "raytracer.cli", "raytracer"),
 )

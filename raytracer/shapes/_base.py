@@ -179,6 +179,21 @@ class AbstractShape(Record):
         """Object-space ``(lo (3,), hi (3,))``, or None when the shape is unbounded."""
         return None
 
+    def silhouette_margin(self, o: Float[Array, "3"], d: Float[Array, "3"]) -> Float[Array, ""]:
+        """A smooth function of the line ``o + t d`` (object space, ``d`` any length) that is positive
+        where the line crosses the shape, negative where it misses it, and crosses zero with a
+        nonzero slope where the two meet: the shape's outline as seen along ``d``. The boundary
+        term of a pixel's derivative (``raytracer/_edges.py``) finds where it vanishes between two
+        camera rays and, by its derivatives, how that place moves with the scene. Any positive
+        multiple of one margin is as good (only its zero and the ratio of its derivatives count).
+        A shape without one (the default) gets no boundary term at its outline (``has_margin``)."""
+        raise NotImplementedError(f"{self.kind} has no silhouette margin")
+
+    @classmethod
+    def has_margin(cls) -> bool:
+        """Whether the class gives :meth:`silhouette_margin`."""
+        return cls.silhouette_margin is not AbstractShape.silhouette_margin
+
     # The acceleration structure (``shading/_accel.py``) can choose among shapes that name one of
     # its native kernels. It only chooses: the hit is then computed again by ``sub_hits``.
     native_kernel: ClassVar[int | None] = None  # one of the NATIVE_* kernels below

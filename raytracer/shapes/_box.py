@@ -85,6 +85,25 @@ class Box(AbstractShape):
     corner1: Float[Array, "3"] = eqx.field(converter=as_float)
     corner2: Float[Array, "3"] = eqx.field(converter=as_float)
 
+    def silhouette_margin(self, o, d):
+        # the depth of the line's deepest point in the box, max over t of min over the six faces of
+        # the distance inside each (negative: how far it passes outside): a concave piecewise-linear
+        # function of t, so its maximum is where two of the six lines meet. Its value is taken as
+        # that meeting's (a_i + b_i t_ij, a smooth function of the box and the line), so that its
+        # derivative is the envelope's: a min or max over tied values would split it between them
+        corner1, corner2, o, d = as_float_arrays(self.corner1, self.corner2, o, d)
+        lo, hi = jnp.minimum(corner1, corner2), jnp.maximum(corner1, corner2)
+        a = jnp.concatenate([o - lo, hi - o])  # face k's inside distance along the line: a_k + b_k t
+        b = jnp.concatenate([d, -d])
+        i, j = np.triu_indices(6, 1)
+        slope = b[i] - b[j]
+        meet = jnp.abs(slope) > jnp.finfo(o.dtype).tiny
+        t = (a[j] - a[i]) / jnp.where(meet, slope, 1.0)
+        value = a[i] + b[i] * t
+        depth = jnp.min(a[None, :] + t[:, None] * b[None, :], axis=1)  # ≤ value; equal where both lines bind
+        best = jnp.argmax(jnp.where(meet, 2 * depth - value, -jnp.inf))
+        return value[best]
+
     def hits(self, o, d):
         return box_hits(self.corner1, self.corner2, o, d)
 

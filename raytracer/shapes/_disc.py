@@ -86,6 +86,18 @@ class Disc(AbstractShape):
     radius: Float[Array, ""] = eqx.field(converter=as_float)
     hole_radius: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
 
+    def silhouette_margin(self, o, d):
+        # at the line's crossing with the disc's plane: radius² − ρ² (and ρ² − hole² with a hole)
+        center, normal, radius, hole, o, d = as_float_arrays(self.center, self.normal, self.radius,
+                                                             self.hole_radius, o, d)
+        n_hat = safe_normalize(normal)
+        l = o - center
+        t, _ = solve_linear(jnp.dot(n_hat, d), jnp.dot(n_hat, l))
+        r = l + t * d
+        rho_sq = jnp.dot(r, r)
+        outer = radius * radius - rho_sq
+        return jnp.where(hole > 0, jnp.minimum(outer, rho_sq - hole * hole), outer)
+
     def hits(self, o, d):
         return disc_hits(self.center, self.normal, self.radius, self.hole_radius, o, d)
 

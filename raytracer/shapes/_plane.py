@@ -66,6 +66,13 @@ class Plane(AbstractShape):
     normal: Float[Array, "3"] = eqx.field(converter=as_float)
     distance: Float[Array, ""] = eqx.field(converter=as_float)
 
+    def silhouette_margin(self, o, d):
+        # every line but a parallel one crosses a plane: its outline is the horizon, where the
+        # crossing passes from ahead of o (t > 0, positive) to behind it
+        normal, distance, o, d = as_float_arrays(self.normal, self.distance, o, d)
+        n_hat = safe_normalize(normal)
+        return -(jnp.dot(n_hat, o) - distance) * jnp.dot(n_hat, d)
+
     def hits(self, o, d):
         return plane_hits(self.normal, self.distance, o, d)
 

@@ -81,6 +81,12 @@ class Sphere(AbstractShape):
     center: Float[Array, "3"] = eqx.field(converter=as_float)
     radius: Float[Array, ""] = eqx.field(converter=as_float)
 
+    def silhouette_margin(self, o, d):
+        # r² − (the line's distance from the centre)², times |d|²: |d × (o − c)|² = |d|²·dist²
+        center, radius, o, d = as_float_arrays(self.center, self.radius, o, d)
+        cross = jnp.cross(d, o - center)
+        return radius * radius * jnp.dot(d, d) - jnp.dot(cross, cross)
+
     def hits(self, o, d):
         return sphere_hits(self.center, self.radius, o, d)
 

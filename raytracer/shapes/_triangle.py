@@ -104,6 +104,13 @@ def smooth_triangle_hits(
     return jnp.where(hit, t, jnp.inf)[None], jnp.where(hit, n, up)[None]
 
 
+def _triangle_margin(p1, p2, p3, o, d):
+    """The least barycentric coordinate of the line's crossing with the triangle's plane."""
+    p1, p2, p3, o, d = as_float_arrays(p1, p2, p3, o, d)
+    _, u, v, _, _ = _barycentric_hit(p1, p2, p3, o, d)
+    return jnp.minimum(jnp.minimum(u, v), 1.0 - u - v)
+
+
 # ---------------------------------------------------------------- the record
 class Triangle(AbstractShape):
     """``triangle { p1, p2, p3 }`` (no inside)."""
@@ -116,6 +123,9 @@ class Triangle(AbstractShape):
     p1: Float[Array, "3"] = eqx.field(converter=as_float)
     p2: Float[Array, "3"] = eqx.field(converter=as_float)
     p3: Float[Array, "3"] = eqx.field(converter=as_float)
+
+    def silhouette_margin(self, o, d):
+        return _triangle_margin(self.p1, self.p2, self.p3, o, d)
 
     def hits(self, o, d):
         return triangle_hits(self.p1, self.p2, self.p3, o, d)
@@ -160,6 +170,9 @@ class SmoothTriangle(AbstractShape):
     n1: Float[Array, "3"] = eqx.field(converter=as_float)
     n2: Float[Array, "3"] = eqx.field(converter=as_float)
     n3: Float[Array, "3"] = eqx.field(converter=as_float)
+
+    def silhouette_margin(self, o, d):
+        return _triangle_margin(self.p1, self.p2, self.p3, o, d)
 
     def hits(self, o, d):
         return smooth_triangle_hits(self.p1, self.p2, self.p3, self.n1, self.n2, self.n3, o, d)

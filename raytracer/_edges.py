@@ -1,0 +1,275 @@
+"""The boundary term of a pixel's derivative, where a parameter moves an edge of what camera rays see.
+
+A pixel of a ``spp = k²`` render is the mean of the radiance L over its area (a box filter, which
+the k×k lattice of sub-pixel centres integrates). Where L jumps along a curve Γ of the image that a
+parameter θ moves, the derivative of the pixel has a second term besides the mean of ∂θL (what
+``jax.jvp`` of the render gives, the hit held fixed):
+
+    dI/dθ = ∫_P ∂θL dA + ∫_{Γ∩P} (L⁻ − L⁺) v_n ds,
+
+v_n the normal speed of Γ. Here Γ is where the primitive a camera ray sees changes — an outline
+over what lies behind it (``AbstractShape.silhouette_margin``), or a seam where two surfaces cross
+(the difference of their distances along the ray) — and the term is computed deterministically on
+the render's own lattice:
+
+1. Each lattice sample's visible primitive; a pair of neighbouring samples (across the whole image,
+   in rows and in columns) that see different ones holds a crossing of Γ. The pairs are compacted
+   (``jnp.nonzero`` with a static size), so the work is proportional to the edges' length.
+2. On each pair, the margin ``g`` whose sign flips (the nearer primitive's outline, the farther
+   one's, or the seam) is bisected to the crossing (a fixed number of steps, values only).
+3. There, by forward-mode derivatives: ``g_u, g_v`` along the image and ``g_θ`` along the
+   parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; weighted by ``n_u²`` (the
+   edge normal's component along the row; the columns' crossings by ``n_v²``, so the two passes add
+   up to ∫ ds and neither divides by a vanishing ``g_u``), a row's crossing adds
+   ``−h (L⁻ − L⁺) g_θ g_u / |∇g|²`` to its pixel, ``h = 1/k`` the lattice spacing in pixels.
+4. ``L⁻``, ``L⁺``: two camera rays just either side of the crossing, traced through the whole
+   model (shadows, reflections, refraction), so the jump is that of the image.
+
+The term is linear in the tangent (only ``g_θ`` carries it), so reverse mode is its transpose:
+``render(…, edges=True)`` wraps the render in a ``jax.custom_jvp`` whose tangent is the render's
+own plus this one.
+
+Discretised, and where it fails: the row and column sums are a quadrature of the edge integral with
+spacing ``h`` (the error falls as the lattice is refined); two edges between neighbouring samples
+count as one, and features thinner than ``h`` are missed; a shape without a margin (tori,
+superellipsoids, polynomials, meshes, polygons, cylinders, cones, quadrics), a CSG operand's cut
+and ``clipped_by`` get no term (``Edges.unresolved`` counts those crossings). Edges that are not a
+change of the primitive seen — a pattern's cells, a shadow's outline, what a mirror or glass shows
+— are not in this term.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._packed import pack
+from ._plan import make_plan
+from .scene import Scene, environment_of
+from .shading import _accel
+from .shading._geometry import _to_object, closest_hit
+from .shading._model import initial_media, make_context
+from .shading.camera import camera_rays
+from .shading.whitted import trace
+
+# bisection steps from a lattice spacing to the crossing: 2⁻²⁴ of it, below float32's resolution of
+# an image coordinate
+BISECTIONS = 24
+# the boundary term's lattice is at least this many samples across a pixel (a render of fewer rays,
+# spp 1 or 4, still gets its edges at this resolution: the term's error falls as its square)
+EDGE_LATTICE = 4
+# the two rays that see either side of a crossing are this far (pixels) beyond the bisection's
+# last interval
+SIDE_OFFSET = 1e-3
+
+
+class Edges(NamedTuple):
+    """The boundary term of a render's tangent and what it found."""
+
+    tangent: jax.Array  # (H, W, 3): the linear image's boundary term along the tangent
+    crossings: jax.Array  # () int: lattice pairs that see different primitives
+    unresolved: jax.Array  # () int: of those, the ones no margin resolved (no term)
+    overflow: jax.Array  # () int: crossings past the static room (no term)
+
+
+def _prim_tables(geo, n_prims: int):
+    """(group (P,), index in its group (P,), has a margin (P,)) of every primitive (static)."""
+    group = np.full(max(n_prims, 1), -1, np.int32)
+    index = np.zeros(max(n_prims, 1), np.int32)
+    for i, (g, j) in geo.where.items():
+        group[i], index[i] = g, j
+    margins = np.array([type(s).has_margin() for s in geo.shapes], bool)
+    has = np.where(group >= 0, margins[np.maximum(group, 0)] if len(margins) else False, False)
+    return group, index, has
+
+
+def _per_prim(geo, tables, p, o, d, fn, fill):
+    """``fn(shape, object-space o, d)`` of the primitive ``p`` (traced index), over every group of a
+    shape class with a margin; ``fill`` where it has none."""
+    group, index, _ = tables
+    out = jnp.asarray(fill, o.dtype)
+    g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
+    for g, (shapes, ofw) in enumerate(zip(geo.shapes, geo.object_from_world, strict=True)):
+        if not type(shapes).has_margin():
+            continue
+        j = jnp.clip(j_of, 0, ofw.shape[0] - 1)
+        shape = jax.tree_util.tree_map(lambda x, j=j: x[j], shapes)
+        oo, dd = _to_object(ofw[j], o, d)
+        out = jnp.where(g_of == g, fn(shape, oo, dd), out)
+    return out
+
+
+def _margin(geo, tables, p, o, d):
+    return _per_prim(geo, tables, p, o, d, lambda s, oo, dd: s.silhouette_margin(oo, dd), jnp.nan)
+
+
+def _nearest_t(geo, tables, p, o, d, t_min):
+    def nearest(s, oo, dd):
+        t, _ = s.hits(oo, dd)
+        return jnp.min(jnp.where(t > t_min, t, jnp.inf))
+
+    return _per_prim(geo, tables, p, o, d, nearest, jnp.inf)
+
+
+def _image_ray(camera, width: int, height: int, u, v):
+    """The camera ray through image point (u, v) in pixels (u right, v down from the top left)."""
+    o, d = camera_rays(camera, jnp.asarray(u / width - 0.5)[None], jnp.asarray(0.5 - v / height)[None])
+    return o[0], d[0]
+
+
+def _room(width: int, height: int, k: int) -> int:
+    """Static room for crossings: eight image perimeters at the lattice's resolution (every pair if
+    the image has fewer)."""
+    pairs = 2 * (width * k) * (height * k)
+    return int(min(pairs, 8 * k * (width + height)))
+
+
+@eqx.filter_jit
+def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
+                  capacity: int | None = None, room: int | None = None) -> Edges:
+    """The boundary term of the linear image's derivative along ``tangent`` (the scene is
+    ``eqx.combine(dynamic, static)``; ``tangent`` has ``dynamic``'s structure)."""
+    scene: Scene = eqx.combine(dynamic, static)
+    dtype = scene.camera.location.dtype
+    plan = make_plan(scene)
+    packed = pack(scene, plan)
+    geo = packed.geo
+    tables = _prim_tables(geo, len(plan.prims))
+    ctx = make_context(plan, geo, packed.mats, scene.lights, scene.settings, scene.background, dtype,
+                       environment_of(scene))
+    h = 1.0 / k
+    rows, cols = height * k, width * k
+    room = _room(width, height, k) if room is None else room
+    sg = jax.lax.stop_gradient
+
+    # 1. what each lattice sample sees: its primitive, or -1
+    def seen(u, v):
+        o, d = _image_ray(scene.camera, width, height, u, v)
+        scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+        hit = closest_hit(geo, plan, o, d, scale, ctx.vis_camera, _accel.MASK_CAMERA)
+        return jnp.where(hit.found, hit.prim, -1)
+
+    centres = (jnp.arange(max(rows, cols), dtype=dtype) + 0.5) * h
+    sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v))(centres[:cols]), centres[:rows])
+
+    # pairs that differ: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
+    across = (sig[:, :-1] != sig[:, 1:]).reshape(-1)
+    down = (sig[:-1, :] != sig[1:, :]).reshape(-1)
+    found = jnp.concatenate([across, down])
+    count = jnp.sum(found)
+    which = jnp.nonzero(found, size=room, fill_value=0)[0]
+    live = jnp.arange(room) < count
+    in_rows = which < across.size
+    r = jnp.where(in_rows, which // max(cols - 1, 1), (which - across.size) // cols)
+    c = jnp.where(in_rows, which % max(cols - 1, 1), (which - across.size) % cols)
+    pa = sig[r, c]
+    u0, v0 = (c.astype(dtype) + 0.5) * h, (r.astype(dtype) + 0.5) * h
+    axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
+
+    _, _, has = tables
+    has = jnp.asarray(has)
+
+    def margins(geo_, camera, p_lo, p_hi, u, v):
+        """(3,) the margins an edge between ``p_lo`` and ``p_hi`` can be the zero of, at image point
+        (u, v): the outline of ``p_lo``, the outline of ``p_hi``, their seam (distances' difference)."""
+        o, d = _image_ray(camera, width, height, u, v)
+        lo_, hi_ = jnp.maximum(p_lo, 0), jnp.maximum(p_hi, 0)
+        scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+        seam = _nearest_t(geo_, tables, lo_, o, d, scale) - _nearest_t(geo_, tables, hi_, o, d, scale)
+        return jnp.stack([_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam])
+
+    def locate(p_a, u, v, e):
+        """The first change of what is seen along the pair's segment from its first sample, by
+        bisection of the primitive seen (a fixed number of steps): ``(lo, hi, primitive seen at
+        hi, kind)`` — ``lo``, ``hi`` in pixels along ``e`` from (u, v); ``kind`` the margin whose
+        zero it is (0: the outline of ``p_a``, 1: of the primitive beyond, 2: their seam; the one
+        nearest the crossing in pixels, -1 where none is within a hundredth of the spacing)."""
+        # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
+        # rounding away may see the other side (the steps end at float resolution, on the edge)
+        def step(_, state):
+            lo, hi, p_hi = state
+            mid = 0.5 * (lo + hi)
+            p_mid = seen(u + mid * e[0], v + mid * e[1])
+            same = p_mid == p_a
+            return jnp.where(same, mid, lo), jnp.where(same, hi, mid), jnp.where(same, p_hi, p_mid)
+
+        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), seen(u + h * e[0], v + h * e[1]))
+        lo, hi, p_hi = jax.lax.fori_loop(0, BISECTIONS, step, start)
+        mid = 0.5 * (lo + hi)
+        g, g_s = jax.jvp(lambda s: margins(geo, scene.camera, p_a, p_hi, u + s * e[0], v + s * e[1]),
+                         (mid,), (jnp.ones_like(mid),))
+        has_lo, has_hi = (p_a >= 0) & has[jnp.maximum(p_a, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
+        valid = jnp.stack([has_lo, has_hi, has_lo & has_hi]) & jnp.isfinite(g) & (g_s != 0)
+        distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
+        kind = jnp.argmin(distance)
+        return lo, hi, p_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1)
+
+    lo, hi, pb, kind = jax.vmap(locate)(pa, u0, v0, axis)
+    ok = live & (kind >= 0)
+    mid = 0.5 * (lo + hi)
+
+    # 3. the margin's derivatives at the crossing: along the image, and along the tangent
+    def derivatives(dyn, dyn_dot, kind, p_a, p_b, u, v):
+        def g_of(dyn_, uu, vv):
+            sc = eqx.combine(dyn_, static)
+            g = margins(pack(sc, plan).geo, sc.camera, p_a, p_b, uu, vv)
+            return g[jnp.maximum(kind, 0)]
+
+        g_u = jax.jvp(lambda uu: g_of(dyn, uu, v), (u,), (jnp.ones_like(u),))[1]
+        g_v = jax.jvp(lambda vv: g_of(dyn, u, vv), (v,), (jnp.ones_like(v),))[1]
+        g_theta = jax.jvp(lambda d_: g_of(d_, u, v), (dyn,), (dyn_dot,))[1]
+        return g_u, g_v, g_theta
+
+    pu, pv = u0 + mid * axis[:, 0], v0 + mid * axis[:, 1]
+    g_u, g_v, g_theta = jax.vmap(derivatives, in_axes=(None, None, 0, 0, 0, 0, 0))(
+        dynamic, tangent, kind, pa, pb, sg(pu), sg(pv))
+
+    # 4. the jump: rays just before and just after the crossing along its axis, through the model
+    before = jnp.stack([u0 + (lo - SIDE_OFFSET) * axis[:, 0], v0 + (lo - SIDE_OFFSET) * axis[:, 1]], -1)
+    after = jnp.stack([u0 + (hi + SIDE_OFFSET) * axis[:, 0], v0 + (hi + SIDE_OFFSET) * axis[:, 1]], -1)
+    points = jnp.concatenate([before, after])
+    o, d = camera_rays(scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
+    media = initial_media(ctx, scene.camera.frame()[0])
+    colours, _ = trace(ctx, o, d, chunk=o.shape[0], capacity=capacity, media=media,
+                       alive=jnp.concatenate([ok, ok]))
+    jump = sg(colours[:room] - colours[room:])  # L⁻ − L⁺
+
+    # a crossing of a row moves by −g_θ/g_u; its share of the edge integral is w_u = g_u⁴/(g_u⁴ + g_v⁴)
+    # (a column's w_v = 1 − w_u): the shares add up to ∫ ds, and the row integrand vanishes as
+    # n_u³ where the edge turns along the rows, so the rows' midpoint sums converge fast there
+    along, other = jnp.where(in_rows, g_u, g_v), jnp.where(in_rows, g_v, g_u)
+    quartic = along ** 4 + other ** 4
+    usable = ok & (quartic > 0)
+    weight = sg(jnp.where(usable, -h * along ** 3 / jnp.where(usable, quartic, 1.0), 0.0))
+    contribution = jnp.where(usable[:, None], (weight * g_theta)[:, None] * jump, 0.0)  # (room, 3)
+    # the crossing stands for the edge over its band of the lattice (h wide across its axis): where
+    # the edge leaves the crossing's pixel within the band (a straight piece of slope −g_other/g_along),
+    # the neighbouring pixel gets its share
+    at = sg(jnp.where(in_rows, pu, pv))
+    half = sg(0.5 * h * jnp.abs(other) / jnp.where(along != 0, jnp.abs(along), 1.0))
+    half = jnp.where(usable, half, 0.0)
+    cell = jnp.floor(at)
+
+    def overlap(shift):  # of the band's stretch of the edge with cell + shift, in the axis' units
+        lo_, hi_ = cell + shift, cell + shift + 1
+        return jnp.clip(jnp.minimum(at + half, hi_) - jnp.maximum(at - half, lo_), 0.0, None)
+
+    # a stretch longer than three cells keeps its whole contribution in these three
+    total = overlap(-1) + overlap(0) + overlap(1)
+    tiny = jnp.finfo(dtype).tiny
+    image = jnp.zeros((height, width, 3), dtype)
+    for shift in (-1, 0, 1):
+        share = jnp.where(total > tiny, overlap(shift) / jnp.maximum(total, tiny), float(shift == 0))
+        along_cell = (cell + shift).astype(jnp.int32)
+        across_cell = jnp.floor(sg(jnp.where(in_rows, pv, pu))).astype(jnp.int32)
+        px = jnp.where(in_rows, along_cell, across_cell)
+        py = jnp.where(in_rows, across_cell, along_cell)
+        inside = (px >= 0) & (px < width) & (py >= 0) & (py < height)
+        image = image.at[jnp.clip(py, 0, height - 1), jnp.clip(px, 0, width - 1)].add(
+            jnp.where(inside[:, None], share[:, None] * contribution, 0.0))
+    unresolved = jnp.sum(live & ~ok)
+    return Edges(image, count, unresolved, jnp.maximum(count - room, 0))

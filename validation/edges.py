@@ -1,0 +1,204 @@
+"""Independent references for the boundary term of a pixel's derivative (``raytracer/_edges.py``).
+
+An outline whose curve is known in closed form is integrated per pixel exactly: the image region
+``Q(u, v) ≥ 0`` of a conic ``Q`` (a sphere seen by a perspective or orthographic camera: its
+outline is an ellipse in image coordinates) is parameterised by angle, cut where it crosses the
+pixel grid (bisection to float64 precision), and each arc's ``∫ v_out ds`` is integrated by
+Gauss–Legendre — the integrand is smooth on an arc, so the result is exact to rounding. With a
+region of constant radiance ``L`` over black, the derivative of pixel P is ``L ∫_{Γ∩P} v_out ds``,
+``v_out = Q_θ / |∇Q|`` the outward speed of the curve. Nothing here uses the renderer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+_GAUSS = np.polynomial.legendre.leggauss(24)
+
+
+def _pixel_points(width: int, height: int, frame):
+    """``(u, v) → ray direction`` (N, 3) of a perspective camera frame ``(location, D, R, U)``."""
+    _, d, r, up = (np.asarray(x, np.float64) for x in frame)
+
+    def direction(u, v):
+        x0, y0 = u / width - 0.5, 0.5 - v / height
+        return d[None, :] + x0[:, None] * r[None, :] + y0[:, None] * up[None, :]
+
+    return direction
+
+
+def sphere_conic(frame, centre, radius, width: int, height: int):
+    """``(Q, Q_centre, Q_radius)``: the margin ``r²|d|² − |d × (c − eye)|²`` of the ray through image
+    point (u, v) in pixels (positive where it sees the sphere) for a perspective camera ``frame``
+    (``Camera.frame()``: location, D, R, U), and its derivatives along the centre (a (3,)
+    direction) and the radius."""
+    eye = np.asarray(frame[0], np.float64)
+    centre = np.asarray(centre, np.float64)
+    direction = _pixel_points(width, height, frame)
+
+    def q(u, v):
+        d = direction(np.atleast_1d(u), np.atleast_1d(v))
+        cross = np.cross(d, centre - eye)
+        return radius * radius * np.sum(d * d, -1) - np.sum(cross * cross, -1)
+
+    def q_centre(u, v, e):
+        d = direction(np.atleast_1d(u), np.atleast_1d(v))
+        cross = np.cross(d, centre - eye)
+        return -2.0 * np.sum(cross * np.cross(d, np.asarray(e, np.float64)), -1)
+
+    def q_radius(u, v):
+        d = direction(np.atleast_1d(u), np.atleast_1d(v))
+        return 2.0 * radius * np.sum(d * d, -1)
+
+    return q, q_centre, q_radius
+
+
+def _conic(q: Callable) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(A (2, 2), b (2,), c)`` with ``Q(p) = pᵀA p + 2 bᵀp + c``, from six values of the quadratic."""
+    f = lambda u, v: float(q(np.array([u]), np.array([v]))[0])  # noqa: E731
+    c = f(0.0, 0.0)
+    a11 = (f(1.0, 0.0) + f(-1.0, 0.0)) / 2 - c
+    a22 = (f(0.0, 1.0) + f(0.0, -1.0)) / 2 - c
+    b1 = (f(1.0, 0.0) - f(-1.0, 0.0)) / 4
+    b2 = (f(0.0, 1.0) - f(0.0, -1.0)) / 4
+    a12 = (f(1.0, 1.0) - f(1.0, 0.0) - f(0.0, 1.0) + c) / 2
+    return np.array([[a11, a12], [a12, a22]]), np.array([b1, b2]), c
+
+
+def ellipse_outline_term(q: Callable, q_theta: Callable, width: int, height: int,
+                         samples: int = 20_000, jump: Callable | None = None,
+                         splits: tuple[Callable, ...] = ()) -> np.ndarray:
+    """(H, W[, C]): ``∫_{Γ∩P} ΔL v_out ds`` per pixel for the ellipse ``Γ = {Q = 0}`` bounding
+    ``Q ≥ 0`` (``Q`` a quadratic in the pixel coordinates u, v with a negative definite quadratic
+    part), ``v_out = Q_θ/|∇Q|``. ``jump(u, v)`` (N,) or (N, C): the radiance inside minus outside
+    at the outline (None: 1, so the sum is the derivative of the ellipse's area); ``splits``:
+    functions of (u, v) where ``jump`` changes (arcs are cut where their sign does, so that each
+    arc's integrand is smooth). It is the derivative of each pixel's box-filtered value where the
+    radiance is constant on either side of the outline."""
+    a, b, c = _conic(q)
+    centre = np.linalg.solve(a, -b)
+    level = c - b @ np.linalg.solve(a, b)  # Q at the centre
+    lam, vec = np.linalg.eigh(-a)
+    if not (np.all(lam > 0) and level > 0):
+        raise ValueError("the conic is not an ellipse with an inside")
+    axes = vec * np.sqrt(level / lam)[None, :]  # p(φ) = centre + axes @ (cos φ, sin φ)
+
+    def point(phi):
+        return centre[None, :] + np.stack([np.cos(phi), np.sin(phi)], -1) @ axes.T
+
+    def tangent(phi):
+        return np.stack([-np.sin(phi), np.cos(phi)], -1) @ axes.T
+
+    def cell(phi):
+        p = point(phi)
+        signs = tuple(np.asarray(f(p[:, 0], p[:, 1]) > 0, np.int64) for f in splits)
+        return (np.floor(p[:, 0]).astype(np.int64), np.floor(p[:, 1]).astype(np.int64), *signs)
+
+    phi = np.linspace(0.0, 2 * np.pi, samples + 1)
+    key = np.stack(cell(phi), -1)
+    cuts = [0.0]
+    for i in np.flatnonzero(np.any(key[1:] != key[:-1], axis=-1)):
+        lo, hi = phi[i], phi[i + 1]
+        start = tuple(key[i])
+        for _ in range(60):  # to float64's resolution of φ
+            mid = 0.5 * (lo + hi)
+            if tuple(np.stack(cell(np.array([mid])), -1)[0]) == start:
+                lo = mid
+            else:
+                hi = mid
+        cuts.append(0.5 * (lo + hi))
+    cuts.append(2 * np.pi)
+    out = None
+    nodes, weights = _GAUSS
+    for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
+        if hi <= lo:
+            continue
+        mid_u, mid_v = cell(np.array([0.5 * (lo + hi)]))[:2]
+        phis = 0.5 * (hi - lo) * nodes + 0.5 * (hi + lo)
+        p, t = point(phis), tangent(phis)
+        grad = 2.0 * (p @ a + b[None, :])
+        speed = q_theta(p[:, 0], p[:, 1]) / np.linalg.norm(grad, axis=-1)
+        dl = np.ones(len(phis)) if jump is None else np.asarray(jump(p[:, 0], p[:, 1]), np.float64)
+        value = 0.5 * (hi - lo) * np.tensordot(weights * speed * np.linalg.norm(t, axis=-1), dl, axes=(0, 0))
+        if out is None:
+            out = np.zeros((height, width, *np.shape(value)))
+        if 0 <= mid_u[0] < width and 0 <= mid_v[0] < height:
+            out[mid_v[0], mid_u[0]] += value
+    return out
+
+
+def ellipse_area(q: Callable) -> float:
+    """The area of ``{Q ≥ 0}`` (pixels²) in closed form: ``π Q(centre) / sqrt(det(−A))``."""
+    a, b, c = _conic(q)
+    level = c - b @ np.linalg.solve(a, b)
+    return float(np.pi * level / np.sqrt(np.linalg.det(-a)))
+
+
+def project(frame, width: int, height: int, points) -> np.ndarray:
+    """World points (N, 3) → pixel coordinates (N, 2) (u right, v down) of a perspective camera
+    ``frame`` (``Camera.frame()``: location, D, R, U): the ray through (u, v) passes the point."""
+    eye, d, r, up = (np.asarray(x, np.float64) for x in frame)
+    basis = np.stack([d, r, up], axis=1)  # columns
+    a, b, c = np.linalg.solve(basis, (np.asarray(points, np.float64) - eye).T)
+    x0, y0 = b / a, c / a
+    return np.stack([(x0 + 0.5) * width, (0.5 - y0) * height], axis=-1)
+
+
+def _convex_hull(points: np.ndarray) -> np.ndarray:
+    """Indices of the convex hull of 2-D points, counter-clockwise (monotone chain)."""
+    order = sorted(range(len(points)), key=lambda i: (points[i, 0], points[i, 1]))
+
+    def cross(o, a, b):
+        return (points[a, 0] - points[o, 0]) * (points[b, 1] - points[o, 1]) - \
+               (points[a, 1] - points[o, 1]) * (points[b, 0] - points[o, 0])
+
+    lower, upper = [], []
+    for i in order:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], i) <= 0:
+            lower.pop()
+        lower.append(i)
+    for i in reversed(order):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], i) <= 0:
+            upper.pop()
+        upper.append(i)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def convex_outline_term(points, velocities, width: int, height: int) -> np.ndarray:
+    """(H, W): ``∫_{Γ∩P} v_out ds`` per pixel for the outline Γ of the convex hull of the image
+    points ``points`` (N, 2) moving at ``velocities`` (N, 2) (pixels per unit of the parameter):
+    each hull edge's points move as the affine blend of its ends' motions, so ``v_out`` is linear
+    along a piece of an edge within one pixel and Gauss–Legendre integrates it exactly. A box's
+    outline is the hull of its eight projected corners (all in front of the camera)."""
+    points, velocities = np.asarray(points, np.float64), np.asarray(velocities, np.float64)
+    hull = _convex_hull(points)
+    out = np.zeros((height, width))
+    nodes, weights = _GAUSS
+    for i, j in zip(hull, np.roll(hull, -1), strict=True):
+        p, q = points[i], points[j]
+        edge = q - p
+        length = np.linalg.norm(edge)
+        if length == 0:
+            continue
+        outward = np.array([edge[1], -edge[0]]) / length  # counter-clockwise hull: the right side
+        # the parameters where the segment crosses a grid line
+        cuts = {0.0, 1.0}
+        for axis in (0, 1):
+            if edge[axis] != 0:
+                lo, hi = sorted((p[axis], q[axis]))
+                for line in range(int(np.ceil(lo)), int(np.floor(hi)) + 1):
+                    s = (line - p[axis]) / edge[axis]
+                    if 0 < s < 1:
+                        cuts.add(s)
+        cuts = sorted(cuts)
+        for s0, s1 in zip(cuts[:-1], cuts[1:], strict=True):
+            mid = p + 0.5 * (s0 + s1) * edge
+            col, row = int(np.floor(mid[0])), int(np.floor(mid[1]))
+            if not (0 <= col < width and 0 <= row < height):
+                continue
+            s = 0.5 * (s1 - s0) * nodes + 0.5 * (s1 + s0)
+            motion = (1 - s)[:, None] * velocities[i] + s[:, None] * velocities[j]
+            out[row, col] += 0.5 * (s1 - s0) * length * np.sum(weights * (motion @ outward))
+    return out
