@@ -47,7 +47,7 @@ def main(argv=None) -> None:
 
     errors = {}
     for edges in (True, False):
-        def residuals(p, _):
+        def residuals(p, _, edges=edges):
             out = []
             for scene, params, target in zip(scenes, full, targets, strict=True):
                 image = rt.render(rt.params.replace(scene, {**params, **p}), width=WIDTH, height=HEIGHT,
@@ -56,7 +56,8 @@ def main(argv=None) -> None:
             return jnp.concatenate(out)
 
         solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
-        fitted = optx.least_squares(jax.jit(residuals), solver, start, max_steps=args.steps, throw=False).value
+        fitted = optx.least_squares(jax.jit(residuals), solver, start, max_steps=args.steps,
+                                    throw=False).value
         print(f"edges={edges}: centre {np.round(np.asarray(fitted[NAMES[0]]), 4)} (true "
               f"{np.asarray(truth[NAMES[0]])}), radius {float(fitted[NAMES[1]]):.4f} (true "
               f"{float(truth[NAMES[1]])}); error {error(fitted):.5f} (start {error(start):.4f})", flush=True)

@@ -47,11 +47,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import patterns
 from ._packed import pack
 from ._plan import make_plan
 from .scene import Scene, environment_of
 from .shading import _accel
 from .shading._geometry import _to_object, closest_hit
+from .shading._materials import _pattern_point, _raw_value
 from .shading._model import initial_media, make_context
 from .shading.camera import camera_rays
 from .shading.whitted import trace
@@ -87,14 +89,15 @@ def _prim_tables(geo, n_prims: int):
     return group, index, has
 
 
-def _per_prim(geo, tables, p, o, d, fn, fill):
+def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False):
     """``fn(shape, object-space o, d)`` of the primitive ``p`` (traced index), over every group of a
-    shape class with a margin; ``fill`` where it has none."""
+    shape class with a margin (``every_shape``: of any class but meshes, whose every triangle a
+    call would cross); ``fill`` where it has none."""
     group, index, _ = tables
     out = jnp.asarray(fill, o.dtype)
     g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
     for g, (shapes, ofw) in enumerate(zip(geo.shapes, geo.object_from_world, strict=True)):
-        if not type(shapes).has_margin():
+        if not (type(shapes).has_margin() or (every_shape and shapes.kind != "mesh")):
             continue
         j = jnp.clip(j_of, 0, ofw.shape[0] - 1)
         shape = jax.tree_util.tree_map(lambda x, j=j: x[j], shapes)
@@ -112,7 +115,44 @@ def _nearest_t(geo, tables, p, o, d, t_min):
         t, _ = s.hits(oo, dd)
         return jnp.min(jnp.where(t > t_min, t, jnp.inf))
 
-    return _per_prim(geo, tables, p, o, d, nearest, jnp.inf)
+    return _per_prim(geo, tables, p, o, d, nearest, jnp.inf, every_shape=True)
+
+
+def _discrete(mats):
+    """The scene's discrete patterns (static): ``[(k, face or None)]``, k an index into
+    ``mats.pattern_names``."""
+    return [(k, patterns.REGISTRY[name].face) for k, name in enumerate(mats.pattern_names)
+            if patterns.REGISTRY[name].discrete and patterns.REGISTRY[name].rendered]
+
+
+def _cell(mats, prim, p):
+    """The cell of primitive ``prim``'s top layer's discrete pattern at world point ``p``
+    (``Pattern.cell``, else its value: the colour's index); 0 where its pattern is not discrete."""
+    row = prim * mats.n_layers
+    q = _pattern_point(mats, row, p)
+    pid = jnp.asarray(mats.tables["pattern_id"])[row]
+    cell = jnp.zeros((), jnp.int32)
+    for k, _ in _discrete(mats):
+        record = patterns.REGISTRY[mats.pattern_names[k]]
+        own = record.cell(q) if record.cell is not None else _raw_value(mats, k, row, q).astype(jnp.int32)
+        cell = jnp.where(pid == k, own, cell)
+    return cell
+
+
+def _face(mats, prim, q_a, q_b):
+    """``(normal, offset, has)``: the plane between the cells of pattern-space points ``q_a`` and
+    ``q_b`` of primitive ``prim``'s top layer (``Pattern.face``); ``has`` False where its pattern has
+    no face function or a turbulence that bends its faces."""
+    row = prim * mats.n_layers
+    pid = jnp.asarray(mats.tables["pattern_id"])[row]
+    normal, offset, has = jnp.zeros(3, q_a.dtype), jnp.zeros((), q_a.dtype), jnp.zeros((), bool)
+    for k, face in _discrete(mats):
+        if face is None or mats.turbulent[k]:
+            continue
+        n_k, c_k = face(q_a, q_b)
+        normal, offset, has = (jnp.where(pid == k, n_k, normal), jnp.where(pid == k, c_k, offset),
+                               has | (pid == k))
+    return normal, offset, has
 
 
 def _image_ray(camera, width: int, height: int, u, v):
@@ -122,10 +162,10 @@ def _image_ray(camera, width: int, height: int, u, v):
 
 
 def _room(width: int, height: int, k: int) -> int:
-    """Static room for crossings: eight image perimeters at the lattice's resolution (every pair if
-    the image has fewer)."""
+    """Static room for crossings: 32 image perimeters at the lattice's resolution (a checker floor
+    of 16 cells across the image crosses ~20), or every pair if the image has fewer."""
     pairs = 2 * (width * k) * (height * k)
-    return int(min(pairs, 8 * k * (width + height)))
+    return int(min(pairs, 32 * k * (width + height)))
 
 
 @eqx.filter_jit
@@ -146,19 +186,31 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     room = _room(width, height, k) if room is None else room
     sg = jax.lax.stop_gradient
 
-    # 1. what each lattice sample sees: its primitive, or -1
+    mats = packed.mats
+    cells = bool(_discrete(mats))
+
+    # 1. what each lattice sample sees, its signature (2,): its primitive (-1: none) and the cell of
+    # the primitive's discrete pattern (0: none)
     def seen(u, v):
         o, d = _image_ray(scene.camera, width, height, u, v)
         scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
         hit = closest_hit(geo, plan, o, d, scale, ctx.vis_camera, _accel.MASK_CAMERA)
-        return jnp.where(hit.found, hit.prim, -1)
+        cell = _cell(mats, hit.prim, o + hit.t * d) if cells else jnp.zeros((), jnp.int32)
+        prim = jnp.where(hit.found, hit.prim, -1)
+        return jnp.stack([prim, jnp.where(hit.found, cell, 0)]).astype(jnp.int32)
+
+    def pattern_point(mats_, geo_, camera, prim, u, v):
+        """The pattern-space point of ``prim``'s top layer where the ray through (u, v) crosses it."""
+        o, d = _image_ray(camera, width, height, u, v)
+        t = _nearest_t(geo_, tables, prim, o, d, ctx.eps * (1.0 + jnp.max(jnp.abs(o))))
+        return _pattern_point(mats_, prim * mats_.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
     centres = (jnp.arange(max(rows, cols), dtype=dtype) + 0.5) * h
     sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v))(centres[:cols]), centres[:rows])
 
     # pairs that differ: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
-    across = (sig[:, :-1] != sig[:, 1:]).reshape(-1)
-    down = (sig[:-1, :] != sig[1:, :]).reshape(-1)
+    across = jnp.any(sig[:, :-1] != sig[:, 1:], axis=-1).reshape(-1)
+    down = jnp.any(sig[:-1, :] != sig[1:, :], axis=-1).reshape(-1)
     found = jnp.concatenate([across, down])
     count = jnp.sum(found)
     which = jnp.nonzero(found, size=room, fill_value=0)[0]
@@ -173,51 +225,70 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     _, _, has = tables
     has = jnp.asarray(has)
 
-    def margins(geo_, camera, p_lo, p_hi, u, v):
-        """(3,) the margins an edge between ``p_lo`` and ``p_hi`` can be the zero of, at image point
-        (u, v): the outline of ``p_lo``, the outline of ``p_hi``, their seam (distances' difference)."""
+    def margins(geo_, mats_, camera, s_lo, s_hi, face, u, v):
+        """(4,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero of,
+        at image point (u, v): the outline of ``s_lo``'s primitive, the outline of ``s_hi``'s, their
+        seam (the distances' difference), and the cell face ``face`` = (normal, offset) of a
+        discrete pattern on one primitive (``normal · q − offset``, q its pattern-space point)."""
         o, d = _image_ray(camera, width, height, u, v)
-        lo_, hi_ = jnp.maximum(p_lo, 0), jnp.maximum(p_hi, 0)
+        lo_, hi_ = jnp.maximum(s_lo[0], 0), jnp.maximum(s_hi[0], 0)
         scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
         seam = _nearest_t(geo_, tables, lo_, o, d, scale) - _nearest_t(geo_, tables, hi_, o, d, scale)
-        return jnp.stack([_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam])
+        on_face = jnp.zeros((), o.dtype)
+        if cells:
+            on_face = jnp.dot(face[0], pattern_point(mats_, geo_, camera, lo_, u, v)) - face[1]
+        return jnp.stack([_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face])
 
-    def locate(p_a, u, v, e):
+    def locate(s_a, u, v, e):
         """The first change of what is seen along the pair's segment from its first sample, by
-        bisection of the primitive seen (a fixed number of steps): ``(lo, hi, primitive seen at
-        hi, kind)`` — ``lo``, ``hi`` in pixels along ``e`` from (u, v); ``kind`` the margin whose
-        zero it is (0: the outline of ``p_a``, 1: of the primitive beyond, 2: their seam; the one
-        nearest the crossing in pixels, -1 where none is within a hundredth of the spacing)."""
+        bisection of the signature seen (a fixed number of steps): ``(lo, hi, signature seen at
+        hi, kind, face)`` — ``lo``, ``hi`` in pixels along ``e`` from (u, v); ``kind`` the margin
+        whose zero it is (0: the outline of ``s_a``'s primitive, 1: of the primitive beyond, 2:
+        their seam, 3: a cell face of one primitive's pattern; the one nearest the crossing in
+        pixels, -1 where none is within a hundredth of the spacing)."""
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
         def step(_, state):
-            lo, hi, p_hi = state
+            lo, hi, s_hi = state
             mid = 0.5 * (lo + hi)
-            p_mid = seen(u + mid * e[0], v + mid * e[1])
-            same = p_mid == p_a
-            return jnp.where(same, mid, lo), jnp.where(same, hi, mid), jnp.where(same, p_hi, p_mid)
+            s_mid = seen(u + mid * e[0], v + mid * e[1])
+            same = jnp.all(s_mid == s_a)
+            return jnp.where(same, mid, lo), jnp.where(same, hi, mid), jnp.where(same, s_hi, s_mid)
 
         start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), seen(u + h * e[0], v + h * e[1]))
-        lo, hi, p_hi = jax.lax.fori_loop(0, BISECTIONS, step, start)
+        lo, hi, s_hi = jax.lax.fori_loop(0, BISECTIONS, step, start)
+        p_lo, p_hi = s_a[0], s_hi[0]
+        one = (p_lo == p_hi) & (p_lo >= 0)
+        face = (jnp.zeros(3, dtype), jnp.zeros((), dtype))
+        has_face = jnp.zeros((), bool)
+        if cells:  # the face between the cells just before and just after the crossing
+            q_a = pattern_point(mats, geo, scene.camera, jnp.maximum(p_lo, 0),
+                                u + (lo - SIDE_OFFSET) * e[0], v + (lo - SIDE_OFFSET) * e[1])
+            q_b = pattern_point(mats, geo, scene.camera, jnp.maximum(p_lo, 0),
+                                u + (hi + SIDE_OFFSET) * e[0], v + (hi + SIDE_OFFSET) * e[1])
+            normal, offset, has_face = _face(mats, jnp.maximum(p_lo, 0), q_a, q_b)
+            face = (normal, offset)
         mid = 0.5 * (lo + hi)
-        g, g_s = jax.jvp(lambda s: margins(geo, scene.camera, p_a, p_hi, u + s * e[0], v + s * e[1]),
-                         (mid,), (jnp.ones_like(mid),))
-        has_lo, has_hi = (p_a >= 0) & has[jnp.maximum(p_a, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
-        valid = jnp.stack([has_lo, has_hi, has_lo & has_hi]) & jnp.isfinite(g) & (g_s != 0)
+        g, g_s = jax.jvp(lambda s: margins(geo, mats, scene.camera, s_a, s_hi, face, u + s * e[0],
+                                           v + s * e[1]), (mid,), (jnp.ones_like(mid),))
+        has_lo, has_hi = (p_lo >= 0) & has[jnp.maximum(p_lo, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
+        valid = jnp.stack([has_lo & ~one, has_hi & ~one, has_lo & has_hi & ~one, one & has_face])
+        valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
         kind = jnp.argmin(distance)
-        return lo, hi, p_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1)
+        return lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face
 
-    lo, hi, pb, kind = jax.vmap(locate)(pa, u0, v0, axis)
+    lo, hi, pb, kind, face = jax.vmap(locate)(pa, u0, v0, axis)
+    face = jax.tree.map(sg, face)
     ok = live & (kind >= 0)
     mid = 0.5 * (lo + hi)
 
     # 3. the margin's derivatives at the crossing: along the image, and along the tangent
-    def derivatives(dyn, dyn_dot, kind, p_a, p_b, u, v):
+    def derivatives(dyn, dyn_dot, kind, s_a, s_b, face, u, v):
         def g_of(dyn_, uu, vv):
             sc = eqx.combine(dyn_, static)
-            g = margins(pack(sc, plan).geo, sc.camera, p_a, p_b, uu, vv)
-            return g[jnp.maximum(kind, 0)]
+            pk = pack(sc, plan)
+            return margins(pk.geo, pk.mats, sc.camera, s_a, s_b, face, uu, vv)[jnp.maximum(kind, 0)]
 
         g_u = jax.jvp(lambda uu: g_of(dyn, uu, v), (u,), (jnp.ones_like(u),))[1]
         g_v = jax.jvp(lambda vv: g_of(dyn, u, vv), (v,), (jnp.ones_like(v),))[1]
@@ -225,8 +296,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         return g_u, g_v, g_theta
 
     pu, pv = u0 + mid * axis[:, 0], v0 + mid * axis[:, 1]
-    g_u, g_v, g_theta = jax.vmap(derivatives, in_axes=(None, None, 0, 0, 0, 0, 0))(
-        dynamic, tangent, kind, pa, pb, sg(pu), sg(pv))
+    g_u, g_v, g_theta = jax.vmap(derivatives, in_axes=(None, None, 0, 0, 0, 0, 0, 0))(
+        dynamic, tangent, kind, pa, pb, face, sg(pu), sg(pv))
 
     # 4. the jump: rays just before and just after the crossing along its axis, through the model
     before = jnp.stack([u0 + (lo - SIDE_OFFSET) * axis[:, 0], v0 + (lo - SIDE_OFFSET) * axis[:, 1]], -1)

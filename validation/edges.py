@@ -166,25 +166,23 @@ def _convex_hull(points: np.ndarray) -> np.ndarray:
     return np.array(lower[:-1] + upper[:-1])
 
 
-def convex_outline_term(points, velocities, width: int, height: int) -> np.ndarray:
-    """(H, W): ``∫_{Γ∩P} v_out ds`` per pixel for the outline Γ of the convex hull of the image
-    points ``points`` (N, 2) moving at ``velocities`` (N, 2) (pixels per unit of the parameter):
-    each hull edge's points move as the affine blend of its ends' motions, so ``v_out`` is linear
-    along a piece of an edge within one pixel and Gauss–Legendre integrates it exactly. A box's
-    outline is the hull of its eight projected corners (all in front of the camera)."""
-    points, velocities = np.asarray(points, np.float64), np.asarray(velocities, np.float64)
-    hull = _convex_hull(points)
+def segments_term(ends, motions, jumps, width: int, height: int) -> np.ndarray:
+    """(H, W): ``Σ ∫_{segment ∩ P} jump · v_n ds`` per pixel for straight image segments ``ends`` (N, 2,
+    2) (two ends each, pixels) moving at ``motions`` (N, 2, 2) (pixels per unit of the parameter;
+    a segment's points move as the affine blend of its ends' motions, as the image of a straight
+    3-D edge does), ``v_n`` the speed along the segment's normal ``(e_v, −e_u)/|e|`` (``e`` = second
+    end − first) and ``jumps`` (N,) the radiance on the side the normal points away from minus the
+    other. Each piece within one pixel is integrated by Gauss–Legendre (exact: v_n is linear)."""
     out = np.zeros((height, width))
     nodes, weights = _GAUSS
-    for i, j in zip(hull, np.roll(hull, -1), strict=True):
-        p, q = points[i], points[j]
+    for (p, q), (vp, vq), jump in zip(np.asarray(ends, np.float64), np.asarray(motions, np.float64),
+                                      np.asarray(jumps, np.float64), strict=True):
         edge = q - p
         length = np.linalg.norm(edge)
         if length == 0:
             continue
-        outward = np.array([edge[1], -edge[0]]) / length  # counter-clockwise hull: the right side
-        # the parameters where the segment crosses a grid line
-        cuts = {0.0, 1.0}
+        normal = np.array([edge[1], -edge[0]]) / length
+        cuts = {0.0, 1.0}  # where the segment crosses a grid line
         for axis in (0, 1):
             if edge[axis] != 0:
                 lo, hi = sorted((p[axis], q[axis]))
@@ -199,6 +197,61 @@ def convex_outline_term(points, velocities, width: int, height: int) -> np.ndarr
             if not (0 <= col < width and 0 <= row < height):
                 continue
             s = 0.5 * (s1 - s0) * nodes + 0.5 * (s1 + s0)
-            motion = (1 - s)[:, None] * velocities[i] + s[:, None] * velocities[j]
-            out[row, col] += 0.5 * (s1 - s0) * length * np.sum(weights * (motion @ outward))
+            motion = (1 - s)[:, None] * vp + s[:, None] * vq
+            out[row, col] += jump * 0.5 * (s1 - s0) * length * np.sum(weights * (motion @ normal))
+    return out
+
+
+def convex_outline_term(points, velocities, width: int, height: int) -> np.ndarray:
+    """(H, W): ``∫_{Γ∩P} v_out ds`` per pixel for the outline Γ of the convex hull of the image
+    points ``points`` (N, 2) moving at ``velocities`` (N, 2) (pixels per unit of the parameter),
+    radiance 1 inside and 0 outside (``segments_term`` of the hull's edges, counter-clockwise, so
+    each edge's normal points out). A box's outline is the hull of its eight projected corners
+    (all in front of the camera)."""
+    points, velocities = np.asarray(points, np.float64), np.asarray(velocities, np.float64)
+    hull = _convex_hull(points)
+    ends = np.stack([points[hull], points[np.roll(hull, -1)]], axis=1)
+    motions = np.stack([velocities[hull], velocities[np.roll(hull, -1)]], axis=1)
+    return segments_term(ends, motions, np.ones(len(hull)), width, height)
+
+
+def checker_floor_term(frame_at, offset, size: float, height_y: float, colours, width: int, height: int,
+                       cells: int = 12) -> np.ndarray:
+    """(H, W): the boundary term of a checker floor ``y = height_y`` (cells of ``size``, shifted by
+    ``offset`` (x, z); cell (i, j) has colour ``colours[(i + j + floor(height_y/size)) % 2]``) for a
+    camera whose frame is ``frame_at(s)`` at parameter s (its derivative at 0 by central
+    differences): every cell edge within ``cells`` of the origin is a straight segment of the image
+    whose ends move as their projections do. Edges that reach behind the camera are left out (the
+    scene must keep the floor's visible edges well in front of it)."""
+    eps = 1e-6
+    f0, fp, fm = frame_at(0.0), frame_at(eps), frame_at(-eps)
+    forward = np.asarray(f0[1], np.float64) / np.linalg.norm(f0[1])
+    layer = int(np.floor(height_y / size))
+    ends, motions, jumps = [], [], []
+    for i in range(-cells, cells + 1):
+        for j in range(-cells, cells + 1):
+            x, z = i * size + offset[0], j * size + offset[1]
+            for a, b, left, right in (((x, z), (x, z + size), (i - 1, j), (i, j)),   # along z
+                                      ((x, z), (x + size, z), (i, j), (i, j - 1))):  # along x
+                points = np.array([[a[0], height_y, a[1]], [b[0], height_y, b[1]]])
+                if np.any((points - np.asarray(f0[0])) @ forward <= 0.1):
+                    continue
+                ends.append(project(f0, width, height, points))
+                motions.append((project(fp, width, height, points)
+                                - project(fm, width, height, points)) / (2 * eps))
+                jumps.append((left, right))
+    out = np.zeros((height, width))
+    ends, motions = np.asarray(ends), np.asarray(motions)
+    for n, ((ci, cj), (di, dj)) in enumerate(jumps):
+        # the normal (e_v, −e_u) of the image segment: which cell it points away from is decided in
+        # the image, by the projected centre of one of the two cells
+        edge = ends[n, 1] - ends[n, 0]
+        normal = np.array([edge[1], -edge[0]])
+        centre = project(f0, width, height, np.array([[(ci + 0.5) * size + offset[0], height_y,
+                                                        (cj + 0.5) * size + offset[1]]]))[0]
+        first, second = (ci, cj), (di, dj)
+        if np.dot(centre - ends[n, 0], normal) > 0:  # the normal points into the first cell
+            first, second = second, first
+        jump = colours[(first[0] + first[1] + layer) % 2] - colours[(second[0] + second[1] + layer) % 2]
+        out += segments_term(ends[n:n + 1], motions[n:n + 1], [jump], width, height)
     return out

@@ -69,6 +69,14 @@ class Pattern:
         noise:        its value costs lattice noise evaluations (tens of them with turbulence):
                       the shader then computes shadow filters pattern by pattern
                       (``shading/_materials.costly_patterns``).
+        face:         a discrete pattern's cell faces: ``face(q_a, q_b) → (normal (3,), offset ())``,
+                      the plane ``normal · q = offset`` between the cells of pattern-space points
+                      ``q_a`` and ``q_b`` (``normal · q − offset`` positive on ``q_b``'s side), whose
+                      motion is the boundary term of a cell edge (``raytracer/_edges.py``); None:
+                      its cell edges get none.
+        cell:         with ``face``: ``cell(q) → int32``, an id of the cell of pattern-space point
+                      ``q`` that differs between any two cells sharing a face (two cells of one
+                      colour too, so that a corner's two faces are told apart).
     """
 
     name: str
@@ -81,6 +89,8 @@ class Pattern:
     default_map: tuple[tuple[float, tuple[float, ...]], ...] = BLACK_TO_WHITE
     keyword: bool = True
     noise: bool = False
+    face: Callable | None = None
+    cell: Callable | None = None
 
     def __post_init__(self):
         if self.colours and len(self.default_map) != self.colours:

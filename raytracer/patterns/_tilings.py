@@ -27,6 +27,22 @@ def checker(p, inputs):
     return k - 2.0 * jnp.floor(0.5 * k)
 
 
+def checker_face(q_a, q_b):
+    """The face between the unit cells of ``q_a`` and ``q_b``: the integer plane of the axis along
+    which their cells differ most (neighbouring cells: the one axis they differ along)."""
+    step = jnp.floor(q_b) - jnp.floor(q_a)
+    axis = jnp.argmax(jnp.abs(step))
+    sign = jnp.where(step[axis] < 0, -1.0, 1.0).astype(q_a.dtype)
+    normal = jnp.where(jnp.arange(3) == axis, sign, 0.0).astype(q_a.dtype)
+    return normal, sign * jnp.maximum(jnp.floor(q_a), jnp.floor(q_b))[axis]
+
+
+def checker_cell(q):
+    """The unit cell of ``q`` as one int32: its integer coordinates hashed (neighbours always differ)."""
+    n = jnp.floor(q + 1e-10).astype(jnp.int32)
+    return n[0] * 73856093 ^ n[1] * 19349663 ^ n[2] * 83492791
+
+
 def hexagon(p, inputs):
     """Hexagonal rods along y, side 1, vertices on ±x, tiled in the x-z plane.
 
@@ -68,7 +84,8 @@ def brick(p, inputs, *, brick_size, mortar):
 
 
 PATTERNS = (
-    Pattern("checker", checker, colours=2, default_map=((0.0, BLUE), (1.0, GREEN))),
+    Pattern("checker", checker, colours=2, default_map=((0.0, BLUE), (1.0, GREEN)), face=checker_face,
+            cell=checker_cell),
     Pattern("hexagon", hexagon, colours=3, default_map=((0.0, BLUE), (1.0, GREEN), (2.0, RED))),
     Pattern("brick", brick, colours=2, default_map=((0.0, WHITE), (1.0, RED)),
             # POV-Ray's defaults: brick + mortar per axis, and the mortar's width
