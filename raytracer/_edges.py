@@ -7,21 +7,23 @@ parameter θ moves, the derivative of the pixel has a second term besides the me
 
     dI/dθ = ∫_P ∂θL dA + ∫_{Γ∩P} (L⁻ − L⁺) v_n ds,
 
-v_n the normal speed of Γ. Here Γ is where the primitive a camera ray sees changes — an outline
-over what lies behind it (``AbstractShape.silhouette_margin``), or a seam where two surfaces cross
-(the difference of their distances along the ray) — and the term is computed deterministically on
-the render's own lattice:
+v_n the normal speed of Γ. Here Γ is where what a camera ray sees changes: its primitive — an
+outline over what lies behind it (``AbstractShape.silhouette_margin``), or a seam where two
+surfaces cross (the difference of their distances along the ray) — or the cell of its primitive's
+discrete pattern (``Pattern.cell``, ``Pattern.face``). The term is computed deterministically on a
+lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
-1. Each lattice sample's visible primitive; a pair of neighbouring samples (across the whole image,
-   in rows and in columns) that see different ones holds a crossing of Γ. The pairs are compacted
-   (``jnp.nonzero`` with a static size), so the work is proportional to the edges' length.
-2. On each pair, the margin ``g`` whose sign flips (the nearer primitive's outline, the farther
-   one's, or the seam) is bisected to the crossing (a fixed number of steps, values only).
+1. Each lattice sample's signature (its primitive, its pattern cell); a pair of neighbouring samples
+   (across the whole image, in rows and in columns) with different ones holds a crossing of Γ. The
+   pairs are compacted (``jnp.nonzero`` with a static room), so the work follows the edges' length.
+2. On each pair, the first change of signature is bisected (a fixed number of steps, values only),
+   and the margin ``g`` whose zero it is chosen: the nearer primitive's outline, the farther
+   one's, their seam, or the pattern's cell face — the one nearest the crossing.
 3. There, by forward-mode derivatives: ``g_u, g_v`` along the image and ``g_θ`` along the
-   parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; weighted by ``n_u²`` (the
-   edge normal's component along the row; the columns' crossings by ``n_v²``, so the two passes add
-   up to ∫ ds and neither divides by a vanishing ``g_u``), a row's crossing adds
-   ``−h (L⁻ − L⁺) g_θ g_u / |∇g|²`` to its pixel, ``h = 1/k`` the lattice spacing in pixels.
+   parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; rows and columns share the edge
+   integral by the weights ``g_u⁴/(g_u⁴ + g_v⁴)`` and ``g_v⁴/(…)`` (they add up to ∫ ds, and neither
+   pass divides by a vanishing ``g_u``), so a row's crossing adds ``−h (L⁻ − L⁺) g_θ g_u³/(g_u⁴ +
+   g_v⁴)``, ``h`` the lattice spacing in pixels, spread over the pixels its band of the edge passes.
 4. ``L⁻``, ``L⁺``: two camera rays just either side of the crossing, traced through the whole
    model (shadows, reflections, refraction), so the jump is that of the image.
 
@@ -30,12 +32,12 @@ The term is linear in the tangent (only ``g_θ`` carries it), so reverse mode is
 own plus this one.
 
 Discretised, and where it fails: the row and column sums are a quadrature of the edge integral with
-spacing ``h`` (the error falls as the lattice is refined); two edges between neighbouring samples
-count as one, and features thinner than ``h`` are missed; a shape without a margin (tori,
-superellipsoids, polynomials, meshes, polygons, cylinders, cones, quadrics), a CSG operand's cut
-and ``clipped_by`` get no term (``Edges.unresolved`` counts those crossings). Edges that are not a
-change of the primitive seen — a pattern's cells, a shadow's outline, what a mirror or glass shows
-— are not in this term.
+spacing ``h`` — second order on smooth edges, first order where an edge turns within a lattice cell
+(polygon vertices, checker corners); two edges between neighbouring samples count as one, and
+features thinner than ``h`` are missed; a shape without a margin (tori, superellipsoids,
+polynomials, meshes, polygons, cylinders, cones, quadrics), a pattern without a face (hexagon,
+brick, a turbulent checker), a CSG operand's cut and ``clipped_by`` get no term (``Edges.unresolved``
+counts those crossings). A shadow's outline and what a mirror or glass shows are not in this term.
 """
 
 from __future__ import annotations
@@ -58,9 +60,9 @@ from .shading._model import initial_media, make_context
 from .shading.camera import camera_rays
 from .shading.whitted import trace
 
-# bisection steps from a lattice spacing to the crossing: 2⁻²⁴ of it, below float32's resolution of
-# an image coordinate
-BISECTIONS = 24
+# bisection steps from a lattice spacing to the crossing: 2⁻¹⁴ of it (1.5e-5 px at 4×4 samples a pixel;
+# the margin chosen there is then evaluated at its own zero to first order)
+BISECTIONS = 14
 # the boundary term's lattice is at least this many samples across a pixel (a render of fewer rays,
 # spp 1 or 4, still gets its edges at this resolution: the term's error falls as its square)
 EDGE_LATTICE = 4
@@ -161,11 +163,33 @@ def _image_ray(camera, width: int, height: int, u, v):
     return o[0], d[0]
 
 
+# crossings are located, differentiated and traced this many at a time; a chunk without a live one
+# (the room's tail) costs nothing
+CHUNK = 256
+
+
 def _room(width: int, height: int, k: int) -> int:
     """Static room for crossings: 32 image perimeters at the lattice's resolution (a checker floor
-    of 16 cells across the image crosses ~20), or every pair if the image has fewer."""
+    of 16 cells across the image crosses ~20), or every pair if the image has fewer; a multiple of
+    ``CHUNK``."""
     pairs = 2 * (width * k) * (height * k)
-    return int(min(pairs, 32 * k * (width + height)))
+    return -(-min(pairs, 32 * k * (width + height)) // CHUNK) * CHUNK
+
+
+def _live_map(fn, live, *args):
+    """``vmap(fn)(*args)`` over the room, ``CHUNK`` crossings at a time, skipping the chunks without a
+    live one (their results are zeros)."""
+    n = live.shape[0]
+    chunks = jax.tree.map(lambda x: x.reshape(n // CHUNK, CHUNK, *x.shape[1:]), (live, args))
+
+    def one(chunk):
+        alive, xs = chunk
+        shapes = jax.eval_shape(jax.vmap(fn), *xs)
+        return jax.lax.cond(jnp.any(alive), lambda a: jax.vmap(fn)(*a),
+                            lambda a: jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes), xs)
+
+    out = jax.lax.map(one, chunks)
+    return jax.tree.map(lambda x: x.reshape(n, *x.shape[2:]), out)
 
 
 @eqx.filter_jit
@@ -278,26 +302,26 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         kind = jnp.argmin(distance)
         return lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face
 
-    lo, hi, pb, kind, face = jax.vmap(locate)(pa, u0, v0, axis)
+    lo, hi, pb, kind, face = _live_map(locate, live, pa, u0, v0, axis)
     face = jax.tree.map(sg, face)
     ok = live & (kind >= 0)
     mid = 0.5 * (lo + hi)
 
     # 3. the margin's derivatives at the crossing: along the image, and along the tangent
-    def derivatives(dyn, dyn_dot, kind, s_a, s_b, face, u, v):
+    def derivatives(kind, s_a, s_b, face, u, v):
         def g_of(dyn_, uu, vv):
             sc = eqx.combine(dyn_, static)
             pk = pack(sc, plan)
             return margins(pk.geo, pk.mats, sc.camera, s_a, s_b, face, uu, vv)[jnp.maximum(kind, 0)]
 
-        g_u = jax.jvp(lambda uu: g_of(dyn, uu, v), (u,), (jnp.ones_like(u),))[1]
-        g_v = jax.jvp(lambda vv: g_of(dyn, u, vv), (v,), (jnp.ones_like(v),))[1]
-        g_theta = jax.jvp(lambda d_: g_of(d_, u, v), (dyn,), (dyn_dot,))[1]
+        g_u = jax.jvp(lambda uu: g_of(dynamic, uu, v), (u,), (jnp.ones_like(u),))[1]
+        g_v = jax.jvp(lambda vv: g_of(dynamic, u, vv), (v,), (jnp.ones_like(v),))[1]
+        g_theta = jax.jvp(lambda d_: g_of(d_, u, v), (dynamic,), (tangent,))[1]
         return g_u, g_v, g_theta
 
     pu, pv = u0 + mid * axis[:, 0], v0 + mid * axis[:, 1]
-    g_u, g_v, g_theta = jax.vmap(derivatives, in_axes=(None, None, 0, 0, 0, 0, 0, 0))(
-        dynamic, tangent, kind, pa, pb, face, sg(pu), sg(pv))
+    g_u, g_v, g_theta = _live_map(derivatives, ok,
+                                  kind, pa, pb, face, sg(pu), sg(pv))
 
     # 4. the jump: rays just before and just after the crossing along its axis, through the model
     before = jnp.stack([u0 + (lo - SIDE_OFFSET) * axis[:, 0], v0 + (lo - SIDE_OFFSET) * axis[:, 1]], -1)
@@ -305,7 +329,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     points = jnp.concatenate([before, after])
     o, d = camera_rays(scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
     media = initial_media(ctx, scene.camera.frame()[0])
-    colours, _ = trace(ctx, o, d, chunk=o.shape[0], capacity=capacity, media=media,
+    colours, _ = trace(ctx, o, d, chunk=CHUNK, capacity=capacity, media=media,
                        alive=jnp.concatenate([ok, ok]))
     jump = sg(colours[:room] - colours[room:])  # L⁻ − L⁺
 
