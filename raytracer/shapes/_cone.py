@@ -83,6 +83,56 @@ def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
     return masked_hits(t, jnp.concatenate([n_side, n_caps]), jnp.concatenate([side_ok, caps_ok]))
 
 
+def _frustum_margin(base, base_radius, cap, cap_radius, o, d, open_):
+    """The closed frustum's silhouette margin (``AbstractShape.silhouette_margin``): the largest, over
+    the line, of the least of its three insides — ``r(h)² − |p⊥|²`` (the cone's side, quadratic in
+    t), ``h`` and ``length − h`` (the two caps' planes, linear) — positive exactly where the line
+    passes through the solid. The largest least value is the vertex of the side's quadratic or a
+    meeting of two of the three; its value is that candidate's own (a smooth function of the shape
+    and the line: a min or max over tied values would split the derivative between them). NaN for
+    an open frustum (its bore is not a solid) or a degenerate one: no margin."""
+    a_hat, length, proper = _frame(base, cap)
+    slope = safe_div(cap_radius - base_radius, length)
+    l = o - base
+    h0, hd = jnp.dot(l, a_hat), jnp.dot(d, a_hat)
+    l_perp, d_perp = l - h0 * a_hat, d - hd * a_hat
+    r0 = base_radius + slope * h0
+    # side(t) = qa t² + qb t + qc; base(t) = h0 + hd t; top(t) = length − h0 − hd t
+    qa = (slope * hd) ** 2 - jnp.dot(d_perp, d_perp)
+    qb = 2.0 * (slope * hd * r0 - jnp.dot(l_perp, d_perp))
+    qc = r0 * r0 - jnp.dot(l_perp, l_perp)
+    tiny = jnp.finfo(o.dtype).tiny
+
+    def safe(x):
+        return jnp.where(jnp.abs(x) > tiny, x, 1.0)
+
+    def side(t):
+        return (qa * t + qb) * t + qc
+
+    candidates, defined = [-qb / (2 * safe(qa))], [qa < -tiny]  # the side's vertex (concave)
+    for lin_a, lin_b in ((h0, hd), (length - h0, -hd)):  # side = plane: qa t² + (qb − b) t + (qc − a)
+        b_, c_ = qb - lin_b, qc - lin_a
+        disc = b_ * b_ - 4 * qa * c_
+        root = jnp.sqrt(jnp.maximum(disc, 0.0))
+        for sign in (-1.0, 1.0):
+            quadratic = jnp.abs(qa) > tiny
+            t = jnp.where(quadratic, (-b_ + sign * root) / (2 * safe(qa)), -c_ / safe(b_))
+            candidates.append(t)
+            defined.append(jnp.where(quadratic, disc >= 0, jnp.abs(b_) > tiny))
+    candidates.append((length - 2 * h0) / (2 * safe(hd)))  # the two planes meet (mid-height)
+    defined.append(jnp.abs(hd) > tiny)
+    t = jnp.stack(candidates)
+    ok = jnp.stack(defined)
+    base_in, top_in = h0 + hd * t, length - h0 - hd * t
+    depth = jnp.minimum(side(t), jnp.minimum(base_in, top_in))
+    # each candidate's own value: the side's at the vertex and the side–plane meetings, the planes'
+    # where they meet
+    value = jnp.concatenate([side(t[:5]), base_in[5:]])
+    best = jnp.argmax(jnp.where(ok, 2 * depth - value, -jnp.inf))
+    usable = proper & ~jnp.asarray(open_) & jnp.any(ok)
+    return jnp.where(usable, value[best], jnp.nan)
+
+
 def frustum_form_hits(arrays, o, d):
     """The kernel of cylinders and cones alike (``AbstractShape.kernel_form``): the crossings of
     the frustum ``arrays`` = (base, base radius, cap, cap radius, open) (one
@@ -194,6 +244,10 @@ class Cylinder(AbstractShape):
     def hits(self, o, d):
         return cylinder_hits(self.base, self.cap, self.radius, o, d, open=self.open)
 
+    def silhouette_margin(self, o, d):
+        base, cap, radius, o, d = as_float_arrays(self.base, self.cap, self.radius, o, d)
+        return _frustum_margin(base, radius, cap, radius, o, d, self.open)
+
     def kernel_form(self):
         open_ = jnp.full(jnp.shape(self.radius), self.open)
         return frustum_form_hits, (self.base, self.radius, self.cap, self.radius, open_)
@@ -245,6 +299,11 @@ class Cone(AbstractShape):
 
     def hits(self, o, d):
         return cone_hits(self.base, self.base_radius, self.cap, self.cap_radius, o, d, open=self.open)
+
+    def silhouette_margin(self, o, d):
+        base, r0, cap, r1, o, d = as_float_arrays(self.base, self.base_radius, self.cap, self.cap_radius,
+                                                  o, d)
+        return _frustum_margin(base, r0, cap, r1, o, d, self.open)
 
     def kernel_form(self):
         return frustum_form_hits, (self.base, self.base_radius, self.cap, self.cap_radius,
