@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from pathlib import Path
 
 import equinox as eqx
@@ -147,6 +148,12 @@ def _image(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, capa
                       capacity, _room_key(packed, width, height, k, linear))
 
 
+def _warn_edge_overflow(count) -> None:
+    if int(count) > 0:
+        warnings.warn(f"{int(count)} crossings of edges found no room (raytracer/_edges.py, _room): their "
+                      "boundary term is left out of this derivative", RuntimeWarning, stacklevel=2)
+
+
 def _render_with_edges(scene: Scene, width: int, height: int, k: int, capacity):
     """``render`` whose derivatives add the boundary term (``_edges.boundary_term``): a
     ``jax.custom_jvp`` of the linear image in the scene's inexact arrays, its tangent the render's
@@ -168,9 +175,14 @@ def _render_with_edges(scene: Scene, width: int, height: int, k: int, capacity):
     def _image_jvp(primals, tangents):
         (dyn,), (dyn_dot,) = primals, tangents
         value, value_dot = jax.jvp(linear_image, (dyn,), (dyn_dot,))
-        room = FORWARD_CAPACITY if capacity in ("auto", None) else capacity
-        lattice = max(k, EDGE_LATTICE)
-        return value, value_dot + boundary_term(dyn, dyn_dot, static, width, height, lattice, room).tangent
+        tree_room = FORWARD_CAPACITY if capacity in ("auto", None) else capacity
+        edges = boundary_term(dyn, dyn_dot, static, width, height, max(k, EDGE_LATTICE), tree_room)
+        if isinstance(edges.overflow, jax.core.Tracer):  # known when the program runs
+            jax.lax.cond(edges.overflow > 0, lambda n: jax.debug.callback(_warn_edge_overflow, n),
+                         lambda n: None, edges.overflow)
+        else:
+            _warn_edge_overflow(edges.overflow)
+        return value, value_dot + edges.tangent
 
     return _output_transfer(image(dynamic), scene.settings)
 
