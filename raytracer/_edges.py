@@ -35,7 +35,7 @@ Discretised, and where it fails: the row and column sums are a quadrature of the
 spacing ``h`` — second order on smooth edges, first order where an edge turns within a lattice cell
 (polygon vertices, checker corners); two edges between neighbouring samples count as one, and
 features thinner than ``h`` are missed; a shape without a margin (tori, superellipsoids,
-polynomials, meshes, polygons, quadrics, open cylinders and cones), a pattern without a face (hexagon,
+polynomials, meshes, quadrics, open cylinders and cones), a pattern without a face (hexagon,
 brick, a turbulent checker), a CSG operand's cut and ``clipped_by`` get no term (``Edges.unresolved``
 counts those crossings). A shadow's outline and what a mirror or glass shows are not in this term.
 """

@@ -188,12 +188,12 @@ def test_reverse_mode_is_the_transpose_of_forward_mode_and_the_image_is_unchange
 
 
 def test_an_outline_without_a_margin_is_counted_and_gets_no_term():
-    """A polygon has no margin yet: its outline's crossings are counted as unresolved, and the term
+    """A quadric has no margin yet: its outline's crossings are counted as unresolved, and the term
     there is zero, not a guess. Adaptive anti-aliasing has no lattice: edges=True refuses it."""
     import equinox as eqx
 
     scene = rt.load_scene(HEAD + "camera { location <0, 2, -4> look_at <0, 0, 0> angle 40 }\n"
-                          "polygon { 4, <-1, -1, 0>, <1, -1, 0>, <1, 1, 0>, <-1, 1, 0> pigment { rgb 1 } "
+                          "quadric { <1, 1, 1>, <0, 0, 0>, <0, 0, 0>, -1 pigment { rgb 1 } "
                           f"{FLAT} }}")
     dynamic, static = eqx.partition(scene, eqx.is_inexact_array)
     tangent = jax.tree.map(jnp.ones_like, dynamic)

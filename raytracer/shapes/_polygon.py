@@ -81,6 +81,37 @@ def polygon_hits(
     return masked_hits(t[None], n_hat[None], (ok & proper & inside)[None])
 
 
+def polygon_margin(vertices, edges, o, d):
+    """The polygon's silhouette margin (``AbstractShape.silhouette_margin``): where the line crosses
+    its plane, the distance to the nearest edge, positive inside (even-odd) and negative outside.
+    Across an edge it is that edge's signed perpendicular distance (linear: smooth), oriented by
+    the inside test where it is evaluated (both flip together at the edge)."""
+    vertices, o, d = as_float_arrays(vertices, o, d)
+    index = np.asarray(edges, dtype=np.int32).reshape(-1, 2)
+    centroid = jnp.mean(vertices, axis=0)
+    a = vertices[index[:, 0]] - centroid[None, :]
+    b = vertices[index[:, 1]] - centroid[None, :]
+    n_hat = safe_normalize(jnp.sum(jnp.cross(a, b), axis=0))
+    l = o - centroid
+    t, _ = solve_linear(jnp.dot(n_hat, d), jnp.dot(n_hat, l))
+    q = l + jnp.where(jnp.isfinite(t), t, 0.0) * d
+    u, w = _plane_basis(n_hat)
+    px, py, ax, ay, bx, by = jnp.dot(q, u), jnp.dot(q, w), a @ u, a @ w, b @ u, b @ w
+    inside = _even_odd(px, py, ax, ay, bx, by)
+    ex, ey = bx - ax, by - ay
+    length_sq = ex * ex + ey * ey
+    s = jnp.clip(safe_div((px - ax) * ex + (py - ay) * ey, length_sq), 0.0, 1.0)
+    gap_sq = (px - ax - s * ex) ** 2 + (py - ay - s * ey) ** 2
+    k = jnp.argmin(jnp.where(length_sq > 0, gap_sq, jnp.inf))
+    # within the nearest edge's span: its perpendicular distance, signed by its direction, turned
+    # to be positive inside; at a vertex: the distance to it (a kink only on the vertex itself)
+    perp = safe_div(ex[k] * (py - ay[k]) - ey[k] * (px - ax[k]), jnp.sqrt(length_sq[k]))
+    facing = jnp.where(inside == (perp > 0), 1.0, -1.0)
+    at_vertex = (s[k] <= 0) | (s[k] >= 1)
+    corner = jnp.where(inside, 1.0, -1.0) * jnp.sqrt(jnp.maximum(gap_sq[k], jnp.finfo(q.dtype).tiny))
+    return jnp.where(at_vertex, corner, facing * perp)
+
+
 # ---------------------------------------------------------------- the record
 class Polygon(AbstractShape):
     """``polygon { n, P1, …, Pn }``: planar, even-odd rule, sub-polygons make holes.
@@ -100,6 +131,9 @@ class Polygon(AbstractShape):
 
     def hits(self, o, d):
         return polygon_hits(self.vertices, self.edges, o, d)
+
+    def silhouette_margin(self, o, d):
+        return polygon_margin(self.vertices, self.edges, o, d)
 
     def bounds(self):
         return self.vertices.min(axis=0), self.vertices.max(axis=0)
