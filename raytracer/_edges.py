@@ -75,9 +75,10 @@ class Edges(NamedTuple):
     """The boundary term of a render's tangent and what it found."""
 
     tangent: jax.Array  # (H, W, 3): the linear image's boundary term along the tangent
-    crossings: jax.Array  # () int: lattice pairs that see different primitives
+    crossings: jax.Array  # () int: lattice pairs that see different primitives or pattern cells
     unresolved: jax.Array  # () int: of those, the ones no margin resolved (no term)
     overflow: jax.Array  # () int: crossings past the static room (no term)
+    dropped: jax.Array  # () int: rays of the jumps' ray trees past the trace's capacity (left out)
 
 
 def _prim_tables(geo, n_prims: int):
@@ -207,7 +208,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                        environment_of(scene))
     h = 1.0 / k
     rows, cols = height * k, width * k
-    room = _room(width, height, k) if room is None else room
+    room = _room(width, height, k) if room is None else -(-room // CHUNK) * CHUNK
     sg = jax.lax.stop_gradient
 
     mats = packed.mats
@@ -329,7 +330,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     points = jnp.concatenate([before, after])
     o, d = camera_rays(scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
     media = initial_media(ctx, scene.camera.frame()[0])
-    colours, _ = trace(ctx, o, d, chunk=CHUNK, capacity=capacity, media=media,
+    colours, dropped = trace(ctx, o, d, chunk=CHUNK, capacity=capacity, media=media,
                        alive=jnp.concatenate([ok, ok]))
     jump = sg(colours[:room] - colours[room:])  # L⁻ − L⁺
 
@@ -367,4 +368,4 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         image = image.at[jnp.clip(py, 0, height - 1), jnp.clip(px, 0, width - 1)].add(
             jnp.where(inside[:, None], share[:, None] * contribution, 0.0))
     unresolved = jnp.sum(live & ~ok)
-    return Edges(image, count, unresolved, jnp.maximum(count - room, 0))
+    return Edges(image, count, unresolved, jnp.maximum(count - room, 0), jnp.sum(dropped))

@@ -144,3 +144,11 @@ class SceneWarning:
     def __str__(self) -> str:
         where = f"{self.location}: " if self.location is not None else ""
         return f"{where}warning: {self.message} [{self.feature}]"
+
+
+def fmt_number(x: float) -> str:
+    """A number as a message prints it (errors and warnings of any layer): at most 6 significant
+    digits, a whole number without a point."""
+    if isinstance(x, float) and x.is_integer() and abs(x) < 1e15:
+        return str(int(x))  # chr(1114112), not chr(1.11411e+06)
+    return f"{x:.6g}" if isinstance(x, float) else str(x)

@@ -33,6 +33,7 @@ from ._tiles import (
     _render_packed,
     _render_part,
     _room_key,
+    _warn_dropped,
     _with_room,
 )
 from ._xla import warn_if_untuned
@@ -148,10 +149,12 @@ def _image(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, capa
                       capacity, _room_key(packed, width, height, k, linear))
 
 
-def _warn_edge_overflow(count) -> None:
-    if int(count) > 0:
-        warnings.warn(f"{int(count)} crossings of edges found no room (raytracer/_edges.py, _room): their "
+def _warn_edges_left_out(overflow, dropped, tree_room: int) -> None:
+    """What the boundary term left out: crossings past its room, rays of the jumps' ray trees."""
+    if int(overflow) > 0:
+        warnings.warn(f"{int(overflow)} crossings of edges found no room (raytracer/_edges.py, _room): their "
                       "boundary term is left out of this derivative", RuntimeWarning, stacklevel=2)
+    _warn_dropped(dropped, tree_room)
 
 
 def _render_with_edges(scene: Scene, width: int, height: int, k: int, capacity):
@@ -177,11 +180,13 @@ def _render_with_edges(scene: Scene, width: int, height: int, k: int, capacity):
         value, value_dot = jax.jvp(linear_image, (dyn,), (dyn_dot,))
         tree_room = FORWARD_CAPACITY if capacity in ("auto", None) else capacity
         edges = boundary_term(dyn, dyn_dot, static, width, height, max(k, EDGE_LATTICE), tree_room)
+        counts = (edges.overflow, edges.dropped)
         if isinstance(edges.overflow, jax.core.Tracer):  # known when the program runs
-            jax.lax.cond(edges.overflow > 0, lambda n: jax.debug.callback(_warn_edge_overflow, n),
-                         lambda n: None, edges.overflow)
+            jax.lax.cond((edges.overflow > 0) | (edges.dropped > 0),
+                         lambda c: jax.debug.callback(_warn_edges_left_out, *c, tree_room),
+                         lambda c: None, counts)
         else:
-            _warn_edge_overflow(edges.overflow)
+            _warn_edges_left_out(*counts, tree_room)
         return value, value_dot + edges.tangent
 
     return _output_transfer(image(dynamic), scene.settings)

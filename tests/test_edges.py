@@ -199,6 +199,6 @@ def test_an_outline_without_a_margin_is_counted_and_gets_no_term():
     tangent = jax.tree.map(jnp.ones_like, dynamic)
     edges = boundary_term(dynamic, tangent, static, 16, 12, 2)
     assert int(edges.crossings) > 0 and int(edges.unresolved) == int(edges.crossings)
-    assert int(edges.overflow) == 0 and np.all(np.asarray(edges.tangent) == 0)
+    assert int(edges.overflow) == 0 and int(edges.dropped) == 0 and np.all(np.asarray(edges.tangent) == 0)
     with pytest.raises(ValueError, match="adaptive"):
         rt.render(scene, width=16, height=12, adaptive=(0.3, 2), edges=True)

@@ -18,8 +18,9 @@ import numpy as np
 _GAUSS = np.polynomial.legendre.leggauss(24)
 
 
-def _pixel_points(width: int, height: int, frame):
-    """``(u, v) → ray direction`` (N, 3) of a perspective camera frame ``(location, D, R, U)``."""
+def _direction_of(width: int, height: int, frame):
+    """``(u, v) → ray direction`` (N, 3) through pixel coordinates of a perspective camera frame
+    ``(location, D, R, U)``."""
     _, d, r, up = (np.asarray(x, np.float64) for x in frame)
 
     def direction(u, v):
@@ -36,7 +37,7 @@ def sphere_conic(frame, centre, radius, width: int, height: int):
     direction) and the radius."""
     eye = np.asarray(frame[0], np.float64)
     centre = np.asarray(centre, np.float64)
-    direction = _pixel_points(width, height, frame)
+    direction = _direction_of(width, height, frame)
 
     def q(u, v):
         d = direction(np.atleast_1d(u), np.atleast_1d(v))

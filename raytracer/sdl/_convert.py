@@ -10,17 +10,11 @@ with ``as_int`` never meets an infinity or a NaN.
 
 from __future__ import annotations
 
+from ..errors import fmt_number as fmt_number
 from ._values import Vec
 
 EPSILON = 1e-10
 INT_MIN, INT_MAX = -(2**31), 2**31 - 1  # POV-Ray reads counts and integer arguments as C ints
-
-
-def fmt_number(x: float) -> str:
-    """A number as it is printed in an error message: at most 6 significant digits."""
-    if isinstance(x, float) and x.is_integer() and abs(x) < 1e15:
-        return str(int(x))  # chr(1114112), not chr(1.11411e+06)
-    return f"{x:.6g}" if isinstance(x, float) else str(x)
 
 
 def type_name(v) -> str:

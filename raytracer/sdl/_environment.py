@@ -27,10 +27,6 @@ class _Args:
     def __init__(self, p, entry: EnvironmentType, loc):
         self._p, self._entry, self._loc = p, entry, loc
 
-    @property
-    def loc(self):
-        return self._p.peek().loc
-
     def keyword(self, *names: str) -> str | None:
         t = self._p.peek()
         if t.kind == ID and t.value in names and not declared(self._p, t):

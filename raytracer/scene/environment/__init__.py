@@ -24,7 +24,6 @@ from ._base import EnvironmentLowering as EnvironmentLowering
 from ._base import EnvironmentType as EnvironmentType
 from ._fog import FOG
 from ._fog import Fog as Fog
-from ._fog import FogArrays as FogArrays
 from ._sky_sphere import SKY_SPHERE
 from ._sky_sphere import SkySphere as SkySphere
 

@@ -17,10 +17,6 @@ class EnvironmentArgs(Protocol):
     ``file:line:col`` on bad input.
     """
 
-    @property
-    def loc(self) -> Any:
-        """Source location of the next token."""
-
     def keyword(self, *names: str) -> str | None:
         """Consumes and returns the next token if it is one of the keywords ``names`` (not an
         identifier the scene declared)."""

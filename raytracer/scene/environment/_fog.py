@@ -14,6 +14,7 @@ from jaxtyping import Array, Float
 
 from ..._build import Record, build
 from ..._dtype import as_float
+from ...errors import fmt_number
 from ._base import EnvironmentArgs, EnvironmentLowering, EnvironmentType
 
 
@@ -146,11 +147,6 @@ def _item(args: EnvironmentArgs, fog: _Statement) -> None:
                          f"{args.describe_next()}")
 
 
-def _number(x: float) -> str:
-    """As the interpreter prints a number in a message: a whole number without a point, else 6 digits."""
-    return str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else f"{x:.6g}"
-
-
 def _placed(args: EnvironmentArgs, fog: _Statement) -> bool:
     """Whether the fog is rendered; warns where it is not, or only in part."""
     if fog.fog_type not in (1, 2):
@@ -158,10 +154,10 @@ def _placed(args: EnvironmentArgs, fog: _Statement) -> bool:
                   "the fog is left out")
         return False
     if not fog.distance > 0:
-        args.warn("fog", f"a fog distance of {_number(fog.distance)} hides nothing; the fog is left out")
+        args.warn("fog", f"a fog distance of {fmt_number(fog.distance)} hides nothing; the fog is left out")
         return False
     if fog.fog_type == 2 and not (fog.alt > 0 and any(fog.up)):  # (POV-Ray's image is NaN there)
-        args.warn("fog", f"a ground fog needs fog_alt > 0 and an up vector (fog_alt {_number(fog.alt)}); "
+        args.warn("fog", f"a ground fog needs fog_alt > 0 and an up vector (fog_alt {fmt_number(fog.alt)}); "
                   "the fog is left out")
         return False
     if fog.turbulence:
