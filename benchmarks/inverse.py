@@ -15,9 +15,14 @@ Fits:
 * ``box``: a box's two corners from two views, started 0.3 units off.
 * ``camera``: a camera's place over a checker floor (its look_at fixed), started 0.3 units off in
   each coordinate: the checker's cell edges are the signal.
+* ``light``: a point light's place from the shadow a sphere casts on a plain floor, started 0.3
+  units off in each coordinate (the floor's shading moves with it too).
+* ``shadow``: the centre of a sphere the camera does not see (``no_image``) from the shadows it
+  casts on a plain floor in two lights, started 30 % of its radius off in each axis: the shadows'
+  outlines are the only signal.
 
 Fits that need edges the boundary term does not see yet — an ior behind a checker wall (edges seen
-through glass), a light from a shadow's edge — are not run: see docs/gradients.md.
+through glass) — are not run: see docs/gradients.md.
 """
 
 from __future__ import annotations
@@ -40,27 +45,34 @@ VIEWS = ("camera { location <0, 0.6, -4> look_at <0, 0, 0> angle 40 }",
 LIGHT = "light_source { <-3, 5, -6> rgb 1 } light_source { <6, 4, 2> rgb 0.6 }"
 CHECKER = ("plane { y, -0.8 pigment { checker rgb <0.9, 0.85, 0.7> rgb <0.15, 0.2, 0.3> scale 0.9 "
            "translate <0.3, 0, 0.2> } }")
-FITS = {  # name: (objects, offsets of the parameters from the truth, views)
+FLOOR_VIEW = ("camera { location <0.5, 2.5, -3.5> look_at <0, -0.8, 0> angle 50 }",)
+FITS = {  # name: (objects, offsets of the parameters from the truth, views, lights)
     "sphere": ("sphere { <0.2, 0.1, 0.3>, 0.8 pigment { rgb <1, 0.6, 0.3> } }",
                {"objects[0].shape.center": np.array([0.24, -0.24, 0.24]),  # 0.3·r off in each axis
-                "objects[0].shape.radius": np.array(0.24)}, VIEWS),
+                "objects[0].shape.radius": np.array(0.24)}, VIEWS, LIGHT),
     "box": ("box { <-0.7, -0.5, -0.6>, <0.6, 0.4, 0.5> pigment { rgb <0.3, 0.6, 1> } }",
             {"objects[0].shape.corner1": np.array([0.3, -0.3, 0.3]),
-             "objects[0].shape.corner2": np.array([-0.3, 0.3, 0.3])}, VIEWS),
-    "camera": (CHECKER, {"camera.location": np.array([0.3, -0.3, 0.3])},
-               ("camera { location <0.5, 2.5, -3.5> look_at <0, -0.8, 0> angle 50 }",)),
+             "objects[0].shape.corner2": np.array([-0.3, 0.3, 0.3])}, VIEWS, LIGHT),
+    "camera": (CHECKER, {"camera.location": np.array([0.3, -0.3, 0.3])}, FLOOR_VIEW, LIGHT),
+    "light": ("plane { y, -0.8 pigment { rgb 0.8 } }\n"
+              "sphere { <0, 0.1, 0.3>, 0.5 pigment { rgb <1, 0.6, 0.3> } }",
+              {"lights[0].position": np.array([0.3, -0.3, 0.3])}, FLOOR_VIEW,
+              "light_source { <-1.5, 3, -2> rgb 1 }"),
+    "shadow": ("plane { y, -0.8 pigment { rgb 0.8 } }\n"
+               "sphere { <0, 0.1, 0.3>, 0.5 pigment { rgb 1 } no_image }",
+               {"objects[1].shape.center": np.array([0.15, -0.15, 0.15])}, FLOOR_VIEW, LIGHT),
 }
 
 
-def _scenes(body: str, views):
-    return [rt.load_scene(f"#version 3.7; global_settings {{ assumed_gamma 1.0 }}\n{view}\n{LIGHT}\n{body}",
+def _scenes(body: str, views, lights: str):
+    return [rt.load_scene(f"#version 3.7; global_settings {{ assumed_gamma 1.0 }}\n{view}\n{lights}\n{body}",
                           width=WIDTH, height=HEIGHT) for view in views]
 
 
 def fit(name: str, edges: bool, steps: int, rate: float = 0.02) -> dict:
     """Adam on the views' mean squared difference; the record of the fit."""
-    body, offsets, views = FITS[name]
-    scenes = _scenes(body, views)
+    body, offsets, views, lights = FITS[name]
+    scenes = _scenes(body, views, lights)
     params = [rt.params.parameters(s) for s in scenes]
     truth = {n: jnp.asarray(params[0][n]) for n in offsets}
     targets = [rt.render(s, width=WIDTH, height=HEIGHT, spp=SPP) for s in scenes]

@@ -9,16 +9,20 @@ parameter θ moves, the derivative of the pixel has a second term besides the me
 
 v_n the normal speed of Γ. Here Γ is where what a camera ray sees changes: its primitive — an
 outline over what lies behind it (``AbstractShape.silhouette_margin``), or a seam where two
-surfaces cross (the difference of their distances along the ray) — or the cell of its primitive's
-discrete pattern (``Pattern.cell``, ``Pattern.face``). The term is computed deterministically on a
-lattice of at least ``EDGE_LATTICE``² samples a pixel:
+surfaces cross (the difference of their distances along the ray) — the cell of its primitive's
+discrete pattern (``Pattern.cell``, ``Pattern.face``), or the first shadow caster between the point
+it sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
+line from that point to the light). The term is computed deterministically on a lattice of at
+least ``EDGE_LATTICE``² samples a pixel:
 
-1. Each lattice sample's signature (its primitive, its pattern cell); a pair of neighbouring samples
+1. Each lattice sample's signature (its primitive, its pattern cell, each such light's caster); a
+   pair of neighbouring samples
    (across the whole image, in rows and in columns) with different ones holds a crossing of Γ. The
    pairs are compacted (``jnp.nonzero`` with a static room), so the work follows the edges' length.
 2. On each pair, the first change of signature is bisected (a fixed number of steps, values only),
    and the margin ``g`` whose zero it is chosen: the nearer primitive's outline, the farther
-   one's, their seam, or the pattern's cell face — the one nearest the crossing.
+   one's, their seam, the pattern's cell face, or a shadow caster's outline — the one nearest the
+   crossing.
 3. There, by forward-mode derivatives: ``g_u, g_v`` along the image and ``g_θ`` along the
    parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; rows and columns share the edge
    integral by the weights ``g_u⁴/(g_u⁴ + g_v⁴)`` and ``g_v⁴/(…)`` (they add up to ∫ ds, and neither
@@ -37,7 +41,9 @@ spacing ``h`` — second order on smooth edges, first order where an edge turns 
 features thinner than ``h`` are missed; a shape without a margin (tori, superellipsoids,
 polynomials, meshes, quadrics, open cylinders and cones), a pattern without a face (hexagon,
 brick, a turbulent checker), a CSG operand's cut and ``clipped_by`` get no term (``Edges.unresolved``
-counts those crossings). A shadow's outline and what a mirror or glass shows are not in this term.
+counts those crossings), nor does a shadow on a mesh. Not in this term: area lights' shadows, a
+shadow's edge inside another caster's shadow (the first caster along the shadow ray is the one
+seen), and everything a mirror or glass shows.
 """
 
 from __future__ import annotations
@@ -53,10 +59,10 @@ from . import patterns
 from ._packed import pack
 from ._plan import make_plan
 from .scene import Scene, environment_of
-from .shading import _accel
-from .shading._geometry import _to_object, closest_hit
+from .shading import _accel, lighting
+from .shading._geometry import _to_object, closest_hit, prim_bits
 from .shading._materials import _pattern_point, _raw_value
-from .shading._model import initial_media, make_context
+from .shading._model import hard_shadow_lights, initial_media, light_geometry, make_context
 from .shading.camera import camera_rays
 from .shading.whitted import trace
 
@@ -213,16 +219,34 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
     mats = packed.mats
     cells = bool(_discrete(mats))
+    # lights whose shadow is one ray: the first caster on it is part of what a sample sees
+    shadow_lights = hard_shadow_lights(ctx)
+    casters = _accel.MASK_SHADOW | _accel.MASK_FILTER
+    vis_shadow = jnp.asarray((prim_bits(plan)[geo.cand_prim] & casters) != 0)
 
-    # 1. what each lattice sample sees, its signature (2,): its primitive (-1: none) and the cell of
-    # the primitive's discrete pattern (0: none)
+    # 1. what each lattice sample sees, its signature (2 + lights,): its primitive (-1: none), the
+    # cell of the primitive's discrete pattern (0: none), and for each light of ``shadow_lights``
+    # the first shadow caster between the point seen and the light (-1: none, or the light is
+    # behind the surface)
     def seen(u, v):
         o, d = _image_ray(scene.camera, width, height, u, v)
         scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
         hit = closest_hit(geo, plan, o, d, scale, ctx.vis_camera, _accel.MASK_CAMERA)
-        cell = _cell(mats, hit.prim, o + hit.t * d) if cells else jnp.zeros((), jnp.int32)
+        p = o + jnp.where(hit.found, hit.t, 0.0) * d
+        cell = _cell(mats, hit.prim, p) if cells else jnp.zeros((), jnp.int32)
         prim = jnp.where(hit.found, hit.prim, -1)
-        return jnp.stack([prim, jnp.where(hit.found, cell, 0)]).astype(jnp.int32)
+        casts = []
+        if shadow_lights:  # the shadow ray as the model spawns it: from just off the surface
+            n = jnp.where(jnp.dot(hit.normal, d) < 0, hit.normal, -hit.normal)
+            p_out = p + ctx.eps * (1.0 + jnp.max(jnp.abs(p))) * n
+            start = ctx.eps * (1.0 + jnp.max(jnp.abs(p_out)))
+            for i in shadow_lights:
+                l, _, shadow_len = light_geometry(ctx, scene.lights[i], p)
+                caster = closest_hit(geo, plan, p_out, l, start, vis_shadow, casters)
+                on = (hit.found & caster.found & (caster.t < shadow_len - start)
+                      & (jnp.dot(n, l) > lighting.NL_EPSILON))
+                casts.append(jnp.where(on, caster.prim, -1))
+        return jnp.stack([prim, jnp.where(hit.found, cell, 0), *casts]).astype(jnp.int32)
 
     def pattern_point(mats_, geo_, camera, prim, u, v):
         """The pattern-space point of ``prim``'s top layer where the ray through (u, v) crosses it."""
@@ -250,27 +274,42 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     _, _, has = tables
     has = jnp.asarray(has)
 
-    def margins(geo_, mats_, camera, s_lo, s_hi, face, u, v):
-        """(4,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero of,
-        at image point (u, v): the outline of ``s_lo``'s primitive, the outline of ``s_hi``'s, their
-        seam (the distances' difference), and the cell face ``face`` = (normal, offset) of a
-        discrete pattern on one primitive (``normal · q − offset``, q its pattern-space point)."""
+    def margins(sc, pk, s_lo, s_hi, face, u, v):
+        """(4 or 6,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
+        of, at image point (u, v) of scene ``sc`` packed as ``pk``: the outline of ``s_lo``'s
+        primitive, the outline of ``s_hi``'s, their seam (the distances' difference), the cell face
+        ``face`` = (normal, offset) of a discrete pattern on one primitive (``normal · q − offset``,
+        q its pattern-space point), and with shadows, the outlines of the first light whose caster
+        differs, of its caster on ``s_lo``'s side and on ``s_hi``'s, along the line from the point
+        seen towards that light."""
+        geo_, mats_, camera = pk.geo, pk.mats, sc.camera
         o, d = _image_ray(camera, width, height, u, v)
         lo_, hi_ = jnp.maximum(s_lo[0], 0), jnp.maximum(s_hi[0], 0)
         scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
-        seam = _nearest_t(geo_, tables, lo_, o, d, scale) - _nearest_t(geo_, tables, hi_, o, d, scale)
+        t_lo = _nearest_t(geo_, tables, lo_, o, d, scale)
+        seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale)
         on_face = jnp.zeros((), o.dtype)
         if cells:
             on_face = jnp.dot(face[0], pattern_point(mats_, geo_, camera, lo_, u, v)) - face[1]
-        return jnp.stack([_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face])
+        out = [_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face]
+        if shadow_lights:
+            j = jnp.argmax(s_lo[2:] != s_hi[2:])
+            p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
+            l = jnp.zeros(3, o.dtype)
+            for k_, i in enumerate(shadow_lights):
+                l = jnp.where(j == k_, light_geometry(ctx, sc.lights[i], p)[0], l)
+            seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point (a mesh)
+            out += [_margin(geo_, tables, jnp.maximum(s[2 + j], 0), p, l) + seen_at for s in (s_lo, s_hi)]
+        return jnp.stack(out)
 
     def locate(s_a, u, v, e):
         """The first change of what is seen along the pair's segment from its first sample, by
         bisection of the signature seen (a fixed number of steps): ``(lo, hi, signature seen at
         hi, kind, face)`` — ``lo``, ``hi`` in pixels along ``e`` from (u, v); ``kind`` the margin
         whose zero it is (0: the outline of ``s_a``'s primitive, 1: of the primitive beyond, 2:
-        their seam, 3: a cell face of one primitive's pattern; the one nearest the crossing in
-        pixels, -1 where none is within a hundredth of the spacing)."""
+        their seam, 3: a cell face of one primitive's pattern, 4, 5: the outline of a shadow's
+        caster on either side; the one nearest the crossing in pixels, -1 where none is within a
+        hundredth of the spacing)."""
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
         def step(_, state):
@@ -294,10 +333,16 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             normal, offset, has_face = _face(mats, jnp.maximum(p_lo, 0), q_a, q_b)
             face = (normal, offset)
         mid = 0.5 * (lo + hi)
-        g, g_s = jax.jvp(lambda s: margins(geo, mats, scene.camera, s_a, s_hi, face, u + s * e[0],
-                                           v + s * e[1]), (mid,), (jnp.ones_like(mid),))
+        g, g_s = jax.jvp(lambda s: margins(scene, packed, s_a, s_hi, face, u + s * e[0], v + s * e[1]),
+                         (mid,), (jnp.ones_like(mid),))
         has_lo, has_hi = (p_lo >= 0) & has[jnp.maximum(p_lo, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
-        valid = jnp.stack([has_lo & ~one, has_hi & ~one, has_lo & has_hi & ~one, one & has_face])
+        valid = [has_lo & ~one, has_hi & ~one, has_lo & has_hi & ~one, one & has_face & (s_a[1] != s_hi[1])]
+        if shadow_lights:
+            differs = s_a[2:] != s_hi[2:]
+            j = jnp.argmax(differs)
+            valid += [one & jnp.any(differs) & (c_ >= 0) & has[jnp.maximum(c_, 0)]
+                      for c_ in (s_a[2 + j], s_hi[2 + j])]
+        valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
         kind = jnp.argmin(distance)
@@ -312,8 +357,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     def derivatives(kind, s_a, s_b, face, u, v):
         def g_of(dyn_, uu, vv):
             sc = eqx.combine(dyn_, static)
-            pk = pack(sc, plan)
-            return margins(pk.geo, pk.mats, sc.camera, s_a, s_b, face, uu, vv)[jnp.maximum(kind, 0)]
+            return margins(sc, pack(sc, plan), s_a, s_b, face, uu, vv)[jnp.maximum(kind, 0)]
 
         g_u = jax.jvp(lambda uu: g_of(dynamic, uu, v), (u,), (jnp.ones_like(u),))[1]
         g_v = jax.jvp(lambda vv: g_of(dynamic, u, vv), (v,), (jnp.ones_like(v),))[1]

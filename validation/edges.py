@@ -56,6 +56,31 @@ def sphere_conic(frame, centre, radius, width: int, height: int):
     return q, q_centre, q_radius
 
 
+def shadow_conic(frame, centre, radius, towards_light, plane_y: float, width: int, height: int):
+    """The margin of the shadow that a sphere casts on the plane ``y = plane_y`` in a parallel light
+    from direction ``towards_light``, as a quadratic in pixel coordinates (u, v) for a perspective
+    camera ``frame``, positive where the ray through (u, v) meets the plane in the shadow.
+
+    The plane point ``x = eye + t d`` (``t = (plane_y − eye_y)/d_y``) is in the shadow where the
+    line ``x + s l`` passes within ``radius`` of ``centre``: ``|P (x − c)|² < r²``, ``P = I − l lᵀ``.
+    Multiplied by ``d_y²``, with ``w = (eye − c) d_y + (plane_y − eye_y) d`` linear in d:
+    ``Q = r² d_y² − wᵀ P w``."""
+    eye = np.asarray(frame[0], np.float64)
+    centre = np.asarray(centre, np.float64)
+    l = np.asarray(towards_light, np.float64)
+    l = l / np.linalg.norm(l)
+    project_out = np.eye(3) - np.outer(l, l)
+    direction = _direction_of(width, height, frame)
+
+    def q(u, v):
+        d = direction(np.atleast_1d(u), np.atleast_1d(v))
+        d_y = d[:, 1]
+        w = (eye - centre)[None, :] * d_y[:, None] + (plane_y - eye[1]) * d
+        return radius * radius * d_y * d_y - np.einsum("ni,ij,nj->n", w, project_out, w)
+
+    return q
+
+
 def _conic(q: Callable) -> tuple[np.ndarray, np.ndarray, float]:
     """``(A (2, 2), b (2,), c)`` with ``Q(p) = pᵀA p + 2 bᵀp + c``, from six values of the quadratic."""
     f = lambda u, v: float(q(np.array([u]), np.array([v]))[0])  # noqa: E731

@@ -727,15 +727,29 @@ class _Arrival(NamedTuple):
     lit: jax.Array  # () bool: the light is on the viewer's side of the surface
 
 
+def light_geometry(ctx: TraceContext, light: Light, p):
+    """``(l, dist, shadow_len)`` at ``p``: the unit direction to the light, its distance (for
+    fading) and the shadow ray's length, as the light's types define them."""
+    geometry = point_geometry
+    for t in light_types(light, ctx.plan.effects):
+        geometry = t.geometry or geometry
+    return geometry(light, p)
+
+
+def hard_shadow_lights(ctx: TraceContext) -> tuple[int, ...]:
+    """The indices of the lights whose shadow is one ray to the light (static): those that cast
+    shadows and are not sampled over an area."""
+    return tuple(i for i, light in enumerate(ctx.lights)
+                 if _casts_shadows(ctx, light_types(light, ctx.plan.effects))
+                 and _shadow_sampler(light_types(light, ctx.plan.effects)) is None)
+
+
 def _unshadowed(ctx: TraceContext, light: Light, p, n):
     """Direction to the light, the colour arriving before the shadow (each of its types' factors:
     fade, spot cone), ``n·l`` and the shadow ray's length. Only types whose effects the plan turns
     on are traced."""
     types = light_types(light, ctx.plan.effects)
-    geometry = point_geometry
-    for t in types:
-        geometry = t.geometry or geometry
-    l, dist, shadow_len = geometry(light, p)
+    l, dist, shadow_len = light_geometry(ctx, light, p)
     c = light.color.astype(ctx.dtype)
     for t in types:
         if t.arrival is not None:
