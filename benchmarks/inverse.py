@@ -21,8 +21,8 @@ Fits:
   casts on a plain floor in two lights, started 30 % of its radius off in each axis: the shadows'
   outlines are the only signal.
 
-Fits that need edges the boundary term does not see yet — an ior behind a checker wall (edges seen
-through glass) — are not run: see docs/gradients.md.
+* ``ior``: the index of refraction of a glass sphere in front of a checker wall, started 0.15 low:
+  the cell edges seen through the glass move with it.
 """
 
 from __future__ import annotations
@@ -61,6 +61,10 @@ FITS = {  # name: (objects, offsets of the parameters from the truth, views, lig
     "shadow": ("plane { y, -0.8 pigment { rgb 0.8 } }\n"
                "sphere { <0, 0.1, 0.3>, 0.5 pigment { rgb 1 } no_image }",
                {"objects[1].shape.center": np.array([0.15, -0.15, 0.15])}, FLOOR_VIEW, LIGHT),
+    "ior": ("plane { z, 3 pigment { checker rgb <0.9, 0.85, 0.7> rgb <0.15, 0.2, 0.3> scale 0.5 } }\n"
+            "sphere { 0, 1 pigment { rgbf <1, 1, 1, 0.95> } finish { ambient 0 diffuse 0 } "
+            "interior { ior 1.5 } }",
+            {"objects[1].interior.ior": np.array(-0.15)}, VIEWS[:1], LIGHT),
 }
 
 

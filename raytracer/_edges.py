@@ -12,17 +12,20 @@ outline over what lies behind it (``AbstractShape.silhouette_margin``), or a sea
 surfaces cross (the difference of their distances along the ray) — the cell of its primitive's
 discrete pattern (``Pattern.cell``, ``Pattern.face``), or the first shadow caster between the point
 it sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
-line from that point to the light). The term is computed deterministically on a lattice of at
-least ``EDGE_LATTICE``² samples a pixel:
+line from that point to the light) — and the same along the ray's path through mirrors and glass:
+a surface whose pigment can transmit passes the refracted ray on (or, past the critical angle, the
+mirror ray), one whose finish reflects the mirror ray, up to ``PATH_BOUNCES`` of them, each a
+deterministic, differentiable function of the image point and the scene. The term is computed
+deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
-1. Each lattice sample's signature (its primitive, its pattern cell, each such light's caster); a
-   pair of neighbouring samples
+1. Each lattice sample's signature (at each level of its path: the primitive, its pattern cell, the
+   branch taken there, each such light's caster); a pair of neighbouring samples
    (across the whole image, in rows and in columns) with different ones holds a crossing of Γ. The
    pairs are compacted (``jnp.nonzero`` with a static room), so the work follows the edges' length.
 2. On each pair, the first change of signature is bisected (a fixed number of steps, values only),
-   and the margin ``g`` whose zero it is chosen: the nearer primitive's outline, the farther
-   one's, their seam, the pattern's cell face, or a shadow caster's outline — the one nearest the
-   crossing.
+   and at the first level of the path where the two sides differ, the margin ``g`` whose zero it
+   is chosen: the nearer primitive's outline along that level's ray, the farther one's, their
+   seam, the pattern's cell face, or a shadow caster's outline — the one nearest the crossing.
 3. There, by forward-mode derivatives: ``g_u, g_v`` along the image and ``g_θ`` along the
    parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; rows and columns share the edge
    integral by the weights ``g_u⁴/(g_u⁴ + g_v⁴)`` and ``g_v⁴/(…)`` (they add up to ∫ ds, and neither
@@ -41,9 +44,12 @@ spacing ``h`` — second order on smooth edges, first order where an edge turns 
 features thinner than ``h`` are missed; a shape without a margin (tori, superellipsoids,
 polynomials, meshes, quadrics, open cylinders and cones), a pattern without a face (hexagon,
 brick, a turbulent checker), a CSG operand's cut and ``clipped_by`` get no term (``Edges.unresolved``
-counts those crossings), nor does a shadow on a mesh. Not in this term: area lights' shadows, a
-shadow's edge inside another caster's shadow (the first caster along the shadow ray is the one
-seen), and everything a mirror or glass shows.
+counts those crossings), nor does a shadow on a mesh or a path through one; neither does the
+onset of total internal reflection (a change of branch alone). Not in this term: area lights'
+shadows, a shadow's edge inside another caster's shadow (the first caster along the shadow ray is
+the one seen), what the mirror ray of a transparent surface shows (the path follows its refracted
+ray), and paths longer than ``PATH_BOUNCES``. The path's ray crosses a surface as if from air into
+the surface's interior or back (POV-Ray's list of nested interiors is not followed).
 """
 
 from __future__ import annotations
@@ -58,6 +64,7 @@ import numpy as np
 from . import patterns
 from ._packed import pack
 from ._plan import make_plan
+from .kernels import world_normal
 from .scene import Scene, environment_of
 from .shading import _accel, lighting
 from .shading._geometry import _to_object, closest_hit, prim_bits
@@ -75,6 +82,11 @@ EDGE_LATTICE = 4
 # the two rays that see either side of a crossing are this far (pixels) beyond the bisection's
 # last interval
 SIDE_OFFSET = 1e-3
+# a camera ray's path is followed through this many mirror or refracted rays (each a level of a
+# lattice sample's signature; at most the scene's max_trace_level − 1)
+PATH_BOUNCES = 3
+# the branch a path takes at a surface
+STOP, REFLECT, REFRACT, TIR = 0, 1, 2, 3
 
 
 class Edges(NamedTuple):
@@ -99,9 +111,9 @@ def _prim_tables(geo, n_prims: int):
 
 
 def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False):
-    """``fn(shape, object-space o, d)`` of the primitive ``p`` (traced index), over every group of a
-    shape class with a margin (``every_shape``: of any class but meshes, whose every triangle a
-    call would cross); ``fill`` where it has none."""
+    """``fn(shape, object-space o, d, object_from_world)`` of the primitive ``p`` (traced index),
+    over every group of a shape class with a margin (``every_shape``: of any class but meshes, whose
+    every triangle a call would cross); ``fill`` where it has none."""
     group, index, _ = tables
     out = jnp.asarray(fill, o.dtype)
     g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
@@ -111,20 +123,30 @@ def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False):
         j = jnp.clip(j_of, 0, ofw.shape[0] - 1)
         shape = jax.tree_util.tree_map(lambda x, j=j: x[j], shapes)
         oo, dd = _to_object(ofw[j], o, d)
-        out = jnp.where(g_of == g, fn(shape, oo, dd), out)
+        out = jnp.where(g_of == g, fn(shape, oo, dd, ofw[j]), out)
     return out
 
 
 def _margin(geo, tables, p, o, d):
-    return _per_prim(geo, tables, p, o, d, lambda s, oo, dd: s.silhouette_margin(oo, dd), jnp.nan)
+    return _per_prim(geo, tables, p, o, d, lambda s, oo, dd, _: s.silhouette_margin(oo, dd), jnp.nan)
+
+
+def _nearest_hit(geo, tables, p, o, d, t_min):
+    """``(t, n)``: the first crossing beyond ``t_min`` of the line ``o + t d`` with primitive ``p``
+    (any shape but a mesh; ``inf`` where none) and its unit world normal."""
+    def nearest(s, oo, dd, m):
+        t, n = s.hits(oo, dd)
+        t = jnp.where(t > t_min, t, jnp.inf)
+        i = jnp.argmin(t)
+        return jnp.concatenate([t[i][None], world_normal(n[i], m)])
+
+    fill = jnp.concatenate([jnp.full(1, jnp.inf, o.dtype), jnp.zeros(3, o.dtype)])
+    out = _per_prim(geo, tables, p, o, d, nearest, fill, every_shape=True)
+    return out[0], out[1:]
 
 
 def _nearest_t(geo, tables, p, o, d, t_min):
-    def nearest(s, oo, dd):
-        t, _ = s.hits(oo, dd)
-        return jnp.min(jnp.where(t > t_min, t, jnp.inf))
-
-    return _per_prim(geo, tables, p, o, d, nearest, jnp.inf, every_shape=True)
+    return _nearest_hit(geo, tables, p, o, d, t_min)[0]
 
 
 def _discrete(mats):
@@ -223,36 +245,98 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     shadow_lights = hard_shadow_lights(ctx)
     casters = _accel.MASK_SHADOW | _accel.MASK_FILTER
     vis_shadow = jnp.asarray((prim_bits(plan)[geo.cand_prim] & casters) != 0)
+    # a camera ray's path: the camera ray, then each surface's refracted ray (where its pigment can
+    # transmit) or else its mirror ray (where its finish reflects), up to PATH_BOUNCES of them
+    effects = plan.effects
+    bounces = min(PATH_BOUNCES, max(int(scene.settings.max_trace_level) - 1, 0))
+    levels = 1 + (bounces if (effects.reflection or effects.refraction) else 0)
+    width_ = 3 + len(shadow_lights)  # a level's entries: primitive, cell, branch, casters
+    transparent = jnp.asarray(mats.tables["transparent"], bool)
 
-    # 1. what each lattice sample sees, its signature (2 + lights,): its primitive (-1: none), the
-    # cell of the primitive's discrete pattern (0: none), and for each light of ``shadow_lights``
-    # the first shadow caster between the point seen and the light (-1: none, or the light is
-    # behind the surface)
+    def reflects(prim):
+        rows = prim * mats.n_layers + jnp.arange(mats.n_layers)
+        return jnp.any((jnp.asarray(mats.finish.refl_max)[rows] != 0)
+                       | (jnp.asarray(mats.finish.refl_min)[rows] != 0))
+
+    def child(mats_, prim, o, d, t, n, branch):
+        """The ray that leaves the crossing ``o + t d`` of ``prim`` (world normal ``n``) along
+        ``branch`` (REFLECT, REFRACT or TIR), and whether refraction there is total."""
+        d = d / jnp.sqrt(jnp.sum(d * d))
+        p = o + jnp.where(jnp.isfinite(t), t, 0.0) * d
+        entering = jnp.dot(n, d) < 0
+        n = jnp.where(entering, n, -n)
+        # a rounding guard, held constant: the derivative of max |p| needs its argmax found again,
+        # which a rounding of p recomputed differently can miss (0/0)
+        offset = jax.lax.stop_gradient(ctx.eps * (1.0 + jnp.max(jnp.abs(p))))
+        ior = jnp.asarray(mats_.ior)[prim]
+        d_t, tir = lighting.refract(d, n, jnp.where(entering, 1.0 / ior, ior))
+        d_next = jnp.where(branch == REFLECT, lighting.reflect(d, n), d_t)
+        o_next = jnp.where(branch == REFRACT, p - offset * n, p + offset * n)
+        return o_next, d_next, tir
+
+    # 1. what each lattice sample sees, its signature (levels × (3 + lights),) flattened: at each
+    # level of its path, the primitive (-1: none), the cell of its discrete pattern (0: none), the
+    # branch the path takes there (STOP, REFLECT, REFRACT, TIR), and for each light of
+    # ``shadow_lights`` the first shadow caster between the point seen and the light (-1: none, or
+    # the light is behind the surface)
     def seen(u, v):
         o, d = _image_ray(scene.camera, width, height, u, v)
-        scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
-        hit = closest_hit(geo, plan, o, d, scale, ctx.vis_camera, _accel.MASK_CAMERA)
-        p = o + jnp.where(hit.found, hit.t, 0.0) * d
-        cell = _cell(mats, hit.prim, p) if cells else jnp.zeros((), jnp.int32)
-        prim = jnp.where(hit.found, hit.prim, -1)
-        casts = []
-        if shadow_lights:  # the shadow ray as the model spawns it: from just off the surface
-            n = jnp.where(jnp.dot(hit.normal, d) < 0, hit.normal, -hit.normal)
-            p_out = p + ctx.eps * (1.0 + jnp.max(jnp.abs(p))) * n
-            start = ctx.eps * (1.0 + jnp.max(jnp.abs(p_out)))
-            for i in shadow_lights:
-                l, _, shadow_len = light_geometry(ctx, scene.lights[i], p)
-                caster = closest_hit(geo, plan, p_out, l, start, vis_shadow, casters)
-                on = (hit.found & caster.found & (caster.t < shadow_len - start)
-                      & (jnp.dot(n, l) > lighting.NL_EPSILON))
-                casts.append(jnp.where(on, caster.prim, -1))
-        return jnp.stack([prim, jnp.where(hit.found, cell, 0), *casts]).astype(jnp.int32)
+        alive, mirror = jnp.asarray(True), jnp.asarray(False)
+        out = []
+        for level in range(levels):
+            scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+            vis = jnp.where(mirror, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
+            want = jnp.where(mirror, _accel.MASK_REFLECT, _accel.MASK_CAMERA)
+            hit = closest_hit(geo, plan, o, d, scale, vis, want)
+            found = alive & hit.found
+            p = o + jnp.where(found, hit.t, 0.0) * d
+            cell = _cell(mats, hit.prim, p) if cells else jnp.zeros((), jnp.int32)
+            casts = []
+            if shadow_lights:  # the shadow ray as the model spawns it: from just off the surface
+                n = jnp.where(jnp.dot(hit.normal, d) < 0, hit.normal, -hit.normal)
+                p_out = p + ctx.eps * (1.0 + jnp.max(jnp.abs(p))) * n
+                start = ctx.eps * (1.0 + jnp.max(jnp.abs(p_out)))
+                for i in shadow_lights:
+                    l, _, shadow_len = light_geometry(ctx, scene.lights[i], p)
+                    caster = closest_hit(geo, plan, p_out, l, start, vis_shadow, casters)
+                    on = (found & caster.found & (caster.t < shadow_len - start)
+                          & (jnp.dot(n, l) > lighting.NL_EPSILON))
+                    casts.append(jnp.where(on, caster.prim, -1))
+            branch = jnp.asarray(STOP)
+            if level + 1 < levels:
+                prim = jnp.maximum(hit.prim, 0)
+                branch = jnp.where(transparent[prim], REFRACT, jnp.where(reflects(prim), REFLECT, STOP))
+                branch = jnp.where(found, branch, STOP)
+                o, d, tir = child(mats, prim, o, d, hit.t, hit.normal, branch)
+                branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
+                alive, mirror = branch != STOP, branch == REFLECT
+            out += [jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch, *casts]
+        return jnp.stack(out).astype(jnp.int32)
 
-    def pattern_point(mats_, geo_, camera, prim, u, v):
-        """The pattern-space point of ``prim``'s top layer where the ray through (u, v) crosses it."""
-        o, d = _image_ray(camera, width, height, u, v)
-        t = _nearest_t(geo_, tables, prim, o, d, ctx.eps * (1.0 + jnp.max(jnp.abs(o))))
-        return _pattern_point(mats_, prim * mats_.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
+    def path_ray(sc, pk, sig, level, u, v):
+        """The ray at ``level`` of the path of signature ``sig`` through image point (u, v) of scene
+        ``sc`` packed as ``pk``, a differentiable function of (u, v) and the scene: the camera ray,
+        then each level's crossing with its primitive and the branch the signature took there."""
+        o, d = _image_ray(sc.camera, width, height, u, v)
+        rows = sig.reshape(levels, width_)
+        out_o, out_d = o, d
+        for k_ in range(1, levels):
+            prim, branch = jnp.maximum(rows[k_ - 1, 0], 0), rows[k_ - 1, 2]
+            t, n = _nearest_hit(pk.geo, tables, prim, o, d, ctx.eps * (1.0 + jnp.max(jnp.abs(o))))
+            o, d, _ = child(pk.mats, prim, o, d, t, n, branch)
+            out_o, out_d = jnp.where(level == k_, o, out_o), jnp.where(level == k_, d, out_d)
+        return out_o, out_d
+
+    def first_level(s_a, s_b):
+        """The first level of the path where the signatures differ."""
+        return jnp.argmax(jnp.any(s_a.reshape(levels, width_) != s_b.reshape(levels, width_), axis=1))
+
+    def pattern_point(sc, pk, sig, level, prim, u, v):
+        """The pattern-space point of ``prim``'s top layer where the ray at ``level`` of the path
+        through (u, v) crosses it."""
+        o, d = path_ray(sc, pk, sig, level, u, v)
+        t = _nearest_t(pk.geo, tables, prim, o, d, ctx.eps * (1.0 + jnp.max(jnp.abs(o))))
+        return _pattern_point(pk.mats, prim * pk.mats.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
     centres = (jnp.arange(max(rows, cols), dtype=dtype) + 0.5) * h
     sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v))(centres[:cols]), centres[:rows])
@@ -276,40 +360,43 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
     def margins(sc, pk, s_lo, s_hi, face, u, v):
         """(4 or 6,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
-        of, at image point (u, v) of scene ``sc`` packed as ``pk``: the outline of ``s_lo``'s
-        primitive, the outline of ``s_hi``'s, their seam (the distances' difference), the cell face
-        ``face`` = (normal, offset) of a discrete pattern on one primitive (``normal · q − offset``,
-        q its pattern-space point), and with shadows, the outlines of the first light whose caster
+        of, at image point (u, v) of scene ``sc`` packed as ``pk``, along the ray of their paths'
+        first differing level: the outline of ``s_lo``'s primitive there, the outline of
+        ``s_hi``'s, their seam (the distances' difference), the cell face ``face`` = (normal,
+        offset) of a discrete pattern on one primitive (``normal · q − offset``, q its
+        pattern-space point), and with shadows, the outlines of the first light whose caster
         differs, of its caster on ``s_lo``'s side and on ``s_hi``'s, along the line from the point
         seen towards that light."""
-        geo_, mats_, camera = pk.geo, pk.mats, sc.camera
-        o, d = _image_ray(camera, width, height, u, v)
-        lo_, hi_ = jnp.maximum(s_lo[0], 0), jnp.maximum(s_hi[0], 0)
+        level = first_level(s_lo, s_hi)
+        a, b = s_lo.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
+        geo_ = pk.geo
+        o, d = path_ray(sc, pk, s_lo, level, u, v)
+        lo_, hi_ = jnp.maximum(a[0], 0), jnp.maximum(b[0], 0)
         scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
         t_lo = _nearest_t(geo_, tables, lo_, o, d, scale)
         seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale)
         on_face = jnp.zeros((), o.dtype)
         if cells:
-            on_face = jnp.dot(face[0], pattern_point(mats_, geo_, camera, lo_, u, v)) - face[1]
+            on_face = jnp.dot(face[0], pattern_point(sc, pk, s_lo, level, lo_, u, v)) - face[1]
         out = [_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face]
         if shadow_lights:
-            j = jnp.argmax(s_lo[2:] != s_hi[2:])
+            j = jnp.argmax(a[3:] != b[3:])
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
             l = jnp.zeros(3, o.dtype)
             for k_, i in enumerate(shadow_lights):
                 l = jnp.where(j == k_, light_geometry(ctx, sc.lights[i], p)[0], l)
             seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point (a mesh)
-            out += [_margin(geo_, tables, jnp.maximum(s[2 + j], 0), p, l) + seen_at for s in (s_lo, s_hi)]
+            out += [_margin(geo_, tables, jnp.maximum(s[3 + j], 0), p, l) + seen_at for s in (a, b)]
         return jnp.stack(out)
 
     def locate(s_a, u, v, e):
         """The first change of what is seen along the pair's segment from its first sample, by
         bisection of the signature seen (a fixed number of steps): ``(lo, hi, signature seen at
         hi, kind, face)`` — ``lo``, ``hi`` in pixels along ``e`` from (u, v); ``kind`` the margin
-        whose zero it is (0: the outline of ``s_a``'s primitive, 1: of the primitive beyond, 2:
-        their seam, 3: a cell face of one primitive's pattern, 4, 5: the outline of a shadow's
-        caster on either side; the one nearest the crossing in pixels, -1 where none is within a
-        hundredth of the spacing)."""
+        whose zero it is, at the paths' first differing level (0: the outline of ``s_a``'s
+        primitive, 1: of the primitive beyond, 2: their seam, 3: a cell face of one primitive's
+        pattern, 4, 5: the outline of a shadow's caster on either side; the one nearest the
+        crossing in pixels, -1 where none is within a hundredth of the spacing)."""
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
         def step(_, state):
@@ -321,27 +408,28 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
         start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), seen(u + h * e[0], v + h * e[1]))
         lo, hi, s_hi = jax.lax.fori_loop(0, BISECTIONS, step, start)
-        p_lo, p_hi = s_a[0], s_hi[0]
+        level = first_level(s_a, s_hi)
+        a, b = s_a.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
+        p_lo, p_hi = a[0], b[0]
         one = (p_lo == p_hi) & (p_lo >= 0)
         face = (jnp.zeros(3, dtype), jnp.zeros((), dtype))
         has_face = jnp.zeros((), bool)
         if cells:  # the face between the cells just before and just after the crossing
-            q_a = pattern_point(mats, geo, scene.camera, jnp.maximum(p_lo, 0),
-                                u + (lo - SIDE_OFFSET) * e[0], v + (lo - SIDE_OFFSET) * e[1])
-            q_b = pattern_point(mats, geo, scene.camera, jnp.maximum(p_lo, 0),
-                                u + (hi + SIDE_OFFSET) * e[0], v + (hi + SIDE_OFFSET) * e[1])
-            normal, offset, has_face = _face(mats, jnp.maximum(p_lo, 0), q_a, q_b)
+            prim = jnp.maximum(p_lo, 0)
+            q_a, q_b = (pattern_point(scene, packed, s_a, level, prim, u + s * e[0], v + s * e[1])
+                        for s in (lo - SIDE_OFFSET, hi + SIDE_OFFSET))
+            normal, offset, has_face = _face(mats, prim, q_a, q_b)
             face = (normal, offset)
         mid = 0.5 * (lo + hi)
         g, g_s = jax.jvp(lambda s: margins(scene, packed, s_a, s_hi, face, u + s * e[0], v + s * e[1]),
                          (mid,), (jnp.ones_like(mid),))
         has_lo, has_hi = (p_lo >= 0) & has[jnp.maximum(p_lo, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
-        valid = [has_lo & ~one, has_hi & ~one, has_lo & has_hi & ~one, one & has_face & (s_a[1] != s_hi[1])]
+        valid = [has_lo & ~one, has_hi & ~one, has_lo & has_hi & ~one, one & has_face & (a[1] != b[1])]
         if shadow_lights:
-            differs = s_a[2:] != s_hi[2:]
+            differs = a[3:] != b[3:]
             j = jnp.argmax(differs)
             valid += [one & jnp.any(differs) & (c_ >= 0) & has[jnp.maximum(c_, 0)]
-                      for c_ in (s_a[2 + j], s_hi[2 + j])]
+                      for c_ in (a[3 + j], b[3 + j])]
         valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)

@@ -18,6 +18,8 @@ from validation.edges import (
     project,
     shadow_conic,
     sphere_conic,
+    sphere_through_slab,
+    star_outline_term,
 )
 
 # every test here compiles a render's derivative with the boundary term (5–25 s): not in make test-fast
@@ -167,6 +169,71 @@ def test_a_spheres_shadow_outline_term_is_its_outline_integral(x64):
         errors.append(_rel_l2(d_image, reference))
         assert np.all(d_image[np.abs(reference).max(-1) == 0] == 0)
     assert errors[0] < 0.02 and errors[1] < errors[0] / 5, errors
+
+
+def test_a_spheres_outline_in_a_plane_mirror_is_its_mirror_images_outline(x64):
+    """A sphere the camera sees only in a plane mirror (``no_image``): what the mirror shows is the
+    outline of the sphere reflected in the plane, a conic of the image. Along a tangent of the
+    sphere, the mirror's place and the camera's: within 1 % at 4×4 samples a pixel, three times
+    closer at 8×8."""
+    width, height = 24, 18
+    colour = np.array([1.0, 0.5, 0.25])
+    scene = rt.load_scene(HEAD.replace("assumed_gamma 1.0", "assumed_gamma 1.0 max_trace_level 2")
+                          + "camera { location <0, 1.5, -4> look_at <0, -0.8, 0> angle 45 }\n"
+                          "plane { y, -0.6 pigment { rgb 0 } finish { ambient 0 diffuse 0 reflection 1 } }\n"
+                          f"sphere {{ <0.2, 0.1, 0.4>, 0.5 pigment {{ rgb <1, 0.5, 0.25> }} {FLAT} "
+                          "no_image }")
+    params = rt.params.parameters(scene)
+    tangent = {"objects[1].shape.center": jnp.array([0.7, -0.3, 0.5]),
+               "objects[1].shape.radius": jnp.asarray(0.2), "objects[0].shape.distance": jnp.asarray(0.5),
+               "camera.location": jnp.array([0.2, 0.3, -0.4])}
+
+    def conic(step):
+        moved = rt.params.replace(scene, {**params, **{n: params[n] + step * t for n, t in tangent.items()}})
+        image_centre = np.array(moved.objects[1].shape.center, np.float64)
+        image_centre[1] = 2 * float(moved.objects[0].shape.distance) - image_centre[1]
+        return sphere_conic([np.asarray(x) for x in moved.camera.frame()], image_centre,
+                            float(moved.objects[1].shape.radius), width, height)[0]
+
+    eps = 1e-6
+    q, plus, minus = conic(0.0), conic(eps), conic(-eps)
+    reference = ellipse_outline_term(q, lambda u, v: (plus(u, v) - minus(u, v)) / (2 * eps), width,
+                                     height)[..., None] * colour
+    errors = [_rel_l2(_jvp(scene, params, tangent, width, height, spp)[1], reference) for spp in (16, 64)]
+    assert errors[0] < 0.01 and errors[1] < errors[0] / 3, errors
+
+
+def test_a_sphere_seen_through_a_glass_slab_moves_as_its_refracted_outline(x64):
+    """A sphere behind a glass slab (ior 1.5): the rays that see its outline refract into the slab
+    and out again parallel to themselves, shifted (``validation.edges.sphere_through_slab``, a
+    star-shaped region integrated per pixel). Along a tangent of the sphere, the slab's index of
+    refraction and the camera's place: within 1 % at 4×4 samples a pixel, three times closer at
+    8×8."""
+    width, height = 24, 18
+    colour = np.array([1.0, 0.5, 0.25])
+    scene = rt.load_scene(HEAD.replace("assumed_gamma 1.0", "assumed_gamma 1.0 max_trace_level 3")
+                          + "camera { location <0.3, 0.4, -4> look_at <0, 0, 0> angle 40 }\n"
+                          "box { <-5, -5, -1.2>, <5, 5, -0.5> pigment { rgbf 1 } "
+                          "finish { ambient 0 diffuse 0 } interior { ior 1.5 } }\n"
+                          f"sphere {{ <0.2, 0.1, 0.4>, 0.6 pigment {{ rgb <1, 0.5, 0.25> }} {FLAT} }}")
+    params = rt.params.parameters(scene)
+    tangent = {"objects[1].shape.center": jnp.array([0.7, -0.3, 0.5]),
+               "objects[1].shape.radius": jnp.asarray(0.2), "objects[0].interior.ior": jnp.asarray(0.5),
+               "camera.location": jnp.array([0.2, 0.3, -0.4])}
+
+    def margin(step):
+        moved = rt.params.replace(scene, {**params, **{n: params[n] + step * t for n, t in tangent.items()}})
+        return sphere_through_slab([np.asarray(x) for x in moved.camera.frame()],
+                                   np.asarray(moved.objects[1].shape.center),
+                                   float(moved.objects[1].shape.radius), -1.2, -0.5,
+                                   float(moved.objects[0].interior.ior), width, height)
+
+    eps = 1e-6
+    q, plus, minus = margin(0.0), margin(eps), margin(-eps)
+    reference = star_outline_term(q, lambda u, v: (plus(u, v) - minus(u, v)) / (2 * eps), (12.0, 9.0), 20.0,
+                                  width, height)[..., None] * colour
+    errors = [_rel_l2(_jvp(scene, params, tangent, width, height, spp)[1], reference) for spp in (16, 64)]
+    assert errors[0] < 0.01 and errors[1] < errors[0] / 3, errors
 
 
 def test_occluding_and_interpenetrating_objects_match_converged_finite_differences(x64):
