@@ -280,10 +280,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # ``shadow_lights`` the first shadow caster between the point seen and the light (-1: none, or
     # the light is behind the surface)
     def seen(u, v):
-        o, d = _image_ray(scene.camera, width, height, u, v)
-        alive, mirror = jnp.asarray(True), jnp.asarray(False)
-        out = []
-        for level in range(levels):
+        # one level of the path: a loop over the levels, so that the program holds one copy of it
+        def level_of(carry, index):
+            o, d, alive, mirror = carry
             scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
             vis = jnp.where(mirror, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
             want = jnp.where(mirror, _accel.MASK_REFLECT, _accel.MASK_CAMERA)
@@ -303,28 +302,40 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                           & (jnp.dot(n, l) > lighting.NL_EPSILON))
                     casts.append(jnp.where(on, caster.prim, -1))
             branch = jnp.asarray(STOP)
-            if level + 1 < levels:
+            if levels > 1:
                 prim = jnp.maximum(hit.prim, 0)
                 branch = jnp.where(transparent[prim], REFRACT, jnp.where(reflects(prim), REFLECT, STOP))
-                branch = jnp.where(found, branch, STOP)
+                branch = jnp.where(found & (index + 1 < levels), branch, STOP)
                 o, d, tir = child(mats, prim, o, d, hit.t, hit.normal, branch)
                 branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
                 alive, mirror = branch != STOP, branch == REFLECT
-            out += [jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch, *casts]
-        return jnp.stack(out).astype(jnp.int32)
+            row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch, *casts])
+            return (o, d, alive, mirror), row.astype(jnp.int32)
+
+        o, d = _image_ray(scene.camera, width, height, u, v)
+        _, rows_ = jax.lax.scan(level_of, (o, d, jnp.asarray(True), jnp.asarray(False)), jnp.arange(levels))
+        return rows_.reshape(-1)
 
     def path_ray(sc, pk, sig, level, u, v):
         """The ray at ``level`` of the path of signature ``sig`` through image point (u, v) of scene
         ``sc`` packed as ``pk``, a differentiable function of (u, v) and the scene: the camera ray,
         then each level's crossing with its primitive and the branch the signature took there."""
         o, d = _image_ray(sc.camera, width, height, u, v)
+        if levels == 1:
+            return o, d
         rows = sig.reshape(levels, width_)
-        out_o, out_d = o, d
-        for k_ in range(1, levels):
-            prim, branch = jnp.maximum(rows[k_ - 1, 0], 0), rows[k_ - 1, 2]
+
+        def bounce(carry, x):
+            o, d, out_o, out_d = carry
+            index, prim, branch = x
+            prim = jnp.maximum(prim, 0)
             t, n = _nearest_hit(pk.geo, tables, prim, o, d, ctx.eps * (1.0 + jnp.max(jnp.abs(o))))
             o, d, _ = child(pk.mats, prim, o, d, t, n, branch)
-            out_o, out_d = jnp.where(level == k_, o, out_o), jnp.where(level == k_, d, out_d)
+            out_o, out_d = jnp.where(level == index, o, out_o), jnp.where(level == index, d, out_d)
+            return (o, d, out_o, out_d), None
+
+        (_, _, out_o, out_d), _ = jax.lax.scan(bounce, (o, d, o, d),
+                                               (jnp.arange(1, levels), rows[:-1, 0], rows[:-1, 2]))
         return out_o, out_d
 
     def first_level(s_a, s_b):
