@@ -68,7 +68,7 @@ from .kernels import world_normal
 from .scene import Scene, environment_of
 from .shading import _accel, lighting
 from .shading._geometry import _to_object, closest_hit, prim_bits
-from .shading._materials import _pattern_point, _raw_value
+from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
 from .shading._model import hard_shadow_lights, initial_media, light_geometry, make_context
 from .shading.camera import camera_rays
 from .shading.whitted import trace
@@ -163,9 +163,13 @@ def _cell(mats, prim, p):
     q = _pattern_point(mats, row, p)
     pid = jnp.asarray(mats.tables["pattern_id"])[row]
     cell = jnp.zeros((), jnp.int32)
+    nudge = discrete_face_nudge(mats, row, q)  # the faces the shading decides on, as it does
     for k, _ in _discrete(mats):
         record = patterns.REGISTRY[mats.pattern_names[k]]
-        own = record.cell(q) if record.cell is not None else _raw_value(mats, k, row, q).astype(jnp.int32)
+        if record.cell is not None:
+            own = record.cell(q if nudge is None else q + nudge)
+        else:
+            own = _raw_value(mats, k, row, q).astype(jnp.int32)
         cell = jnp.where(pid == k, own, cell)
     return cell
 
@@ -252,6 +256,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     levels = 1 + (bounces if (effects.reflection or effects.refraction) else 0)
     width_ = 3 + len(shadow_lights)  # a level's entries: primitive, cell, branch, casters
     transparent = jnp.asarray(mats.tables["transparent"], bool)
+    # float32 points of discrete patterns computed at the surface, as the shading computes them
+    refine = cells and dtype == jnp.float32
 
     def reflects(prim):
         rows = prim * mats.n_layers + jnp.arange(mats.n_layers)
@@ -286,10 +292,11 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
             vis = jnp.where(mirror, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
             want = jnp.where(mirror, _accel.MASK_REFLECT, _accel.MASK_CAMERA)
-            hit = closest_hit(geo, plan, o, d, scale, vis, want)
+            hit = closest_hit(geo, plan, o, d, scale, vis, want, refine=refine)
             found = alive & hit.found
             p = o + jnp.where(found, hit.t, 0.0) * d
-            cell = _cell(mats, hit.prim, p) if cells else jnp.zeros((), jnp.int32)
+            p_cell = p if hit.point is None else hit.point
+            cell = _cell(mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
             casts = []
             if shadow_lights:  # the shadow ray as the model spawns it: from just off the surface
                 n = jnp.where(jnp.dot(hit.normal, d) < 0, hit.normal, -hit.normal)

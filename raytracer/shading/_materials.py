@@ -334,14 +334,20 @@ def _raw_value(mats: PackedMaterials, k: int, row, q):
     pattern-space point ``q``."""
     name = mats.pattern_names[k]
     turb = mats.turbulence[row] if mats.turbulent[k] else None
-    face_nudge = None
-    if patterns.REGISTRY[name].discrete and q.dtype == jnp.float32:
-        # POV-Ray's 1e-10 where the row's space keeps exact points exact (its hit points are
-        # computed at the surface: _geometry.closest_hit's refine), else a few ulps of the point
-        loose = _FACE_ULPS * jnp.finfo(q.dtype).eps * jnp.maximum(jnp.max(jnp.abs(q)), 1.0)
-        face_nudge = jnp.where(jnp.asarray(mats.tables["exact_space"])[row], patterns.FACE_NUDGE, loose)
+    face_nudge = discrete_face_nudge(mats, row, q) if patterns.REGISTRY[name].discrete else None
     return patterns.pattern_value(name, q, mats.vector[row], turb, mats.octaves[name], mats.omega[row],
                                   mats.lambda_[row], face_nudge=face_nudge)
+
+
+def discrete_face_nudge(mats: PackedMaterials, row, q):
+    """What a discrete pattern of row ``row`` adds to pattern-space point ``q`` so that a face
+    belongs to the cell above it: None (POV-Ray's 1e-10) in float64; in float32, 1e-10 where the
+    row's space keeps exact points exact (its hit points are computed at the surface:
+    ``_geometry.closest_hit``'s refine), else a few ulps of the point."""
+    if q.dtype != jnp.float32:
+        return None
+    loose = _FACE_ULPS * jnp.finfo(q.dtype).eps * jnp.maximum(jnp.max(jnp.abs(q)), 1.0)
+    return jnp.where(jnp.asarray(mats.tables["exact_space"])[row], patterns.FACE_NUDGE, loose)
 
 
 def _pigment_of_value(mats: PackedMaterials, prim, v):
