@@ -43,6 +43,17 @@ def _rel_l2(value, reference):
     return np.linalg.norm((value - reference)[mask]) / np.linalg.norm(reference[mask])
 
 
+def _margins(scene, params, tangent, margin_of, eps=1e-6):
+    """``(Q, Q_θ, Q at ±eps)``: the closed-form margin ``margin_of(scene)`` of a curve of the image,
+    and its derivative along the tangent by central differences of the closed form (smooth in θ)."""
+    def at(step):
+        return margin_of(rt.params.replace(scene, {**params, **{n: params[n] + step * t
+                                                                  for n, t in tangent.items()}}))
+
+    q, plus, minus = at(0.0), at(eps), at(-eps)
+    return q, lambda u, v: (plus(u, v) - minus(u, v)) / (2 * eps), plus, minus
+
+
 def test_a_spheres_outline_term_is_its_outline_integral_and_converges_with_the_lattice(x64):
     """A flat-coloured sphere over black seen in perspective: its outline is an ellipse of the image,
     integrated per pixel exactly. Along a tangent of its centre, its radius and the camera's place,
@@ -56,17 +67,12 @@ def test_a_spheres_outline_term_is_its_outline_integral_and_converges_with_the_l
     tangent = {"objects[0].shape.center": jnp.array([0.7, -0.4, 0.5]),
                "objects[0].shape.radius": jnp.asarray(0.3), "camera.location": jnp.array([0.2, 0.3, -0.6])}
 
-    def conic(step):
-        moved = rt.params.replace(scene, {**params, **{n: params[n] + step * t for n, t in tangent.items()}})
-        frame = [np.asarray(x) for x in moved.camera.frame()]
-        return sphere_conic(frame, np.asarray(moved.objects[0].shape.center),
-                            float(moved.objects[0].shape.radius), width, height)[0]
-
-    eps = 1e-6
-    q, plus, minus = conic(0.0), conic(eps), conic(-eps)
-    outline = ellipse_outline_term(q, lambda u, v: (plus(u, v) - minus(u, v)) / (2 * eps), width, height)
+    q, q_theta, plus, minus = _margins(scene, params, tangent, lambda moved: sphere_conic(
+        [np.asarray(x) for x in moved.camera.frame()], np.asarray(moved.objects[0].shape.center),
+        float(moved.objects[0].shape.radius), width, height)[0])
+    outline = ellipse_outline_term(q, q_theta, width, height)
     reference = outline[..., None] * colour
-    area_rate = (ellipse_area(plus) - ellipse_area(minus)) / (2 * eps)
+    area_rate = (ellipse_area(plus) - ellipse_area(minus)) / 2e-6
     assert outline.sum() == pytest.approx(area_rate, rel=1e-6)  # the oracle against the closed form
     errors = []
     for spp in (16, 64):
@@ -150,19 +156,13 @@ def test_a_spheres_shadow_outline_term_is_its_outline_integral(x64):
                "objects[1].shape.radius": jnp.asarray(0.2), "lights[0].position": jnp.array([1.5, 0.0, -2.0]),
                "camera.location": jnp.array([0.2, 0.3, -0.4])}
 
-    def conic(step):
-        moved = rt.params.replace(scene, {**params, **{n: params[n] + step * t for n, t in tangent.items()}})
-        light = moved.lights[0]
-        return shadow_conic([np.asarray(x) for x in moved.camera.frame()],
-                            np.asarray(moved.objects[1].shape.center), float(moved.objects[1].shape.radius),
-                            np.asarray(light.position) - np.asarray(light.point_at), -0.5, width, height)
-
-    eps = 1e-6
-    q, plus, minus = conic(0.0), conic(eps), conic(-eps)
+    q, q_theta, _, _ = _margins(scene, params, tangent, lambda moved: shadow_conic(
+        [np.asarray(x) for x in moved.camera.frame()], np.asarray(moved.objects[1].shape.center),
+        float(moved.objects[1].shape.radius),
+        np.asarray(moved.lights[0].position) - np.asarray(moved.lights[0].point_at), -0.5, width, height))
     towards = np.array([-2.0, 6.0, -1.5]) / np.linalg.norm([-2.0, 6.0, -1.5])
     jump = -0.9 * 0.8 * towards[1]  # in the shadow minus lit: the plane's diffuse term
-    reference = ellipse_outline_term(q, lambda u, v: (plus(u, v) - minus(u, v)) / (2 * eps), width,
-                                     height)[..., None] * jump * np.ones(3)
+    reference = ellipse_outline_term(q, q_theta, width, height)[..., None] * jump * np.ones(3)
     errors = []
     for spp in (16, 64):
         _, d_image = _jvp(scene, params, tangent, width, height, spp)
@@ -188,17 +188,14 @@ def test_a_spheres_outline_in_a_plane_mirror_is_its_mirror_images_outline(x64):
                "objects[1].shape.radius": jnp.asarray(0.2), "objects[0].shape.distance": jnp.asarray(0.5),
                "camera.location": jnp.array([0.2, 0.3, -0.4])}
 
-    def conic(step):
-        moved = rt.params.replace(scene, {**params, **{n: params[n] + step * t for n, t in tangent.items()}})
+    def mirror_image(moved):  # the sphere reflected in the plane y = distance
         image_centre = np.array(moved.objects[1].shape.center, np.float64)
         image_centre[1] = 2 * float(moved.objects[0].shape.distance) - image_centre[1]
         return sphere_conic([np.asarray(x) for x in moved.camera.frame()], image_centre,
                             float(moved.objects[1].shape.radius), width, height)[0]
 
-    eps = 1e-6
-    q, plus, minus = conic(0.0), conic(eps), conic(-eps)
-    reference = ellipse_outline_term(q, lambda u, v: (plus(u, v) - minus(u, v)) / (2 * eps), width,
-                                     height)[..., None] * colour
+    q, q_theta, _, _ = _margins(scene, params, tangent, mirror_image)
+    reference = ellipse_outline_term(q, q_theta, width, height)[..., None] * colour
     errors = [_rel_l2(_jvp(scene, params, tangent, width, height, spp)[1], reference) for spp in (16, 64)]
     assert errors[0] < 0.01 and errors[1] < errors[0] / 3, errors
 
@@ -221,17 +218,11 @@ def test_a_sphere_seen_through_a_glass_slab_moves_as_its_refracted_outline(x64):
                "objects[1].shape.radius": jnp.asarray(0.2), "objects[0].interior.ior": jnp.asarray(0.5),
                "camera.location": jnp.array([0.2, 0.3, -0.4])}
 
-    def margin(step):
-        moved = rt.params.replace(scene, {**params, **{n: params[n] + step * t for n, t in tangent.items()}})
-        return sphere_through_slab([np.asarray(x) for x in moved.camera.frame()],
-                                   np.asarray(moved.objects[1].shape.center),
-                                   float(moved.objects[1].shape.radius), -1.2, -0.5,
-                                   float(moved.objects[0].interior.ior), width, height)
-
-    eps = 1e-6
-    q, plus, minus = margin(0.0), margin(eps), margin(-eps)
-    reference = star_outline_term(q, lambda u, v: (plus(u, v) - minus(u, v)) / (2 * eps), (12.0, 9.0), 20.0,
-                                  width, height)[..., None] * colour
+    q, q_theta, _, _ = _margins(scene, params, tangent, lambda moved: sphere_through_slab(
+        [np.asarray(x) for x in moved.camera.frame()], np.asarray(moved.objects[1].shape.center),
+        float(moved.objects[1].shape.radius), -1.2, -0.5, float(moved.objects[0].interior.ior), width,
+        height))
+    reference = star_outline_term(q, q_theta, (12.0, 9.0), 20.0, width, height)[..., None] * colour
     errors = [_rel_l2(_jvp(scene, params, tangent, width, height, spp)[1], reference) for spp in (16, 64)]
     assert errors[0] < 0.01 and errors[1] < errors[0] / 3, errors
 
