@@ -459,20 +459,27 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     ok = live & (kind >= 0)
     mid = 0.5 * (lo + hi)
 
-    # 3. the margin's derivatives at the crossing: along the image, and along the tangent
+    # 3. the margin's derivatives at the crossing: along the image (each crossing's own), and along
+    # the tangent (every crossing's margin one function of the scene, packed once: reverse mode then
+    # transposes the packing once, not once a crossing)
     def derivatives(kind, s_a, s_b, face, u, v):
-        def g_of(dyn_, uu, vv):
-            sc = eqx.combine(dyn_, static)
-            return margins(sc, pack(sc, plan), s_a, s_b, face, uu, vv)[jnp.maximum(kind, 0)]
+        def g_of(uu, vv):
+            return margins(scene, packed, s_a, s_b, face, uu, vv)[jnp.maximum(kind, 0)]
 
-        g_u = jax.jvp(lambda uu: g_of(dynamic, uu, v), (u,), (jnp.ones_like(u),))[1]
-        g_v = jax.jvp(lambda vv: g_of(dynamic, u, vv), (v,), (jnp.ones_like(v),))[1]
-        g_theta = jax.jvp(lambda d_: g_of(d_, u, v), (dynamic,), (tangent,))[1]
-        return g_u, g_v, g_theta
+        g_u = jax.jvp(lambda uu: g_of(uu, v), (u,), (jnp.ones_like(u),))[1]
+        g_v = jax.jvp(lambda vv: g_of(u, vv), (v,), (jnp.ones_like(v),))[1]
+        return g_u, g_v
 
-    pu, pv = u0 + mid * axis[:, 0], v0 + mid * axis[:, 1]
-    g_u, g_v, g_theta = _live_map(derivatives, ok,
-                                  kind, pa, pb, face, sg(pu), sg(pv))
+    pu, pv = sg(u0 + mid * axis[:, 0]), sg(v0 + mid * axis[:, 1])
+    g_u, g_v = _live_map(derivatives, ok, kind, pa, pb, face, pu, pv)
+
+    def chosen_margins(dyn_):
+        sc = eqx.combine(dyn_, static)
+        pk = pack(sc, plan)
+        return _live_map(lambda kind_, s_a, s_b, face_, u, v: margins(sc, pk, s_a, s_b, face_, u, v)[
+            jnp.maximum(kind_, 0)], ok, kind, pa, pb, face, pu, pv)
+
+    g_theta = jax.jvp(chosen_margins, (dynamic,), (tangent,))[1]
 
     # 4. the jump: rays just before and just after the crossing along its axis, through the model
     before = jnp.stack([u0 + (lo - SIDE_OFFSET) * axis[:, 0], v0 + (lo - SIDE_OFFSET) * axis[:, 1]], -1)
