@@ -259,6 +259,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # float32 points of discrete patterns computed at the surface, as the shading computes them
     refine = cells and dtype == jnp.float32
 
+    def guard(x):
+        """The model's rounding guard at point ``x`` (a start offset along a ray, a spawn offset),
+        held constant: the derivative of max |x| needs its argmax found again, which a rounding of
+        ``x`` recomputed differently can miss (0/0)."""
+        return jax.lax.stop_gradient(ctx.eps * (1.0 + jnp.max(jnp.abs(x))))
+
     def reflects(prim):
         rows = prim * mats.n_layers + jnp.arange(mats.n_layers)
         return jnp.any((jnp.asarray(mats.finish.refl_max)[rows] != 0)
@@ -271,9 +277,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         p = o + jnp.where(jnp.isfinite(t), t, 0.0) * d
         entering = jnp.dot(n, d) < 0
         n = jnp.where(entering, n, -n)
-        # a rounding guard, held constant: the derivative of max |p| needs its argmax found again,
-        # which a rounding of p recomputed differently can miss (0/0)
-        offset = jax.lax.stop_gradient(ctx.eps * (1.0 + jnp.max(jnp.abs(p))))
+        offset = guard(p)
         ior = jnp.asarray(mats_.ior)[prim]
         d_t, tir = lighting.refract(d, n, jnp.where(entering, 1.0 / ior, ior))
         d_next = jnp.where(branch == REFLECT, lighting.reflect(d, n), d_t)
@@ -289,7 +293,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # one level of the path: a loop over the levels, so that the program holds one copy of it
         def level_of(carry, index):
             o, d, alive, mirror = carry
-            scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+            scale = guard(o)
             vis = jnp.where(mirror, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
             want = jnp.where(mirror, _accel.MASK_REFLECT, _accel.MASK_CAMERA)
             hit = closest_hit(geo, plan, o, d, scale, vis, want, refine=refine)
@@ -300,8 +304,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             casts = []
             if shadow_lights:  # the shadow ray as the model spawns it: from just off the surface
                 n = jnp.where(jnp.dot(hit.normal, d) < 0, hit.normal, -hit.normal)
-                p_out = p + ctx.eps * (1.0 + jnp.max(jnp.abs(p))) * n
-                start = ctx.eps * (1.0 + jnp.max(jnp.abs(p_out)))
+                p_out = p + guard(p) * n
+                start = guard(p_out)
                 for i in shadow_lights:
                     l, _, shadow_len = light_geometry(ctx, scene.lights[i], p)
                     caster = closest_hit(geo, plan, p_out, l, start, vis_shadow, casters)
@@ -336,7 +340,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             o, d, out_o, out_d = carry
             index, prim, branch = x
             prim = jnp.maximum(prim, 0)
-            t, n = _nearest_hit(pk.geo, tables, prim, o, d, ctx.eps * (1.0 + jnp.max(jnp.abs(o))))
+            t, n = _nearest_hit(pk.geo, tables, prim, o, d, guard(o))
             o, d, _ = child(pk.mats, prim, o, d, t, n, branch)
             out_o, out_d = jnp.where(level == index, o, out_o), jnp.where(level == index, d, out_d)
             return (o, d, out_o, out_d), None
@@ -353,7 +357,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         """The pattern-space point of ``prim``'s top layer where the ray at ``level`` of the path
         through (u, v) crosses it."""
         o, d = path_ray(sc, pk, sig, level, u, v)
-        t = _nearest_t(pk.geo, tables, prim, o, d, ctx.eps * (1.0 + jnp.max(jnp.abs(o))))
+        return point_in_pattern(pk, prim, o, d, _nearest_t(pk.geo, tables, prim, o, d, guard(o)))
+
+    def point_in_pattern(pk, prim, o, d, t):
+        """The pattern-space point of ``prim``'s top layer at ``o + t d`` (``o`` where t is inf)."""
         return _pattern_point(pk.mats, prim * pk.mats.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
     centres = (jnp.arange(max(rows, cols), dtype=dtype) + 0.5) * h
@@ -390,12 +397,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         geo_ = pk.geo
         o, d = path_ray(sc, pk, s_lo, level, u, v)
         lo_, hi_ = jnp.maximum(a[0], 0), jnp.maximum(b[0], 0)
-        scale = ctx.eps * (1.0 + jnp.max(jnp.abs(o)))
+        scale = guard(o)
         t_lo = _nearest_t(geo_, tables, lo_, o, d, scale)
         seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale)
         on_face = jnp.zeros((), o.dtype)
-        if cells:
-            on_face = jnp.dot(face[0], pattern_point(sc, pk, s_lo, level, lo_, u, v)) - face[1]
+        if cells:  # the same ray and crossing as the outline's
+            on_face = jnp.dot(face[0], point_in_pattern(pk, lo_, o, d, t_lo)) - face[1]
         out = [_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face]
         if shadow_lights:
             j = jnp.argmax(a[3:] != b[3:])
