@@ -41,8 +41,9 @@ own plus this one.
 Discretised, and where it fails: the row and column sums are a quadrature of the edge integral with
 spacing ``h`` — second order on smooth edges, first order where an edge turns within a lattice cell
 (polygon vertices, checker corners); two edges between neighbouring samples count as one, and
-features thinner than ``h`` are missed; a shape without a margin (tori, superellipsoids,
-polynomials, meshes, quadrics, open cylinders and cones), a pattern without a face (hexagon,
+features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
+tube over its far one: one primitive on both sides, the signature does not change); a shape
+without a margin (polynomials, meshes, open cylinders and cones), a pattern without a face (hexagon,
 brick, a turbulent checker), a CSG operand's cut and ``clipped_by`` get no term (``Edges.unresolved``
 counts those crossings), nor does a shadow on a mesh or a path through one; neither does the
 onset of total internal reflection (a change of branch alone). Not in this term: area lights'

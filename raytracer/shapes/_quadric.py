@@ -77,6 +77,15 @@ class Quadric(AbstractShape):
     sdl_keywords: ClassVar[tuple[str, ...]] = ("quadric",)
     coeffs: Float[Array, "10"] = eqx.field(converter=as_float)
 
+    def silhouette_margin(self, o, d):
+        # the discriminant b² − 4ac of Q(o + t d) = a t² + b t + c: positive where the line crosses
+        # the surface twice, zero where it touches it (a sphere's margin, four times over)
+        coeffs, o, d = as_float_arrays(self.coeffs, o, d)
+        m, g, j = _matrix_form(coeffs)
+        md = m @ d
+        b = 2.0 * jnp.dot(o, md) + jnp.dot(g, d)
+        return b * b - 4.0 * jnp.dot(d, md) * (jnp.dot(o, m @ o) + jnp.dot(g, o) + j)
+
     def hits(self, o, d):
         return quadric_hits(self.coeffs, o, d)
 

@@ -99,30 +99,75 @@ def _box_span(o, d):
     return jnp.where(hit, s_in - _MARGIN, 0.0), jnp.where(hit, s_out + _MARGIN, 0.0), hit
 
 
+def _pieces(e, n, o, d):
+    """The line's span through the box cut at the coordinate planes into (at most) 4 pieces within
+    one octant each, and each piece's critical point of ``N`` (its one extremum where N is convex or
+    concave there; the middle where the slope keeps its sign). No gradients.
+
+    Returns ``(lo, hi, crit, through)``: (4,) piece ends and critical points, and whether the line
+    passes through the box.
+    """
+    s_in, s_out, through = _box_span(o, d)
+
+    def slope(s):
+        return jax.vmap(lambda si: jax.jvp(lambda q: superellipsoid_norm(e, n, q), (o + si * d,), (d,))[1])(s)
+
+    planes, _ = solve_linear(d, o)
+    cuts = jnp.sort(jnp.clip(jnp.where(jnp.isfinite(planes), planes, s_out), s_in, s_out))
+    knots = jnp.concatenate([s_in[None], cuts, s_out[None]])
+    lo, hi = knots[:-1], knots[1:]
+    inset = _INSET * (hi - lo)
+    iterations = jnp.finfo(o.dtype).nmant + 4
+    crit, has_crit = _bisect(slope, lo + inset, hi - inset, iterations)
+    return lo, hi, jnp.where(has_crit, crit, 0.5 * (lo + hi)), through
+
+
+def superellipsoid_margin(
+    e: Float[ArrayLike, ""], n: Float[ArrayLike, ""], o: Float[ArrayLike, "3"], d: Float[ArrayLike, "3"]
+) -> Float[Array, ""]:
+    """``1 − min N`` along the line ``o + t d``: positive where it crosses the solid, zero where it
+    touches it.
+
+    ``N`` restricted to the line is smooth within an octant and kinks where the line crosses a
+    coordinate plane, so its minimum is at a piece's critical point (where ``N`` is convex there:
+    e, n ≤ 2) or at a plane crossing (where it is concave: e, n ≥ 2, the star's ridges). Both are
+    candidates: a critical point, found without gradient, carries the derivatives of the value
+    there (its slope along the line vanishes: the envelope theorem), a plane crossing those of its
+    own place on the line. Mixed exponents can hold a second critical point in a piece that is
+    not searched (as for their crossings)."""
+    e, n, o, d = as_float_arrays(e, n, o, d)
+    _, _, d_hat, _, o_c = centred_line(o, d)
+    sg = lax.stop_gradient
+    lo, hi, crit, through = _pieces(sg(e), sg(n), sg(o_c), sg(d_hat))
+
+    def norm_at(s, axis=None):
+        p = o_c + s * d_hat
+        if axis is not None:  # on a coordinate plane exactly (|x|^p kinks there)
+            p = jnp.where(jnp.arange(3) == axis, 0.0, p)
+        return superellipsoid_norm(e, n, p)
+
+    values = [norm_at(jnp.zeros((), o.dtype))]  # the line's point nearest the centre: an upper bound
+    values += [jnp.where(through & (lo[k] < c) & (c < hi[k]), norm_at(sg(c)), jnp.inf)
+               for k, c in enumerate(crit)]
+    span_lo, span_hi = lo[0], hi[-1]
+    for axis in range(3):
+        s_plane, ok = solve_linear(d_hat[axis], o_c[axis])
+        inner = through & ok & (sg(s_plane) > span_lo) & (sg(s_plane) < span_hi)
+        values.append(jnp.where(inner, norm_at(jnp.where(inner, s_plane, 0.0), axis), jnp.inf))
+    return 1.0 - jnp.min(jnp.stack(values))
+
+
 def _brackets(e, n, o, d):
     """The first K sub-intervals of ``[s_in, s_out]`` where ``N - 1`` changes sign (no gradients).
 
     Returns ``(lo, hi, valid, level)``: (K,) brackets in ascending order, which are real, and
     ``level(s)``, ``N(o + s d) - 1`` for a vector of ``s``.
     """
-    s_in, s_out, through = _box_span(o, d)
+    lo, hi, crit, through = _pieces(e, n, o, d)
 
     def level(s):
         return jax.vmap(lambda si: superellipsoid_norm(e, n, o + si * d))(s) - 1.0
 
-    def slope(s):
-        return jax.vmap(lambda si: jax.jvp(lambda q: superellipsoid_norm(e, n, q), (o + si * d,), (d,))[1])(s)
-
-    # Pieces within one octant: cut at the coordinate planes the line crosses inside the box.
-    planes, _ = solve_linear(d, o)
-    cuts = jnp.sort(jnp.clip(jnp.where(jnp.isfinite(planes), planes, s_out), s_in, s_out))
-    knots = jnp.concatenate([s_in[None], cuts, s_out[None]])
-    lo, hi = knots[:-1], knots[1:]
-    # Each piece's critical point (its one extremum when N is convex or concave there).
-    inset = _INSET * (hi - lo)
-    iterations = jnp.finfo(o.dtype).nmant + 4
-    crit, has_crit = _bisect(slope, lo + inset, hi - inset, iterations)
-    crit = jnp.where(has_crit, crit, 0.5 * (lo + hi))
     starts = jnp.stack([lo, crit], axis=1).ravel()  # 8 halves, in order along the line
     ends = jnp.stack([crit, hi], axis=1).ravel()
     frac = jnp.arange(_SUBDIVISIONS + 1, dtype=o.dtype) / _SUBDIVISIONS
@@ -193,6 +238,9 @@ class Superellipsoid(AbstractShape):
         if isinstance(self.e, jax.core.Tracer) or isinstance(self.n, jax.core.Tracer):
             return SUPERELLIPSOID_K
         return 2 if float(self.e) <= 2.0 and float(self.n) <= 2.0 else SUPERELLIPSOID_K
+
+    def silhouette_margin(self, o, d):
+        return superellipsoid_margin(self.e, self.n, o, d)
 
     def hits(self, o, d):
         return superellipsoid_hits(self.e, self.n, o, d)
