@@ -215,11 +215,14 @@ def _live_map(fn, live, *args):
     live one (their results are zeros)."""
     n = live.shape[0]
     chunks = jax.tree.map(lambda x: x.reshape(n // CHUNK, CHUNK, *x.shape[1:]), (live, args))
+    # one trace of ``fn``: the shapes of the chunk's results and the chunk itself come from the same
+    # jitted function's trace cache (``jax.eval_shape`` of a fresh vmap would trace it again)
+    batched = jax.jit(jax.vmap(fn))
 
     def one(chunk):
         alive, xs = chunk
-        shapes = jax.eval_shape(jax.vmap(fn), *xs)
-        return jax.lax.cond(jnp.any(alive), lambda a: jax.vmap(fn)(*a),
+        shapes = batched.eval_shape(*xs)
+        return jax.lax.cond(jnp.any(alive), lambda a: batched(*a),
                             lambda a: jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes), xs)
 
     out = jax.lax.map(one, chunks)
@@ -425,15 +428,18 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         crossing in pixels, -1 where none is within a hundredth of the spacing)."""
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
-        def step(_, state):
+        # (step 0 sees the pair's second sample: one copy of ``seen`` in the program)
+        def step(i, state):
             lo, hi, s_hi = state
-            mid = 0.5 * (lo + hi)
+            first = i == 0
+            mid = jnp.where(first, hi, 0.5 * (lo + hi))
             s_mid = seen(u + mid * e[0], v + mid * e[1])
-            same = jnp.all(s_mid == s_a)
-            return jnp.where(same, mid, lo), jnp.where(same, hi, mid), jnp.where(same, s_hi, s_mid)
+            same = jnp.all(s_mid == s_a) & ~first
+            return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid),
+                    jnp.where(same, s_hi, s_mid))
 
-        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), seen(u + h * e[0], v + h * e[1]))
-        lo, hi, s_hi = jax.lax.fori_loop(0, BISECTIONS, step, start)
+        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a)
+        lo, hi, s_hi = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
         level = first_level(s_a, s_hi)
         a, b = s_a.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
         p_lo, p_hi = a[0], b[0]
@@ -447,8 +453,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             normal, offset, has_face = _face(mats, prim, q_a, q_b)
             face = (normal, offset)
         mid = 0.5 * (lo + hi)
-        g, g_s = jax.jvp(lambda s: margins(scene, packed, s_a, s_hi, face, u + s * e[0], v + s * e[1]),
-                         (mid,), (jnp.ones_like(mid),))
+        # every margin and its derivatives along the image at the crossing: one jvp, two tangents
+        point = jnp.stack([u + mid * e[0], v + mid * e[1]])
+        def at(uv):
+            return margins(scene, packed, s_a, s_hi, face, uv[0], uv[1])
+
+        g, (g_u, g_v) = jax.vmap(lambda t: jax.jvp(at, (point,), (t,)), out_axes=(None, 0))(
+            jnp.eye(2, dtype=dtype))
+        g_s = g_u * e[0] + g_v * e[1]
         has_lo, has_hi = (p_lo >= 0) & has[jnp.maximum(p_lo, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
         valid = [has_lo & ~one, has_hi & ~one, has_lo & has_hi & ~one, one & has_face & (a[1] != b[1])]
         if shadow_lights:
@@ -460,26 +472,19 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
         kind = jnp.argmin(distance)
-        return lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face
+        return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, g_u[kind],
+                g_v[kind])
 
-    lo, hi, pb, kind, face = _live_map(locate, live, pa, u0, v0, axis)
+    # (3. the chosen margin's derivatives along the image come with it: g_u, g_v)
+    lo, hi, pb, kind, face, g_u, g_v = _live_map(locate, live, pa, u0, v0, axis)
     face = jax.tree.map(sg, face)
     ok = live & (kind >= 0)
+    g_u, g_v = sg(jnp.where(ok, g_u, 0.0)), sg(jnp.where(ok, g_v, 0.0))
     mid = 0.5 * (lo + hi)
 
-    # 3. the margin's derivatives at the crossing: along the image (each crossing's own), and along
-    # the tangent (every crossing's margin one function of the scene, packed once: reverse mode then
-    # transposes the packing once, not once a crossing)
-    def derivatives(kind, s_a, s_b, face, u, v):
-        def g_of(uu, vv):
-            return margins(scene, packed, s_a, s_b, face, uu, vv)[jnp.maximum(kind, 0)]
-
-        g_u = jax.jvp(lambda uu: g_of(uu, v), (u,), (jnp.ones_like(u),))[1]
-        g_v = jax.jvp(lambda vv: g_of(u, vv), (v,), (jnp.ones_like(v),))[1]
-        return g_u, g_v
-
+    # 3. the chosen margin's derivative along the tangent: every crossing's margin one function of
+    # the scene, packed once, so reverse mode transposes the packing once, not once a crossing
     pu, pv = sg(u0 + mid * axis[:, 0]), sg(v0 + mid * axis[:, 1])
-    g_u, g_v = _live_map(derivatives, ok, kind, pa, pb, face, pu, pv)
 
     def chosen_margins(dyn_):
         sc = eqx.combine(dyn_, static)
