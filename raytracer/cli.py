@@ -31,6 +31,15 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_SCENE_ERROR, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("raytracer")
+    except PackageNotFoundError:  # run from a checkout that is not installed
+        return "unknown"
+
+
 def _positive_float(text: str) -> float:
     try:
         x = float(text)
@@ -70,19 +79,43 @@ def _samples_per_pixel(text: str) -> int:
     return n
 
 
+_POVRAY_EPILOG = ("POV-Ray's options read here: Input_File_Name (+I), Output_File_Name (+O), "
+                  "Width (+W), Height (+H), Output_File_Type (+F: N, E, T, C, P, J, B; N16 16-bit), "
+                  "Bits_Per_Color, Antialias (+A), Antialias_Threshold, Antialias_Depth (+R), "
+                  "Antialias_Gamma (+AG), Library_Path (+L), Initial_Frame (+KFI), Final_Frame "
+                  "(+KFF), Initial_Clock (+KI), Final_Clock (+KF), Cyclic_Animation (+KC), Clock (+K), "
+                  "Subset_Start_Frame (+SF), Subset_End_Frame (+EF). Accepted without effect (no "
+                  "preview window, no effect on the image): Display off (-D), Pause_When_Done, "
+                  "Verbose, Test_Abort, tile order, bounding and thread options.")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(
         prog="raytracer",
         description="A differentiable Whitted ray tracer in JAX for POV-Ray scenes.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("render", help="render a .pov scene to an image",
-                       description="Render a POV-Ray scene to a linear EXR or an sRGB PNG.")
-    r.add_argument("scene", help="the .pov file")
-    r.add_argument("-o", "--output", required=True, help="output image: .exr (linear float32) or .png (sRGB)")
-    r.add_argument("-W", "--width", type=_positive_int, default=640,
+                       description="Render a POV-Ray scene to a linear EXR or an sRGB PNG. "
+                                   "POV-Ray's own options work too, in the order given, the last "
+                                   "winning: switches (+W640 +H480 +Iscene.pov +Oout.png +A0.3 +R3 "
+                                   "+FN16 +FE +L/dir +KFI1 +KFF20 …), Key=Value words and INI files "
+                                   "(Width=640, scene.ini, scene.ini[section]); the options below "
+                                   "win over them. An INI file or switches that declare an "
+                                   "animation render each of its frames (Subset_Start_Frame … "
+                                   "honoured). Options that would change the image and are not "
+                                   "followed here are named in one warning.",
+                       epilog=_POVRAY_EPILOG)
+    r.add_argument("inputs", nargs="*", metavar="SCENE | OPTION",
+                   help="the .pov file, POV-Ray switches, Key=Value options and .ini files")
+    r.add_argument("-o", "--output", default=None,
+                   help="output image: .exr (linear float32), .png (sRGB), or .tga .ppm .jpg .bmp "
+                        "(8-bit sRGB; default: the scene's name with the output type's suffix, "
+                        "as POV-Ray names it)")
+    r.add_argument("-W", "--width", type=_positive_int, default=None,
                    help="image width in pixels (default 640)")
-    r.add_argument("-H", "--height", type=_positive_int, default=480,
+    r.add_argument("-H", "--height", type=_positive_int, default=None,
                    help="image height in pixels (default 480)")
     r.add_argument("--spp", type=_samples_per_pixel, default=1,
                    help="samples per pixel: 1 = pixel centres (as POV-Ray -A), k*k = a k×k grid (default 1)")
@@ -90,9 +123,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--aa", type=_threshold, default=None, metavar="THRESHOLD",
                    help="adaptive anti-aliasing as POV-Ray's +A THRESHOLD +AM1 -J: pixels on either "
                         "side of a colour difference of at least THRESHOLD get --aa-depth² more rays")
-    r.add_argument("--aa-depth", type=_positive_int, default=3, metavar="N",
+    r.add_argument("--aa-depth", type=_positive_int, default=None, metavar="N",
                    help="the grid of a refined pixel, N×N rays (POV-Ray's +R; default 3)")
-    r.add_argument("--aa-gamma", type=_positive_float, default=2.5, metavar="G",
+    r.add_argument("--aa-gamma", type=_positive_float, default=None, metavar="G",
                    help="colours are compared raised to 1/G (POV-Ray's +AG, Antialias_Gamma; default 2.5)")
     r.add_argument("--all-frames", action="store_true",
                    help="render every frame of the --ini animation, to OUTPUT with the frame number "
@@ -107,10 +140,12 @@ def _parser() -> argparse.ArgumentParser:
     _common(r)
 
     i = sub.add_parser("info", help="load a scene and print its objects, lights, camera and render plan",
-                       description="Load a scene and print what the renderer will simulate.")
-    i.add_argument("scene", help="the .pov file")
-    i.add_argument("-W", "--width", type=_positive_int, default=640, help="image_width seen by the scene")
-    i.add_argument("-H", "--height", type=_positive_int, default=480, help="image_height seen by the scene")
+                       description="Load a scene and print what the renderer will simulate (POV-Ray's "
+                                   "options and INI files as for render).")
+    i.add_argument("inputs", nargs="*", metavar="SCENE | OPTION",
+                   help="the .pov file, POV-Ray switches, Key=Value options and .ini files")
+    i.add_argument("-W", "--width", type=_positive_int, default=None, help="image_width seen by the scene")
+    i.add_argument("-H", "--height", type=_positive_int, default=None, help="image_height seen by the scene")
     _common(i)
 
     v = sub.add_parser("validate", help="run the validation suite (same as python -m validation)",
@@ -156,17 +191,86 @@ def _configure_jax(args) -> None:
     use_compilation_cache()
 
 
+def _povray_options(args, argv: list[str], extras: list[str]) -> None:
+    """POV-Ray's switches, ``Key=Value`` words and INI files among the command's words, read in
+    their order (``raytracer.sdl._options``), into ``args``: the scene, the library paths, the
+    size, the output file and type, anti-aliasing and the animation (``args.pov``); the command's
+    own options win over them."""
+    from .sdl._options import OUTPUT_TYPES, read_options
+
+    position = {}
+    for i, word in enumerate(argv):
+        position.setdefault(word, i)
+    words = sorted([*args.inputs, *extras], key=lambda w: position.get(w, len(argv)))
+    opts = read_options(words)
+    args.pov = opts
+    if opts.input is None:
+        raise _CommandLineError("no scene: name a .pov file (or +I<file>, Input_File_Name=<file>)")
+    args.scene = str(_find_scene(opts))
+    args.include_path = [*opts.library_paths, *args.include_path]
+    args.width = args.width or opts.width or 640
+    args.height = args.height or opts.height or 480
+    if args.ignored_shown is False and opts.ignored:
+        print("raytracer: warning: POV-Ray options not followed here: " + ", ".join(opts.ignored),
+              file=sys.stderr)
+        args.ignored_shown = True
+    if args.command != "render":
+        return
+    suffix = OUTPUT_TYPES[opts.output_type or "N"]
+    out = args.output if args.output is not None else opts.output
+    if out == "-":
+        raise _CommandLineError("the image is not written to standard output: name a file")
+    name = Path(args.scene).stem + suffix
+    if out is None:
+        out = name
+    elif out.endswith(("/", os.sep)):  # a folder, as POV-Ray reads a trailing separator
+        out = str(Path(out) / name)
+    elif not Path(out).suffix:
+        out += suffix  # POV-Ray adds the type's suffix to a name without one
+    args.output = out
+    args.bits = 16 if args.png16 or (opts.bits or 8) > 8 else 8
+    args.rle = opts.output_type == "C"
+    if args.aa is None and opts.antialias:
+        args.aa = 0.3 if opts.threshold is None else opts.threshold  # POV-Ray's default threshold
+    args.aa_depth = args.aa_depth or opts.depth or 3
+    args.aa_gamma = args.aa_gamma or opts.aa_gamma or 2.5
+
+
+def _find_scene(opts) -> Path:
+    """The scene file POV-Ray would read: as named, next to the INI file that named it, or in a
+    library path; ``.pov`` added to a name without a suffix."""
+    name = Path(opts.input)
+    names = [name] if name.suffix else [name.with_suffix(".pov"), name]
+    folders = [Path("."), *([Path(opts.input_base)] if opts.input_base else []),
+               *(Path(p) for p in opts.library_paths)]
+    for n in names:
+        for folder in ([Path(".")] if n.is_absolute() else folders):
+            if (folder / n).is_file():
+                return folder / n
+    raise SceneError(f"cannot open scene file {opts.input!r}")
+
+
+def _animation(args, frame: int | None):
+    """The animation of ``--ini``, or of POV-Ray's options on the command line (None: none)."""
+    from .sdl import Animation
+
+    if args.ini is not None:
+        return Animation.from_ini(args.ini, frame=frame)
+    opts = getattr(args, "pov", None)
+    if opts is not None and (opts.animated or opts.clock is not None):
+        return Animation.from_options(opts, frame=frame)
+    if frame is not None:
+        return Animation(frame=frame, initial_frame=frame, final_frame=frame)
+    return None
+
+
 def _load(args):
     _configure_jax(args)
-    from .sdl import Animation, Limits, load_scene
+    from .sdl import Limits, load_scene
 
     if not Path(args.scene).is_file():
         raise SceneError(f"cannot open scene file {args.scene!r}")
-    animation = None
-    if args.ini is not None:
-        animation = Animation.from_ini(args.ini, frame=args.frame)
-    elif args.frame is not None:
-        animation = Animation(frame=args.frame, initial_frame=args.frame, final_frame=args.frame)
+    animation = _animation(args, args.frame)
     t0 = time.perf_counter()
     limits = None if args.parse_timeout is None else Limits(max_parse_seconds=args.parse_timeout)
     # an image, not a gradient: a filter or transmit written as 0 is opaque, as POV-Ray renders it
@@ -285,8 +389,8 @@ def _render(args) -> int:
         print(f"raytracer: cannot write {str(out)!r}: {problem}", file=sys.stderr)
         return EXIT_SCENE_ERROR
     try:
-        if args.all_frames and args.ini is None:
-            raise _CommandLineError("--all-frames needs the animation's --ini")
+        if args.all_frames and _animation(args, None) is None:
+            raise _CommandLineError("--all-frames needs an animation (--ini, or POV-Ray's frame options)")
         if args.all_frames and args.frame is not None:
             raise _CommandLineError("--all-frames and --frame exclude each other")
         if args.aa is not None and args.spp != 1:
@@ -298,15 +402,17 @@ def _render(args) -> int:
     except _CommandLineError as e:
         print(f"raytracer render: {e} (see raytracer render --help)", file=sys.stderr)
         return EXIT_SCENE_ERROR
-    if not args.all_frames:
+    anim = _animation(args, None)
+    # POV-Ray's options that declare frames render them all, as POV-Ray does (--ini: with --all-frames)
+    several = anim is not None and anim.final_frame > anim.initial_frame
+    if not (args.all_frames or (several and args.ini is None and args.frame is None)):
         return _render_frame(args, out, distributed)
     import jax
 
-    from .sdl import Animation
-
     _configure_jax(args)
-    anim = Animation.from_ini(args.ini)
-    frames = range(anim.initial_frame, anim.final_frame + 1)
+    start, end = args.pov.subset_start, args.pov.subset_end
+    frames = [f for f in range(anim.initial_frame, anim.final_frame + 1)
+              if (start is None or f >= start) and (end is None or f <= end)]
     if distributed:  # whole frames per process: no collective per frame
         frames = frames[jax.process_index()::jax.process_count()]
     for frame in frames:
@@ -353,7 +459,7 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
     if not lead:
         return 0
     try:
-        write_image(out, image, bits=16 if args.png16 else 8)
+        write_image(out, image, bits=args.bits, rle=args.rle)
     except OSError as e:  # the folder changed since the check, or the disk is full
         print(f"raytracer: cannot write {str(out)!r}: {e.strerror or e}", file=sys.stderr)
         return EXIT_SCENE_ERROR
@@ -371,8 +477,10 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
 
 def _output_problem(out: Path) -> str | None:
     """Why the image cannot be written to ``out`` (checked before the scene is parsed), or None."""
-    if out.suffix.lower() not in (".exr", ".png"):
-        return f"unsupported output format {out.suffix!r}: use .exr or .png"
+    from .imageio import WRITTEN_SUFFIXES
+
+    if out.suffix.lower() not in WRITTEN_SUFFIXES:
+        return f"unsupported output format {out.suffix!r}: use one of {', '.join(WRITTEN_SUFFIXES)}"
     if out.is_dir():
         return "it is a folder; name the image file"
     folder = out.parent
@@ -424,7 +532,20 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["validate"]:  # every option goes to python -m validation unchanged
         return _plugin("validate")(argv[1:])
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args, extras = parser.parse_known_args(argv)
+    if args.command not in ("render", "info") and extras or any(x.startswith("--") for x in extras):
+        parser.error(f"unrecognized arguments: {' '.join(extras)}")
+    if args.command in ("render", "info"):
+        args.ignored_shown = False
+        try:
+            _povray_options(args, argv, extras)
+        except _CommandLineError as e:
+            print(f"raytracer {args.command}: {e} (see raytracer {args.command} --help)", file=sys.stderr)
+            return EXIT_SCENE_ERROR
+        except SceneError as e:
+            print(f"raytracer: {e}", file=sys.stderr)
+            return EXIT_SCENE_ERROR
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     if args.command == "render":  # must precede the first import of jax
         _split_cpu(args.cpu_devices)

@@ -94,15 +94,31 @@ def _write_png16(path, data: np.ndarray) -> None:
         f.write(png)
 
 
-def write_image(path, image, *, bits: int = 8) -> None:
-    """Writes ``image`` (H, W, 3, linear) as .exr (linear float32) or .png (sRGB)."""
+# 8-bit sRGB formats Pillow writes (POV-Ray's output types T and C, P, J, B)
+_PILLOW_FORMATS = {".tga": "TGA", ".ppm": "PPM", ".jpg": "JPEG", ".jpeg": "JPEG", ".bmp": "BMP"}
+WRITTEN_SUFFIXES = (".exr", ".png", *_PILLOW_FORMATS)
+
+
+def write_image(path, image, *, bits: int = 8, rle: bool = False) -> None:
+    """Writes ``image`` (H, W, 3, linear) as .exr (linear float32), .png (sRGB, 8 or 16 bits), or
+    8-bit sRGB .tga (run-length encoded with ``rle``: POV-Ray's type C), .ppm, .jpg (quality 95)
+    or .bmp."""
     suffix = Path(path).suffix.lower()
     if suffix == ".exr":
         write_exr(path, image)
     elif suffix == ".png":
         write_png(path, image, bits=bits)
+    elif suffix in _PILLOW_FORMATS:
+        from PIL import Image
+
+        enc = srgb_encode(_as_rgb(image))
+        pil = Image.fromarray(np.round(enc * 255).astype(np.uint8), "RGB")
+        fmt = _PILLOW_FORMATS[suffix]
+        extra = ({"compression": "tga_rle"} if fmt == "TGA" and rle
+                 else {"quality": 95} if fmt == "JPEG" else {})
+        _atomic_write(Path(path), lambda tmp: pil.save(tmp, format=fmt, **extra))
     else:
-        raise ValueError(f"unsupported image format {suffix!r}: use .exr or .png")
+        raise ValueError(f"unsupported image format {suffix!r}: use one of {', '.join(WRITTEN_SUFFIXES)}")
 
 
 def read_image(path) -> np.ndarray:

@@ -80,7 +80,7 @@ def test_render_writes_the_image_and_a_summary(tmp_path, capsys):
 
 
 def test_unsupported_output_format_is_refused_before_rendering(tmp_path, capsys):
-    assert main(["render", str(SEED), "-o", str(tmp_path / "x.jpg")]) == 2
+    assert main(["render", str(SEED), "-o", str(tmp_path / "x.gif")]) == 2
     assert "unsupported output format" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
 
@@ -200,7 +200,7 @@ def test_all_frames_renders_each_frame_of_the_ini_under_povray_names(tmp_path, c
 
 
 @pytest.mark.parametrize("options, fragment", [
-    (["--all-frames"], "--all-frames needs the animation's --ini"),
+    (["--all-frames"], "--all-frames needs an animation (--ini, or POV-Ray's frame options)"),
     (["--coordinator", "localhost:1234"], "go together"),
     (["--coordinator", "localhost:1234", "--num-processes", "2", "--process-id", "2"], "must be in 0 … 1"),
 ])
@@ -274,3 +274,57 @@ def test_a_backend_started_without_the_tuned_flags_is_warned_once(monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _xla.warn_if_untuned()
+
+
+def test_povray_switches_render_as_povray_reads_them(tmp_path, capsys, monkeypatch):
+    """``raytracer render +W8 +H6 +I… +O… +FE +A0.3 +R2 -D``: the image of the same render, under
+    the name given; the options that do not change the image pass without a word."""
+    monkeypatch.chdir(tmp_path)
+    scene = tmp_path / "ball.pov"
+    scene.write_text("#version 3.7; global_settings { assumed_gamma 1.0 }\n"
+                     "camera { location <0, 0, -4> look_at 0 }\nlight_source { <2, 3, -5> rgb 1 }\n"
+                     "sphere { 0, 1 pigment { rgb <1, 0.5, 0.2> } }\n")
+    assert main(["render", "+W8", "+H6", "+Iball", "+Oimage", "+FE", "+A0.3", "+R2", "-D", "+V"]) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err and "wrote image.exr" in captured.out
+    want = rt.render(rt.load_scene(scene, width=8, height=6), width=8, height=6, adaptive=(0.3, 2))
+    np.testing.assert_allclose(rt.read_image(tmp_path / "image.exr"), np.asarray(want), atol=1e-6)
+    # no output named: the scene's name with the type's suffix, in the current folder
+    assert main(["render", "ball.pov", "Width=8", "Height=6", "+FC", "+UA", "+SR2"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.count("warning") == 1  # one line, naming each option not followed
+    assert "POV-Ray options not followed here: Output_Alpha, Start_Row" in captured.err
+    from PIL import Image
+
+    with Image.open(tmp_path / "ball.tga") as tga:
+        assert tga.size == (8, 6) and tga.info.get("compression") == "tga_rle"
+
+
+def test_an_ini_renders_its_animation_frames_under_povray_names(tmp_path, capsys, monkeypatch):
+    """``raytracer render anim.ini`` as ``povray anim.ini`` (the layout of POV-Ray's sample INI
+    files): the scene named next to the INI, every frame of the subset, the output named by
+    ``Output_File_Name`` with the frame number."""
+    folder = tmp_path / "anim"
+    folder.mkdir()
+    (folder / "clocked.pov").write_text(
+        "#version 3.7; global_settings { assumed_gamma 1.0 }\ncamera { location <0, 0, -4> look_at 0 }\n"
+        "sphere { 0, 1 pigment { rgb clock } finish { ambient 1 diffuse 0 } }\n")
+    (folder / "clocked.ini").write_text(
+        "Antialias=Off\nInput_File_Name=clocked.pov\nOutput_File_Name=frame\n+w8\n+h6\n"
+        "Output_File_Type=N\nInitial_Frame=1\nFinal_Frame=12\nInitial_Clock=0\nFinal_Clock=1.1\n"
+        "Subset_Start_Frame=10\nCyclic_Animation=off\nPause_when_Done=off\n")
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", str(folder / "clocked.ini")]) == 0
+    assert "warning" not in capsys.readouterr().err
+    written = sorted(p.name for p in tmp_path.glob("frame*.png"))
+    assert written == ["frame10.png", "frame11.png", "frame12.png"]
+    red = [rt.read_image(tmp_path / name)[3, 4, 0] for name in written]
+    np.testing.assert_allclose(red, [0.9, 1.0, 1.0], atol=5e-3)  # clock 0.9, 1.0, 1.1 clipped (8-bit)
+
+
+def test_version_is_the_installed_packages(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0 and capsys.readouterr().out.strip() == f"raytracer {version('raytracer')}"

@@ -14,11 +14,7 @@ the scenes index arrays with ``frame_number``.
 from __future__ import annotations
 
 import dataclasses
-import math
-import re
 from pathlib import Path
-
-from ..errors import SceneError, SourceLoc
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,41 +49,21 @@ class Animation:
     @classmethod
     def from_ini(cls, path: str | Path, frame: int | None = None) -> Animation:
         """The animation an INI file describes (``Key=Value`` lines or ``+KFI``/``+KFF``/``+KI``/
-        ``+KF``/``+KC`` switches), at ``frame`` (default: its first frame)."""
-        path = Path(path)
-        try:
-            lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
-        except OSError as e:
-            raise SceneError(f"cannot read {path}: {e.strerror}") from None
-        keys = {"initial_frame": "initial_frame", "final_frame": "final_frame",
-                "initial_clock": "initial_clock", "final_clock": "final_clock",
-                "cyclic_animation": "cyclic", "+kfi": "initial_frame", "+kff": "final_frame",
-                "+ki": "initial_clock", "+kf": "final_clock"}
-        values: dict[str, object] = {}
-        for n, raw in enumerate(lines, 1):
-            line = raw.split(";", 1)[0].strip()
-            if not line:
-                continue
-            for word in line.split() if line.startswith(("+", "-")) else [line]:
-                m = re.fullmatch(r"([A-Za-z_]+)\s*=\s*(\S+)", word) or re.fullmatch(
-                    r"(\+KFI|\+KFF|\+KI|\+KF)(-?[0-9.eE+-]+)", word, re.IGNORECASE)
-                if word.lower() in ("+kc", "-kc"):
-                    values["cyclic"] = word[0] == "+"
-                    continue
-                if m is None or m.group(1).lower() not in keys:
-                    continue  # options that are not about animation
-                field, text = keys[m.group(1).lower()], m.group(2)
-                try:
-                    if field == "cyclic":
-                        values[field] = text.lower() in ("on", "true", "yes", "1")
-                    elif not math.isfinite(float(text)):
-                        raise ValueError(text)
-                    elif field.endswith("frame"):
-                        values[field] = int(float(text))
-                    else:
-                        values[field] = float(text)
-                except ValueError:
-                    raise SceneError(f"expected a number for {m.group(1)}, found '{text}'",
-                                     SourceLoc(str(path), n, raw.find(text) + 1)) from None
+        ``+KF``/``+KC`` switches, read by :func:`raytracer.sdl._options.read_ini`), at ``frame``
+        (default: its first frame)."""
+        from ._options import PovOptions, read_ini
+
+        opts = PovOptions()
+        read_ini(path, opts)
+        return cls.from_options(opts, frame)
+
+    @classmethod
+    def from_options(cls, opts, frame: int | None = None) -> Animation:
+        """The animation POV-Ray's options (:class:`raytracer.sdl._options.PovOptions`) describe, at
+        ``frame`` (default: its first); a lone ``Clock`` is one frame at that clock."""
+        values = {k: getattr(opts, k) for k in ("initial_frame", "final_frame", "initial_clock",
+                                                 "final_clock", "cyclic") if getattr(opts, k) is not None}
+        if opts.clock is not None and not values:
+            values = {"initial_clock": opts.clock, "final_clock": opts.clock}
         anim = cls(**values)
         return dataclasses.replace(anim, frame=anim.initial_frame if frame is None else frame)
