@@ -8,6 +8,7 @@ traceback with ``--debug``); 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import os
 import sys
@@ -264,8 +265,40 @@ def _animation(args, frame: int | None):
     return None
 
 
+def _harmless(text: str) -> str:
+    """``text`` with its control characters (but newline and tab) shown as escapes: a scene's
+    message cannot move the cursor, recolour or clear the terminal."""
+    return "".join(c if c in "\n\t" or not (ord(c) < 32 or 127 <= ord(c) < 160) else f"\\x{ord(c):02x}"
+                   for c in text)
+
+
+class _SceneMessages(logging.Handler):
+    """A scene's ``#debug``, ``#render`` and ``#statistics`` text on stderr as POV-Ray prints it
+    (as written, no line added), its ``#warning`` as ``file:line:col: warning: text``; escapes made
+    harmless. The scene's own warnings are left to the summary that lists them."""
+
+    def emit(self, record):
+        kind = getattr(record, "directive", None)
+        if kind is None:
+            return
+        text = _harmless(record.text)
+        if kind == "warning":
+            sys.stderr.write(f"{record.location}: warning: {text.rstrip(chr(10))}\n")
+        else:
+            sys.stderr.write(text)
+        sys.stderr.flush()
+
+
+def _show_scene_messages() -> None:
+    sdl_logger = logging.getLogger("raytracer.sdl")
+    if not any(isinstance(h, _SceneMessages) for h in sdl_logger.handlers):
+        sdl_logger.addHandler(_SceneMessages(logging.DEBUG))
+        sdl_logger.setLevel(logging.DEBUG)
+
+
 def _load(args):
     _configure_jax(args)
+    _show_scene_messages()
     from .sdl import Limits, load_scene
 
     if not Path(args.scene).is_file():
@@ -428,7 +461,7 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
     (process 0 writes it)."""
     import jax
 
-    from .imageio import write_image
+    from .imageio import ImageClampWarning, write_image
     from .render import compile_render
 
     scene, t_parse = _load(args)
@@ -458,8 +491,14 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
         t_render = time.perf_counter() - t1
     if not lead:
         return 0
+    import warnings
+
     try:
-        write_image(out, image, bits=args.bits, rle=args.rle)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ImageClampWarning)
+            write_image(out, image, bits=args.bits, rle=args.rle)
+        for w in caught:
+            print(f"raytracer: warning: {w.message}", file=sys.stderr)
     except OSError as e:  # the folder changed since the check, or the disk is full
         print(f"raytracer: cannot write {str(out)!r}: {e.strerror or e}", file=sys.stderr)
         return EXIT_SCENE_ERROR

@@ -25,14 +25,21 @@ def srgb_decode(encoded: np.ndarray) -> np.ndarray:
 
 
 def _atomic_write(path: Path, write) -> None:
-    path = Path(path)
+    """``write(tmp)`` to a temporary file beside ``path``, then renamed over it: a reader never
+    sees half an image. A symbolic link is followed (its target is replaced, the link stays) and a
+    replaced file keeps its permissions; a new one gets 0666 less the umask."""
+    path = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
     os.close(fd)
     try:
-        # mkstemp makes the file 0600; an image is created like any other file: 0666 less the umask
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
+        # mkstemp makes the file 0600
+        try:
+            mode = os.stat(path).st_mode & 0o7777
+        except OSError:
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o666 & ~umask
+        os.chmod(tmp, mode)
         write(tmp)
         os.replace(tmp, path)
     except BaseException:
@@ -41,11 +48,31 @@ def _atomic_write(path: Path, write) -> None:
         raise
 
 
+class ImageClampWarning(UserWarning):
+    """Pixels beyond the largest float32 (or infinite) were written as the largest float32."""
+
+
 def _as_rgb(image) -> np.ndarray:
-    img = np.asarray(image, dtype=np.float32)
-    if img.ndim != 3 or img.shape[-1] != 3:
-        raise ValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
-    return img
+    """The image as float32 (H, W, 3). NaN is refused (nothing is written); a value beyond float32's
+    range (an overflowed float64 render, or infinite) is clamped to it with an
+    :class:`ImageClampWarning` that counts the pixels."""
+    raw = np.asarray(image)
+    if raw.ndim != 3 or raw.shape[-1] != 3:
+        raise ValueError(f"expected an (H, W, 3) image, got shape {raw.shape}")
+    if not np.issubdtype(raw.dtype, np.floating):
+        raw = raw.astype(np.float64)
+    if np.isnan(raw).any():
+        raise ValueError(f"the image has {int(np.isnan(raw).any(-1).sum())} NaN pixels: not written")
+    big = np.finfo(np.float32).max
+    over = np.abs(raw) > big
+    if over.any():
+        import warnings
+
+        warnings.warn(ImageClampWarning(
+            f"{int(over.any(-1).sum())} pixels beyond the largest float32 (or infinite) written as "
+            f"±{big:.4g}"), stacklevel=3)
+        raw = np.clip(raw, -big, big)
+    return raw.astype(np.float32)
 
 
 def write_exr(path, image) -> None:
@@ -57,8 +84,11 @@ def write_exr(path, image) -> None:
     def write(tmp):
         header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
         channels = {c: np.ascontiguousarray(img[..., i]) for i, c in enumerate("RGB")}
-        with OpenEXR.File(header, channels) as f:
-            f.write(tmp)
+        try:
+            with OpenEXR.File(header, channels) as f:
+                f.write(tmp)
+        except RuntimeError as e:  # OpenEXR's I/O failures (a full disk, a vanished folder)
+            raise OSError(f"OpenEXR could not write it: {e}") from None
 
     _atomic_write(Path(path), write)
 

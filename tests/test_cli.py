@@ -328,3 +328,45 @@ def test_version_is_the_installed_packages(capsys):
     with pytest.raises(SystemExit) as e:
         main(["--version"])
     assert e.value.code == 0 and capsys.readouterr().out.strip() == f"raytracer {version('raytracer')}"
+
+
+def test_debug_and_warning_directives_are_shown_with_their_escapes_made_harmless(tmp_path, capsys):
+    """``#debug`` and ``#render`` text as POV-Ray prints it, ``#warning`` with its place; a control
+    character a scene writes (ESC here) is shown as an escape, not sent to the terminal."""
+    scene = tmp_path / "talk.pov"
+    scene.write_text('#debug "hello\\n"\n#warning concat("warn ", chr(27), "[31mred")\n'
+                     '#render "done\\n"\ncamera { location -3 * z look_at 0 }\nsphere { 0, 1 }\n')
+    assert main(["info", str(scene)]) == 0
+    err = capsys.readouterr().err
+    assert err == f"hello\n{scene}:2:2: warning: warn \\x1b[31mred\ndone\n"
+
+
+def test_replacing_an_image_keeps_its_mode_and_its_symbolic_link(tmp_path):
+    image = np.full((2, 3, 3), 0.5, np.float32)
+    target = tmp_path / "kept.png"
+    rt.write_image(target, image)
+    target.chmod(0o604)
+    link = tmp_path / "link.png"
+    link.symlink_to(target)
+    rt.write_image(link, np.zeros((2, 3, 3), np.float32))
+    assert link.is_symlink() and target.stat().st_mode & 0o777 == 0o604
+    assert rt.read_image(target).max() == 0.0  # the link's target was replaced
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.png", "link.png"]
+
+
+def test_an_image_beyond_float32_is_clamped_with_a_warning_and_nan_is_refused(tmp_path):
+    """A float64 render of a colour of 1e90 overflows float32: written as its largest value, the
+    pixels counted in a warning; NaN is a bug, and nothing is written."""
+    from raytracer.imageio import ImageClampWarning
+
+    image = np.full((2, 3, 3), 0.5)
+    image[0, 0] = 1e90
+    image[1, 2, 1] = -np.inf
+    with pytest.warns(ImageClampWarning, match="2 pixels beyond the largest float32"):
+        rt.write_image(tmp_path / "big.exr", image)
+    back = rt.read_image(tmp_path / "big.exr")
+    assert np.isfinite(back).all() and back[0, 0, 0] == np.finfo(np.float32).max
+    image[1, 1, 2] = np.nan
+    with pytest.raises(ValueError, match="1 NaN pixels: not written"):
+        rt.write_image(tmp_path / "nan.png", image)
+    assert not (tmp_path / "nan.png").exists()

@@ -454,7 +454,10 @@ class Directives:
         if tok.value in ("debug", "warning", "render", "statistics"):
             text = v if isinstance(v, str) else str(v)
             level = logging_level(tok.value)
-            logger.log(level, "%s: #%s %s", tok.loc, tok.value, text.rstrip("\n"))
+            # the command line shows them as POV-Ray does (``cli._SceneMessages``): the record
+            # carries the directive, its text and where it is
+            logger.log(level, "%s: #%s %s", tok.loc, tok.value, text.rstrip("\n"),
+                       extra={"directive": tok.value, "text": text, "location": str(tok.loc)})
 
     def d_error(self, tok):
         v = directive_expr(self)
