@@ -422,6 +422,13 @@ def _render(args) -> int:
         print(f"raytracer: cannot write {str(out)!r}: {problem}", file=sys.stderr)
         return EXIT_SCENE_ERROR
     try:
+        from ._limits import check_render_memory
+
+        check_render_memory(args.width, args.height, 8 if args.x64 else 4)  # before the scene is read
+    except SceneError as e:
+        print(f"raytracer: {e}", file=sys.stderr)
+        return EXIT_SCENE_ERROR
+    try:
         if args.all_frames and _animation(args, None) is None:
             raise _CommandLineError("--all-frames needs an animation (--ini, or POV-Ray's frame options)")
         if args.all_frames and args.frame is not None:

@@ -89,6 +89,11 @@ class SceneError(Exception):
         super().__init__(_located(message, location, self.include_chain))
 
 
+class LimitError(SceneError):
+    """A render that would need more of a resource (memory) than the bound allows: refused before
+    it starts, with what to change."""
+
+
 class InternalError(Exception):
     """A failure of the renderer itself while it read a scene: a bug to report, not a scene error.
 

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 from ._adaptive import Adaptive, _render_adaptive
 from ._edges import EDGE_LATTICE, boundary_term
 from ._gc import paused, without_collections
+from ._limits import check_render_memory
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
 from ._plan import Plan, make_plan
 from ._tiles import (
@@ -77,6 +78,7 @@ def _check(width: int, height: int, spp: int) -> int:
         raise ValueError(f"spp must be a perfect square (1, 4, 9, 16, …), got {spp}")
     if width < 1 or height < 1:
         raise ValueError(f"image size must be positive, got {width}×{height}")
+    check_render_memory(width, height, 8 if jax.config.jax_enable_x64 else 4)  # LimitError, before anything
     return k
 
 

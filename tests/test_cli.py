@@ -370,3 +370,20 @@ def test_an_image_beyond_float32_is_clamped_with_a_warning_and_nan_is_refused(tm
     with pytest.raises(ValueError, match="1 NaN pixels: not written"):
         rt.write_image(tmp_path / "nan.png", image)
     assert not (tmp_path / "nan.png").exists()
+
+
+def test_a_render_past_the_memory_bound_is_refused_before_the_scene_is_read(tmp_path, capsys, monkeypatch):
+    """The estimate (``raytracer/_limits.py``: a base and 7 copies of the image) against
+    ``$RAYTRACER_MAX_MEMORY_MB``: 2000×2000 in float32 needs 512 MB + 336 MB; the scene (broken)
+    is never parsed, nothing is written; the API refuses it the same way."""
+    monkeypatch.setenv("RAYTRACER_MAX_MEMORY_MB", "800")
+    scene = tmp_path / "never_parsed.pov"
+    scene.write_text("sphere {")
+    assert main(["render", str(scene), "-o", str(tmp_path / "big.png"), "-W", "2000", "-H", "2000"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "a 2000×2000 render needs about 0.8 GB" in err
+    assert "more than 0.8 GB ($RAYTRACER_MAX_MEMORY_MB)" in err and "-W/-H" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["never_parsed.pov"]
+    with pytest.raises(rt.SceneError, match="render needs about"):
+        rt.render(rt.load_scene(SEED), width=2000, height=2000)
+    assert main(["render", str(SEED), "-o", str(tmp_path / "small.png"), "-W", "8", "-H", "6"]) == 0

@@ -211,6 +211,7 @@ def _index(p, arr: ArrayValue):
         for d in arr.dims[len(idx):]:
             size *= d
         start = arr.flat_index(idx + [0] * (len(arr.dims) - len(idx)))
+        p.reserve(8 * size, i_loc)
         return ArrayValue(arr.dims[len(idx):], arr.data[start:start + size])
     v = arr.data[arr.flat_index(idx)]
     if v is None:

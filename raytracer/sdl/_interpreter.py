@@ -165,6 +165,7 @@ class Interpreter(Stream, Directives):
         if size > self.limits.max_array_elements:
             raise self.error(f"expected at most {self.limits.max_array_elements} array elements "
                              f"(Limits.max_array_elements), found {fmt_number(float(size))}", t.loc)
+        self.reserve(8 * size, t.loc)  # a list slot an element, filled or not
         arr = ArrayValue(dims, [None] * size)
         if self._peek_op_is("{"):
             flat = []

@@ -349,6 +349,17 @@ class Stream:
                 return tok
             self.pop_frame()
 
+    def reserve(self, nbytes: int, loc) -> None:
+        """Before an allocation of ``nbytes`` that a few tokens can ask for (an array): stop at
+        ``loc`` if it would take the parse's memory past its bound, rather than up to
+        ``PARSE_CLOCK_TOKENS`` tokens later (a hundred ``array[16000000]`` are 1,200 tokens and
+        13 GB)."""
+        if peak_resident_mb() + nbytes / (1 << 20) > self.memory_ceiling:
+            raise self.error(
+                f"the scene's parse would grow memory by more than {self.limits.max_parse_memory_mb} MB "
+                f"here ({nbytes / (1 << 20):.0f} MB more asked; the limit is Limits.max_parse_memory_mb)",
+                loc)
+
     def _check_budget(self) -> None:
         """The token budget, and every ``PARSE_CLOCK_TOKENS`` tokens the parse's clock and memory."""
         if self.tokens_read > self.max_tokens:

@@ -262,6 +262,12 @@ def test_a_parse_that_accumulates_memory_stops_with_a_located_error():
     e = error_of(text, limits=Limits(max_parse_memory_mb=64))
     assert "grew memory by more than 64 MB" in str(e) and "Limits.max_parse_memory_mb" in str(e)
     assert e.location.line == 3
+    # a few tokens that ask for much: each array is checked as it is made, the one past the bound
+    # named (8 MB of list slots each: the fifth reaches 40 MB of a 36 MB bound)
+    many = "\n".join(f"#declare A{i} = array[1000000];" for i in range(8))
+    e = error_of(many, limits=Limits(max_parse_memory_mb=36))
+    assert "would grow memory by more than 36 MB here (8 MB more asked" in str(e)
+    assert e.location.line <= 5
 
 
 @pytest.mark.parametrize("text, line, fragment", [
