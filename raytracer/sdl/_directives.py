@@ -440,6 +440,9 @@ class Directives:
             self.stop_marks.pop()
         if t.kind == OP and t.value == ";":
             self.next()
+        if v > 3.7 + 1e-9:  # as POV-Ray 3.7: "Your scene file requires POV-Ray version … or later"
+            raise self.error(f"expected a #version of at most 3.7 (POV-Ray 3.7's language), found {v:g}: "
+                             "the scene requires a later POV-Ray", tok.loc)
         self.version = v
         if not self.version_seen:
             self.version_seen = True

@@ -142,6 +142,10 @@ def _parse_csg(p, t):
     rec = ObjRec(kw, loc=t.loc)
     p.expect_op("{", f"'{{' after {t.value}")
     object_modifiers(p, rec, csg=True)
+    rec.depth = 1 + max((c.depth for c in rec.children if isinstance(c, ObjRec)), default=0)
+    if rec.depth > p.limits.max_csg_depth:
+        raise p.error(f"CSG objects nested deeper than {p.limits.max_csg_depth} (Limits.max_csg_depth; "
+                      "the renderer walks the tree by recursion)", t.loc)
     if not rec.children:
         p.warn(kw, f"empty {kw}; left out", t.loc)
         rec.supported = False
@@ -492,6 +496,10 @@ def parse_camera(p, t) -> CameraRec:
         if k.kind != ID:
             raise p.error(f"expected a camera item, found {k.describe()}", k.loc)
         _camera_item(p, cam, k)
+    angle = cam.values.get("angle")
+    if angle is not None and cam.projection == "perspective" and not angle < 180:
+        raise p.error(f"expected a perspective viewing angle below 180 degrees, found {angle:g}",
+                      cam.angle_loc)
     return cam
 
 
@@ -500,6 +508,7 @@ def _camera_item(p, cam, k):
     if kw in CAMERA_VECTORS:
         cam.values[kw] = vector3(p)
     elif kw == "angle":
+        cam.angle_loc = p.peek().loc
         cam.values["angle"] = float_(p)
         opt_comma(p)
         if _starts_value(p):
@@ -549,7 +558,11 @@ def parse_global_settings(p, t) -> None:
                 raise p.error(f"expected a positive assumed_gamma, found {p.assumed_gamma:g}", loc)
         elif kw == "max_trace_level":
             loc = p.peek().loc
-            p.settings["max_trace_level"] = as_int(p, parse_expr(p), loc, "max_trace_level")
+            level = as_int(p, parse_expr(p), loc, "max_trace_level")
+            if level > 256:  # POV-Ray's words
+                p.warn("max_trace_level", f"Maximum max_trace_level is 256 but {level} was specified; "
+                       "using 256", loc)
+            p.settings["max_trace_level"] = level
         elif kw == "adc_bailout":
             p.settings["adc_bailout"] = float_(p)
         elif kw == "ambient_light":

@@ -34,6 +34,9 @@ class Limits:
         max_loop_iterations: iterations of one ``#while``/``#for`` loop.
         max_macro_depth:     nested macro (and function) calls.
         max_include_depth:   nested ``#include`` files.
+        max_csg_depth:       CSG objects nested in each other, written so or built by a loop
+                             (``#declare U = union { object { U } … }``); the renderer's walks of
+                             the tree, and JAX's of the scene, recurse (at 512 they ran out).
         max_tokens:          tokens read in total (a budget for the whole scene).
         max_array_elements:  elements of one array (``array[1000000000]`` would need 8 GB).
         max_string_length:   characters of one string (``concat`` doubling a string 34 times
@@ -55,6 +58,7 @@ class Limits:
     max_loop_iterations: int = 1_000_000
     max_macro_depth: int = 150
     max_include_depth: int = 64
+    max_csg_depth: int = 256
     max_tokens: int = 50_000_000
     max_array_elements: int = 16_777_216
     max_string_length: int = 16_777_216
@@ -304,10 +308,12 @@ class Stream:
         real = os.path.realpath(path)
         depth = sum(1 for f in self.frames if f.kind == "include")
         if depth >= self.limits.max_include_depth:
-            raise self.error(f"include depth exceeds {self.limits.max_include_depth}", loc)
-        for f in self.frames:
-            if f.path is not None and os.path.realpath(f.path) == real:
-                raise self.error(f'include cycle: "{name}" is already being included', loc)
+            # a file may include itself (POV-Ray's recursion idiom, guarded by a counter): only
+            # the depth stops a cycle without a guard
+            again = any(f.path is not None and os.path.realpath(f.path) == real for f in self.frames)
+            raise self.error(f"include depth exceeds {self.limits.max_include_depth}"
+                             + (f' ("{name}" is already being included: a cycle without a guard?)'
+                                if again else ""), loc)
         toks = self.file_tokens(path)
         self.scopes.append({})
         self.frames.append(Frame(toks, 0, len(toks) - 1, "include", True, call_loc=loc, path=path))

@@ -50,7 +50,17 @@ def parse_transform_item(p, tok) -> np.ndarray:
             v = [1.0 if c == 0.0 else c for c in v]
         return scale_matrix(v)
     if kw == "matrix":
-        return pov_matrix(_matrix_values(p, tok))
+        vals = _matrix_values(p, tok)
+        # POV-Ray's rule, found by rendering: a column of the 3×3 that is all zero gets a 1 on the
+        # diagonal, with its warning; a matrix still singular after that is refused
+        for j in range(3):
+            if all(vals[3 * i + j] == 0.0 for i in range(3)):
+                p.warn("matrix", "Illegal matrix column: Scale by 0.0. Changed to 1.0", tok.loc)
+                vals[4 * j] = 1.0
+        if np.linalg.det(np.array(vals[:9], np.float64).reshape(3, 3)) == 0.0:
+            raise p.error("expected an invertible matrix, found a singular one (POV-Ray refuses it "
+                          "too: 'Singular matrix')", tok.loc)
+        return pov_matrix(vals)
     return parse_transform_value(p, tok)
 
 

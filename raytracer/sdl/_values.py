@@ -255,6 +255,7 @@ class ObjRec:
     bounded_by: list = dataclasses.field(default_factory=list)
     supported: bool = True
     loc: SourceLoc | None = None
+    depth: int = 0  # CSG levels in it (a primitive: 0)
 
     def clone(self) -> ObjRec:
         o = copy.copy(self)
@@ -277,6 +278,7 @@ class CameraRec:
     transform: np.ndarray | None = None
     projection: str = "perspective"
     loc: SourceLoc | None = None
+    angle_loc: SourceLoc | None = None  # where its angle was given
 
     def clone(self) -> CameraRec:
-        return CameraRec(dict(self.values), self.transform, self.projection, self.loc)
+        return CameraRec(dict(self.values), self.transform, self.projection, self.loc, self.angle_loc)

@@ -60,13 +60,19 @@ def test_recursion_in_an_expression_is_stopped_without_recursion_error():
     assert "nested deeper" in str(e)
 
 
-def test_include_cycle_is_stopped(tmp_path):
+def test_a_guarded_self_include_recurses_and_an_unguarded_cycle_stops_at_the_depth(tmp_path):
+    """POV-Ray's recursion idiom: a file that includes itself while a counter allows it; a cycle
+    without a guard stops at the include depth bound, named."""
+    (tmp_path / "rec.pov").write_text(
+        '#ifndef (Depth) #declare Depth = 0; #end\n'
+        '#if (Depth < 3) #declare Depth = Depth + 1; sphere { Depth * x, 0.3 } #include "rec.pov" #end\n')
+    assert len(load_scene(tmp_path / "rec.pov").objects) == 3
     (tmp_path / "a.inc").write_text('#include "b.inc"\n')
     (tmp_path / "b.inc").write_text('#include "a.inc"\n')
     main = tmp_path / "main.pov"
     main.write_text('#include "a.inc"\n')
     e = error_of(str(main))
-    assert "include cycle" in str(e)
+    assert "include depth exceeds 64" in str(e) and "a cycle without a guard?" in str(e)
 
 
 def test_unsupported_feature_warns_and_strict_raises():
@@ -329,3 +335,41 @@ def test_a_value_beyond_float32_is_an_error_at_its_object_not_an_infinite_image(
         assert e.location.line == 3 and "float32's range" in str(e) and "--x64" in str(e)
     with jax.enable_x64(True):
         assert load_scene(text).objects[0].texture.layers[0].finish.ambient[0] == 1e308
+
+
+@pytest.mark.parametrize("text, fragment, col", [
+    # POV-Ray 3.7: "Viewing angle has to be smaller than 180 degrees."
+    ("camera { location -5*z look_at 0 angle 180 }", "viewing angle below 180 degrees, found 180", 40),
+    # POV-Ray 3.7: "Your scene file requires POV-Ray version 3.71 or later!"
+    ("#version 3.71;", "expected a #version of at most 3.7", 2),
+])
+def test_what_povray_refuses_is_refused_where_it_is_written(text, fragment, col):
+    e = error_of(text)
+    assert fragment in str(e) and e.location.col == col
+
+
+def test_a_max_trace_level_above_256_is_warned_and_held_at_256_as_povray_does():
+    s = load_scene("global_settings { max_trace_level 1e6 }\nsphere { 0, 1 }")
+    assert [w.feature for w in s.warnings] == ["max_trace_level"]
+    assert "256 but 1000000 was specified" in s.warnings[0].message
+    assert int(s.settings.max_trace_level) == 256
+
+
+def test_csg_nested_past_its_bound_is_a_located_error_written_or_built_by_a_loop():
+    deep = "union { " * 6 + "sphere { 0, 1 }" + " sphere { x, 1 } }" * 6
+    assert load_scene(deep, limits=Limits(max_csg_depth=6)).objects
+    e = error_of(deep, limits=Limits(max_csg_depth=5))
+    assert "CSG objects nested deeper than 5" in str(e) and e.location.col == 1  # the outermost union
+    looped = ("#declare U = sphere { 0, 1 }\n"
+              "#for (I, 1, 300) #declare U = intersection { object { U } sphere { 0, 2 } } #end")
+    e = error_of(looped)
+    assert "nested deeper than 256" in str(e) and e.location.line == 2
+
+
+def test_a_matrix_is_mended_or_refused_as_povray_does():
+    """Found by rendering with POV-Ray 3.7: a zero column of the 3×3 gets a 1 on its diagonal, with
+    POV-Ray's warning (the image is then POV-Ray's); a matrix still singular is refused."""
+    s = load_scene("sphere { 0, 1 matrix <1, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0> }")
+    assert [w.feature for w in s.warnings] == ["matrix"]
+    e = error_of("sphere { 0, 1 matrix <1, 0, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0> }")
+    assert "expected an invertible matrix" in str(e) and e.location.col == 15
