@@ -319,17 +319,33 @@ def _summary(scene) -> list[str]:
     p = plan(scene)
     kinds = Counter(prim.kind for prim in p.prims if prim.rendered)
     loc, d, r, u = (v.tolist() for v in scene.camera.frame())
+    lights = [_light_text(light) for light in scene.lights]
+    light_kinds = Counter(text.split(" at ", 1)[0] for text in lights)
+    features = Counter(w.feature for w in p.warnings)
     lines = [
         "objects: " + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none"),
-        f"lights: {len(scene.lights)}"
-        + "".join(f"\n  {_light_text(light)}" for light in scene.lights),
+        f"lights: {len(lights)}" + _counts(light_kinds, len(lights)) + _listed(lights),
         f"camera: {scene.camera.projection} at {_vec(loc)} direction {_vec(d)} right {_vec(r)} up {_vec(u)}",
         f"plan: {p.effects.describe()}",
         _acceleration_text(p),
-        f"warnings: {len(p.warnings)}",
+        f"warnings: {len(p.warnings)}" + _counts(features, len(p.warnings)) + _listed(p.warnings),
     ]
-    lines += [f"  {w}" for w in p.warnings]
     return lines
+
+
+SUMMARY_ITEMS = 8  # a longer list of lights or warnings is counted by kind and shown in part
+
+
+def _counts(counter: Counter, total: int) -> str:
+    if total <= SUMMARY_ITEMS:
+        return ""
+    return " (" + ", ".join(f"{n} {k}" for k, n in counter.most_common()) + f"), the first {SUMMARY_ITEMS}:"
+
+
+def _listed(items) -> str:
+    shown = "".join(f"\n  {item}" for item in list(items)[:SUMMARY_ITEMS])
+    more = len(items) - SUMMARY_ITEMS
+    return shown + (f"\n  … {more} more" if more > 0 else "")
 
 
 def _acceleration_text(p) -> str:

@@ -9,6 +9,7 @@ the forward render nor its gradient holds more than one tile's rays at a time.
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import warnings
 from pathlib import Path
@@ -73,6 +74,9 @@ def plan(scene: Scene) -> Plan:
 
 
 def _check(width: int, height: int, spp: int) -> int:
+    for name, value in (("width", width), ("height", height), ("spp", spp)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            raise ValueError(f"{name} must be a positive int, got {value!r}")
     k = math.isqrt(spp)
     if k * k != spp or spp < 1:
         raise ValueError(f"spp must be a perfect square (1, 4, 9, 16, …), got {spp}")

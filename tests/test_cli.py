@@ -387,3 +387,15 @@ def test_a_render_past_the_memory_bound_is_refused_before_the_scene_is_read(tmp_
     with pytest.raises(rt.SceneError, match="render needs about"):
         rt.render(rt.load_scene(SEED), width=2000, height=2000)
     assert main(["render", str(SEED), "-o", str(tmp_path / "small.png"), "-W", "8", "-H", "6"]) == 0
+
+
+def test_long_lists_of_lights_and_warnings_are_counted_by_kind_and_shown_in_part(tmp_path, capsys):
+    scene = tmp_path / "many.pov"
+    scene.write_text("camera { location -5 * z look_at 0 }\n"
+                     + "".join(f"light_source {{ <{i}, 5, -5> rgb 0.1 }}\n" for i in range(10))
+                     + "sphere { 0, 1 normal { bumps 0.5 } }\n" * 3)
+    assert main(["info", str(scene)]) == 0
+    out = capsys.readouterr().out
+    assert "lights: 10 (10 point), the first 8:\n" in out and "\n  … 2 more\n" in out
+    assert out.count("\n  point at") == 8
+    assert "warnings: 3\n" in out and out.count("[normal]") == 3  # a short list: whole

@@ -21,7 +21,10 @@ def _is_path(path_or_text) -> bool:
     s = str(path_or_text)
     if "\n" in s or "{" in s or len(s) > 4096:
         return False
-    return s.endswith((".pov", ".inc")) or os.path.isfile(s)
+    # one word with no SDL in it (``"myscene"``, ``"scenes/a.pov"``) names a file: no scene text is a
+    # single word, and a missing file then says so instead of "undeclared identifier"
+    word = s.strip() != "" and not any(c.isspace() or c in "#;<>(){}=" for c in s.strip())
+    return s.endswith((".pov", ".inc")) or os.path.isfile(s) or word
 
 
 @without_collections  # a parse makes almost no cycles (POV-Ray's heaviest sample scenes: ≤ 66 objects)

@@ -373,3 +373,15 @@ def test_a_matrix_is_mended_or_refused_as_povray_does():
     assert [w.feature for w in s.warnings] == ["matrix"]
     e = error_of("sphere { 0, 1 matrix <1, 0, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0> }")
     assert "expected an invertible matrix" in str(e) and e.location.col == 15
+
+
+def test_a_single_word_names_a_file_and_a_bad_render_size_says_what_it_takes():
+    """``load_scene("myscene")`` is a missing file, not an undeclared identifier; scene text has more
+    than one word (or braces). ``render(width=2.5)`` names the argument."""
+    import raytracer as rt
+
+    with pytest.raises(SceneError, match='found no file "myscene"'):
+        load_scene("myscene")
+    assert len(load_scene("sphere{0,1}").objects) == 1
+    with pytest.raises(ValueError, match="width must be a positive int, got 2.5"):
+        rt.render(load_scene("sphere { 0, 1 }"), width=2.5, height=3)
