@@ -307,9 +307,10 @@ def _load(args):
     t0 = time.perf_counter()
     limits = None if args.parse_timeout is None else Limits(max_parse_seconds=args.parse_timeout)
     # an image, not a gradient: a filter or transmit written as 0 is opaque, as POV-Ray renders it
-    scene = load_scene(args.scene, include_paths=tuple(args.include_path), strict=args.strict,
-                       width=args.width, height=args.height, animation=animation, limits=limits,
-                       fit_zero_terms=False)
+    with _Phase("parse"):
+        scene = load_scene(args.scene, include_paths=tuple(args.include_path), strict=args.strict,
+                           width=args.width, height=args.height, animation=animation, limits=limits,
+                           fit_zero_terms=False)
     return scene, time.perf_counter() - t0
 
 
@@ -383,25 +384,61 @@ def _light_text(light) -> str:
 
 
 class _Progress:
-    """A one-line progress bar on stderr, shown only for renders that take more than a second."""
+    """The trace's parts as a tqdm bar with its ETA on stderr, shown only on a terminal and only for
+    a render that takes more than a second."""
 
     def __init__(self):
-        self.start = time.perf_counter()
-        self.shown = False
+        self.bar = None
+        self.start = time.time()  # the render's start: the first part's time counts
 
     def __call__(self, done: int, total: int) -> None:
-        elapsed = time.perf_counter() - self.start
-        if not self.shown and elapsed < 1.0 and done < total:
-            return
-        if not sys.stderr.isatty() and done < total:
-            return
-        self.shown = True
-        width = 30
-        filled = width * done // total
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {elapsed:5.1f} s")
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="trace", unit="part", file=sys.stderr, delay=1.0,
+                            disable=not sys.stderr.isatty(), leave=False)
+            self.bar.start_t = self.start
+        self.bar.update(done - self.bar.n)
         if done == total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+            self.bar.close()
+
+
+class _Phase:
+    """A phase whose length nothing inside can report (the parse, XLA's compile): its elapsed time
+    on stderr while it runs (a tqdm counter refreshed from a thread), only on a terminal and only
+    after a second."""
+
+    def __init__(self, name: str):
+        self.name = name
+        self.thread = None
+
+    def __enter__(self):
+        if not sys.stderr.isatty():
+            return self
+        import threading
+
+        self.stop = threading.Event()
+        start = time.time()
+
+        def tick():
+            if self.stop.wait(1.0):
+                return
+            from tqdm import tqdm
+
+            with tqdm(desc=self.name, bar_format="{desc}: {elapsed}", file=sys.stderr, leave=False) as bar:
+                bar.start_t = start  # the phase's time, not the bar's
+                while not self.stop.wait(0.25):
+                    bar.refresh()
+
+        self.thread = threading.Thread(target=tick, daemon=True)
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.thread is not None:
+            self.stop.set()
+            self.thread.join()
+        return False
 
 
 def _distributed(args) -> bool:
@@ -501,14 +538,17 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
     elif args.aa is not None:
         from .render import render
 
-        image = jax.block_until_ready(render(scene, width=args.width, height=args.height,
-                                             adaptive=(args.aa, args.aa_depth, args.aa_gamma)))
+        with _Phase("compile and trace"):
+            image = jax.block_until_ready(render(scene, width=args.width, height=args.height,
+                                                 adaptive=(args.aa, args.aa_depth, args.aa_gamma)))
         t_compile, t_render = 0.0, time.perf_counter() - t0
     else:
         progress = _Progress()
-        run = compile_render(scene, width=args.width, height=args.height, spp=args.spp, progress=progress)
+        with _Phase("compile"):
+            run = compile_render(scene, width=args.width, height=args.height, spp=args.spp,
+                                 progress=progress)
         t_compile = time.perf_counter() - t0
-        progress.start = time.perf_counter()
+        progress.start = time.time()
         t1 = time.perf_counter()
         image = jax.block_until_ready(run(scene))
         t_render = time.perf_counter() - t1

@@ -399,3 +399,27 @@ def test_long_lists_of_lights_and_warnings_are_counted_by_kind_and_shown_in_part
     assert "lights: 10 (10 point), the first 8:\n" in out and "\n  … 2 more\n" in out
     assert out.count("\n  point at") == 8
     assert "warnings: 3\n" in out and out.count("[normal]") == 3  # a short list: whole
+
+
+def test_progress_shows_each_phases_time_and_the_traces_eta_only_on_a_terminal(monkeypatch):
+    import io
+    import sys
+    import time
+
+    from raytracer.cli import _Phase, _Progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        with _Phase("parse"):
+            time.sleep(1.4)  # shown after a second, with the phase's own elapsed time
+        progress = _Progress()
+        for done in range(1, 5):
+            time.sleep(0.3)
+            progress(done, 4)
+        out = stream.getvalue()
+        assert ("parse: 00:01" in out and "trace" in out and "4/4" in out) == shown, out
+        assert shown or out == ""
