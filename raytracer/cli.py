@@ -152,6 +152,11 @@ def _parser() -> argparse.ArgumentParser:
     v = sub.add_parser("validate", help="run the validation suite (same as python -m validation)",
                        description="Compare renders with Mitsuba 3 and POV-Ray (see validation/).")
     v.add_argument("args", nargs=argparse.REMAINDER, help="arguments for python -m validation")
+    c = sub.add_parser("compare", help="render a scene with us and with POV-Ray (or Mitsuba) side by side",
+                       description="Render one's own scene with us and with POV-Ray or Mitsuba 3 at the "
+                                   "same pixel centres: PSNR, the worst region, a side-by-side PNG "
+                                   "(raytracer compare --help for its options).")
+    c.add_argument("args", nargs=argparse.REMAINDER, help="the scene and its options")
     return p
 
 
@@ -632,8 +637,9 @@ def _plugin(name: str):
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv[:1] == ["validate"]:  # every option goes to python -m validation unchanged
-        return _plugin("validate")(argv[1:])
+    if argv[:1] in (["validate"], ["compare"]):  # every option goes to the plugin unchanged
+        os.environ.setdefault("JAX_PLATFORMS", "cpu")
+        return _plugin(argv[0])(argv[1:])
     parser = _parser()
     args, extras = parser.parse_known_args(argv)
     if args.command not in ("render", "info") and extras or any(x.startswith("--") for x in extras):
@@ -657,8 +663,8 @@ def main(argv: list[str] | None = None) -> int:
             return _render(args)
         if args.command == "info":
             return _info(args)
-        if args.command == "validate":
-            return _plugin("validate")(args.args)
+        if args.command in ("validate", "compare"):
+            return _plugin(args.command)(args.args)
     except SceneError as e:
         if debug:
             traceback.print_exc()
