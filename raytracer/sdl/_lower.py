@@ -11,6 +11,7 @@ from .._build import build
 from .._dtype import OutOfPrecision
 from ..errors import SceneError
 from ..scene._lights import light_fields
+from ..scene._precision import precision_warnings
 from ..scene.environment import ENVIRONMENT
 from ..shapes import SDL_KEYWORDS
 from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
@@ -298,8 +299,15 @@ def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
         raise SceneError(str(e), p.camera.loc) from None
     environment = lower_environment(p, fit_zero_terms)
     try:
-        return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                     background=p.background, environment=environment, settings=settings,
-                     warnings=tuple(p.warnings))
+        scene = build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
+                      background=p.background, environment=environment, settings=settings,
+                      warnings=tuple(p.warnings))
     except OutOfPrecision as e:  # the background is the only value not converted before
         raise SceneError(str(e), p.statement_locs.get("background")) from None
+    extra = precision_warnings(scene)
+    if not extra:
+        return scene
+    p.warnings.extend(extra)
+    return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
+                 background=p.background, environment=environment, settings=settings,
+                 warnings=tuple(p.warnings))
