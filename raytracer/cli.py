@@ -521,19 +521,36 @@ def _render(args) -> int:
     return 0
 
 
-def _render_frame(args, out: Path, distributed: bool) -> int:
-    """One image: compiled with a progress bar, or split across the processes of ``jax.distributed``
-    (process 0 writes it)."""
+class _InterruptAnywhere:
+    """Ctrl-C ends the process at once while XLA compiles or runs (C++ that does not return to
+    Python, where a KeyboardInterrupt would wait for it): SIGINT's default action, status 130 as the
+    shell reports it. Nothing is written in these phases, so there is nothing to clean up; the
+    image is written after, with Python's handler back (an atomic write removes its temporary)."""
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self.old = None
+        if threading.current_thread() is threading.main_thread():
+            self.old = signal.signal(signal.SIGINT, signal.SIG_DFL)
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+
+        if self.old is not None:
+            signal.signal(signal.SIGINT, self.old)
+        return False
+
+
+def _compute(args, scene, distributed: bool):
+    """The image (compiled with a progress bar, adaptive, or split across the processes of
+    ``jax.distributed``) and the compile and render times."""
     import jax
 
-    from .imageio import ImageClampWarning, write_image
     from .render import compile_render
 
-    scene, t_parse = _load(args)
-    lead = not distributed or jax.process_index() == 0
-    if lead:
-        for line in _summary(scene):
-            print(line)
     t0 = time.perf_counter()
     if distributed:
         from .distributed import render
@@ -557,6 +574,23 @@ def _render_frame(args, out: Path, distributed: bool) -> int:
         t1 = time.perf_counter()
         image = jax.block_until_ready(run(scene))
         t_render = time.perf_counter() - t1
+    return image, t_compile, t_render
+
+
+def _render_frame(args, out: Path, distributed: bool) -> int:
+    """One image: compiled with a progress bar, or split across the processes of ``jax.distributed``
+    (process 0 writes it)."""
+    import jax
+
+    from .imageio import ImageClampWarning, write_image
+
+    scene, t_parse = _load(args)
+    lead = not distributed or jax.process_index() == 0
+    if lead:
+        for line in _summary(scene):
+            print(line)
+    with _InterruptAnywhere():
+        image, t_compile, t_render = _compute(args, scene, distributed)
     if not lead:
         return 0
     import warnings
@@ -668,7 +702,7 @@ def main(argv: list[str] | None = None) -> int:
     except SceneError as e:
         if debug:
             traceback.print_exc()
-        print(f"raytracer: {e}", file=sys.stderr)
+        print(f"raytracer: {_harmless(str(e))}", file=sys.stderr)  # an #error's text is the scene's
         return EXIT_SCENE_ERROR
     except KeyboardInterrupt:
         print("raytracer: interrupted", file=sys.stderr)

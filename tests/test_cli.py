@@ -423,3 +423,31 @@ def test_progress_shows_each_phases_time_and_the_traces_eta_only_on_a_terminal(m
         out = stream.getvalue()
         assert ("parse: 00:01" in out and "trace" in out and "4/4" in out) == shown, out
         assert shown or out == ""
+
+
+def test_ctrl_c_ends_a_render_while_xla_compiles(tmp_path):
+    """SIGINT during the compile (C++ that does not return to Python) ends the process at once, as
+    SIGINT's default action does, and leaves no file."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "never.png"
+    env = {**os.environ, "RAYTRACER_CACHE_DIR": "off", "RAYTRACER_TEST_JAX_CACHE": ""}
+    proc = subprocess.Popen([sys.executable, "-m", "raytracer.cli", "render", str(SEED), "-o", str(out),
+                             "-W", "64", "-H", "48", "--x64"], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True, env=env)
+    try:
+        for line in proc.stdout:  # the summary is printed when the compile starts
+            if line.startswith("warnings:"):
+                break
+        time.sleep(0.3)
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == -signal.SIGINT
+        assert time.monotonic() - sent < 2.0
+    finally:
+        proc.kill()
+        proc.stdout.close()
+    assert list(tmp_path.iterdir()) == []

@@ -754,7 +754,7 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     double tc = -dot3(oc, r.d) / a;
     double f[3] = {oc[0] + tc * r.d[0], oc[1] + tc * r.d[1], oc[2] + tc * r.d[2]};
     double h2 = q[3] * q[3] - dot3(f, f);
-    if (h2 < 0.0) return INFINITY;
+    if (h2 < 0.0 || !(q[3] > 0.0)) return INFINITY;  // a radius <= 0 has no surface (as POV-Ray)
     double h = std::sqrt(h2 / a);
     t0 = tc - h;
     t1 = tc + h;
@@ -836,7 +836,7 @@ inline bool item_inside(int32_t kind, const T* params, const double* pw) {
   const double* q = p + 12;
   if (kind == KIND_SPHERE) {
     const double l[3] = {x[0] - q[0], x[1] - q[1], x[2] - q[2]};
-    return dot3(l, l) < q[3] * q[3];
+    return q[3] > 0.0 && dot3(l, l) < q[3] * q[3];
   }
   if (kind == KIND_BOX) {
     for (int k = 0; k < 3; ++k) {

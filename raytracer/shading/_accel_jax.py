@@ -243,7 +243,7 @@ def _sphere(q, ro, rd, tmin, tmax):
     foot = _axpy(tc, rd, oc)
     h2 = q[3] * q[3] - _dot(foot, foot)
     h = jnp.sqrt(jnp.maximum(h2, 0) / a_safe)
-    ok = (a > 0) & (h2 >= 0)
+    ok = (a > 0) & (h2 >= 0) & (q[3] > 0)  # a radius <= 0 has no surface (as POV-Ray)
     return jnp.where(ok, tc - h, inf), jnp.where(ok, tc + h, inf)
 
 
