@@ -451,3 +451,30 @@ def test_ctrl_c_ends_a_render_while_xla_compiles(tmp_path):
         proc.kill()
         proc.stdout.close()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_exr_that_cannot_be_written_is_an_io_error_and_leaves_nothing(tmp_path, monkeypatch, capsys):
+    """OpenEXR reports a full disk as a RuntimeError (seen on a 64 kB tmpfs: "No space left on
+    device"): an I/O error, one line, exit 2, no temporary file left."""
+    import OpenEXR
+
+    class Full:
+        def __init__(self, *args):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def write(self, path):
+            raise RuntimeError(f'Failed to write pixel data to image file "{path}". No space left on device.')
+
+    monkeypatch.setattr(OpenEXR, "File", Full)
+    with pytest.raises(OSError, match="No space left on device"):
+        rt.write_image(tmp_path / "a.exr", np.zeros((2, 3, 3), np.float32))
+    assert main(["render", str(SEED), "-o", str(tmp_path / "b.exr"), "-W", "8", "-H", "6"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write" in err and "No space left on device" in err
+    assert list(tmp_path.iterdir()) == []
