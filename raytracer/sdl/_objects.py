@@ -497,7 +497,9 @@ def parse_camera(p, t) -> CameraRec:
             raise p.error(f"expected a camera item, found {k.describe()}", k.loc)
         _camera_item(p, cam, k)
     angle = cam.values.get("angle")
-    if angle is not None and cam.projection == "perspective" and not angle < 180:
+    # POV-Ray's rule for its perspective camera (a fisheye's or a panorama's angle may be wider)
+    if angle is not None and cam.projection == "perspective" and cam.other_projection is None \
+            and not angle < 180:
         raise p.error(f"expected a perspective viewing angle below 180 degrees, found {angle:g}",
                       cam.angle_loc)
     return cam
@@ -518,6 +520,7 @@ def _camera_item(p, cam, k):
     elif kw in ("fisheye", "ultra_wide_angle", "omnimax", "panoramic", "spherical", "cylinder",
                 "mesh_camera", "user_defined"):
         p.warn(kw, f"{kw} camera is rendered as perspective", k.loc)
+        cam.other_projection = kw
         if kw == "cylinder":
             float_(p)
         elif kw in ("mesh_camera", "user_defined"):

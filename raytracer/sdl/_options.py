@@ -217,6 +217,8 @@ def apply_key(key: str, value: str, opts: PovOptions) -> None:
     value = value.strip()
     if len(value) >= 2 and value[0] == value[-1] == '"':
         value = value[1:-1]
+    if not value:  # ``Final_Frame=`` (a template's blank, portfolio/__empty.ini): not given
+        return
     handler = _KEYS.get(k)
     if handler is None:
         opts.ignore(_canonical(key.strip()))

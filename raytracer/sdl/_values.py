@@ -279,6 +279,8 @@ class CameraRec:
     projection: str = "perspective"
     loc: SourceLoc | None = None
     angle_loc: SourceLoc | None = None  # where its angle was given
+    other_projection: str | None = None  # a POV-Ray projection rendered as perspective (fisheye …)
 
     def clone(self) -> CameraRec:
-        return CameraRec(dict(self.values), self.transform, self.projection, self.loc, self.angle_loc)
+        return CameraRec(dict(self.values), self.transform, self.projection, self.loc, self.angle_loc,
+                         self.other_projection)
