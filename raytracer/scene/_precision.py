@@ -6,7 +6,10 @@ S = 1e-3 55 dB, 1e-4 46 dB, 1e-6 15 dB (the rounding guards of rays leaving a su
 for objects a hundredth of a unit across); S = 1e5 60 dB, 1e6 21 dB (float32 resolves 0.06 units
 at 1e6, and a crossing farther than 8.4e6 along a ray is taken as none). Float64 agreed with
 POV-Ray at every S POV-Ray renders (89 dB). So: a warning where the objects span less than
-``SMALLEST_EXTENT`` or a coordinate of the camera or of an object's box passes ``LARGEST_COORDINATE``.
+``SMALLEST_EXTENT``, where an object lies farther than ``FARTHEST`` from the camera, or where the
+camera is close to an object whose numbers are huge (a ground sphere of radius 1e6 seen from a
+unit above it: ``NEAR_RATIO``). A sky dome around the camera is seen from as far as it is large,
+and passes.
 """
 
 from __future__ import annotations
@@ -18,7 +21,8 @@ from ..shapes._base import world_bounds
 from ._objects import CSG, Object
 
 SMALLEST_EXTENT = 0.02
-LARGEST_COORDINATE = 2e5
+FARTHEST = 4e6  # half float32's 8.4e6, past which a crossing along a ray is taken as none
+NEAR_RATIO = 1e5  # an object's numbers over the camera's distance from it
 SAMPLED = 256  # primitives looked at, at most (evenly spread): a warning, not a proof
 
 
@@ -55,18 +59,32 @@ def precision_warnings(scene) -> list[SceneWarning]:
             highs.append(hi)
     if not lows:
         return []
-    lo, hi = np.min(lows, axis=0), np.max(highs, axis=0)
-    extent = float(np.linalg.norm(hi - lo))
-    largest = float(max(np.abs(lo).max(), np.abs(hi).max(), np.abs(np.asarray(location, np.float64)).max()))
+    lows, highs = np.array(lows), np.array(highs)
+    eye = np.asarray(scene.camera.frame()[0], np.float64)
+    extent = float(np.linalg.norm(highs.max(axis=0) - lows.min(axis=0)))
     out = []
     if extent < SMALLEST_EXTENT:
         out.append(SceneWarning("precision", (
             f"the objects span {extent:.2g} units: float32 is too coarse below {SMALLEST_EXTENT:g} "
             "(measured: 55 dB from float64 at 0.008, 15 dB at 8e-6); render in float64 (--x64, "
             "jax_enable_x64) or scale the scene up")))
-    if largest > LARGEST_COORDINATE:
+    # each box: how far the camera is from it (0 inside), and the largest number its crossings
+    # are computed from; a sky dome around the camera is seen from afar and is fine
+    gap = np.linalg.norm(np.maximum(np.maximum(lows - eye, eye - highs), 0.0), axis=1)
+    size = np.maximum(np.abs(lows).max(axis=1), np.abs(highs).max(axis=1))
+    size = np.maximum(size, np.linalg.norm(highs - lows, axis=1))
+    far = float(np.max(np.where(gap > 0, gap, 0.5 * np.linalg.norm(highs - lows, axis=1))))
+    ratio = size / np.maximum(gap, 1e-30)
+    near = (gap > 0) & (ratio > NEAR_RATIO)
+    if far > FARTHEST:
         out.append(SceneWarning("precision", (
-            f"coordinates reach {largest:.2g}: float32 resolves {largest * 6e-8:.2g} units there "
-            "(measured: 60 dB from float64 at 8e5, 21 dB at 8e6); render in float64 (--x64, "
-            "jax_enable_x64) or move the scene nearer the origin")))
+            f"objects lie {far:.2g} units from the camera: float32 takes a crossing past 8.4e6 along a "
+            "ray as none and resolves 0.06 units at 1e6 (measured, a scene scaled to 1e6: 21 dB from "
+            "float64); render in float64 (--x64, jax_enable_x64) or scale the scene down")))
+    elif near.any():
+        k = int(np.argmax(np.where(near, ratio, 0.0)))
+        out.append(SceneWarning("precision", (
+            f"the camera is {gap[k]:.2g} units from an object whose numbers reach {size[k]:.2g}: float32 "
+            f"resolves {size[k] * 6e-8:.2g} units there (a ground sphere of radius 1e6 shows shadow "
+            "acne: 22.5 dB from float64); render in float64 (--x64, jax_enable_x64)")))
     return out

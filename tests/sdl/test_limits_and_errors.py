@@ -387,19 +387,25 @@ def test_a_single_word_names_a_file_and_a_bad_render_size_says_what_it_takes():
         rt.render(load_scene("sphere { 0, 1 }"), width=2.5, height=3)
 
 
-@pytest.mark.parametrize("scale, fragment", [
-    (1e-3, "the objects span 0.0094 units: float32 is too coarse below 0.02"),
-    (1.0, None),
-    (1e5, "coordinates reach 8e+05: float32 resolves 0.048 units there"),
+_SCALED = ("#declare S = {};\ncamera {{ location <0, 0, -8> * S look_at 0 }}\nsphere {{ 0, 2 * S }}\n"
+           "box {{ -2 * S, <2, 0.2, 2> * S rotate <-20, 30, 0> }}\n")
+_AROUND = "camera { location <0, 1, -5> look_at 0 }\nsphere { 0, 1 }\nsphere { <0, %s, 0>, 1e6 }\n"
+
+
+@pytest.mark.parametrize("text, fragment", [
+    (_SCALED.format(1e-3), "the objects span 0.0094 units: float32 is too coarse below 0.02"),
+    (_SCALED.format(1.0), None),
+    (_SCALED.format(1e5), None),  # 60 dB from float64: not worth a word
+    (_SCALED.format(1e6), "objects lie 6e+06 units from the camera"),
+    (_AROUND % "-1e6", "the camera is 1 units from an object whose numbers reach 3.5e+06"),  # a ground
+    (_AROUND % "0", None),  # a sky dome around the camera: seen from as far as it is large
 ])
-def test_a_scene_float32_cannot_hold_is_warned_with_the_fix(scale, fragment, x64):
+def test_a_scene_float32_cannot_hold_is_warned_with_the_fix(text, fragment, x64):
     """The thresholds measured in ``raytracer/scene/_precision.py``; float64 never warns."""
     import jax
 
-    text = (f"#declare S = {scale};\ncamera {{ location <0, 0, -8> * S look_at 0 }}\n"
-            "sphere { 0, 2 * S }\nbox { -2 * S, <2, 0.2, 2> * S rotate <-20, 30, 0> }\n")
     with jax.enable_x64(False):
         found = [w.message for w in load_scene(text).warnings if w.feature == "precision"]
-    assert len(found) == (fragment is not None)
+    assert len(found) == (fragment is not None), found
     assert fragment is None or (fragment in found[0] and "--x64" in found[0])
     assert not [w for w in load_scene(text).warnings if w.feature == "precision"]  # float64
