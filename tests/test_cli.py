@@ -339,6 +339,10 @@ def test_debug_and_warning_directives_are_shown_with_their_escapes_made_harmless
     assert main(["info", str(scene)]) == 0
     err = capsys.readouterr().err
     assert err == f"hello\n{scene}:2:2: warning: warn \\x1b[31mred\ndone\n"
+    scene.write_text('#error concat("stop ", chr(27), "[2J")\n')  # ESC [2J would clear the screen
+    assert main(["info", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert "#error: stop \\x1b[2J" in err and "\x1b" not in err
 
 
 def test_replacing_an_image_keeps_its_mode_and_its_symbolic_link(tmp_path):
