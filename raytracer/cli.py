@@ -216,10 +216,9 @@ def _povray_options(args, argv: list[str], extras: list[str]) -> None:
     args.include_path = [*opts.library_paths, *args.include_path]
     args.width = args.width or opts.width or 640
     args.height = args.height or opts.height or 480
-    if args.ignored_shown is False and opts.ignored:
+    if opts.ignored:
         print("raytracer: warning: POV-Ray options not followed here: " + ", ".join(opts.ignored),
               file=sys.stderr)
-        args.ignored_shown = True
     if args.command != "render":
         return
     suffix = OUTPUT_TYPES[opts.output_type or "N"]
@@ -306,8 +305,6 @@ def _load(args):
     _show_scene_messages()
     from .sdl import Limits, load_scene
 
-    if not Path(args.scene).is_file():
-        raise SceneError(f"cannot open scene file {args.scene!r}")
     animation = _animation(args, args.frame)
     t0 = time.perf_counter()
     limits = None if args.parse_timeout is None else Limits(max_parse_seconds=args.parse_timeout)
@@ -486,8 +483,9 @@ def _render(args) -> int:
     except SceneError as e:
         print(f"raytracer: {e}", file=sys.stderr)
         return EXIT_SCENE_ERROR
+    anim = _animation(args, None)
     try:
-        if args.all_frames and _animation(args, None) is None:
+        if args.all_frames and anim is None:
             raise _CommandLineError("--all-frames needs an animation (--ini, or POV-Ray's frame options)")
         if args.all_frames and args.frame is not None:
             raise _CommandLineError("--all-frames and --frame exclude each other")
@@ -500,7 +498,6 @@ def _render(args) -> int:
     except _CommandLineError as e:
         print(f"raytracer render: {e} (see raytracer render --help)", file=sys.stderr)
         return EXIT_SCENE_ERROR
-    anim = _animation(args, None)
     # POV-Ray's options that declare frames render them all, as POV-Ray does (--ini: with --all-frames)
     several = anim is not None and anim.final_frame > anim.initial_frame
     if not (args.all_frames or (several and args.ini is None and args.frame is None)):
@@ -679,7 +676,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.command not in ("render", "info") and extras or any(x.startswith("--") for x in extras):
         parser.error(f"unrecognized arguments: {' '.join(extras)}")
     if args.command in ("render", "info"):
-        args.ignored_shown = False
         try:
             _povray_options(args, argv, extras)
         except _CommandLineError as e:

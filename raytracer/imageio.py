@@ -52,10 +52,11 @@ class ImageClampWarning(UserWarning):
     """Pixels beyond the largest float32 (or infinite) were written as the largest float32."""
 
 
-def _as_rgb(image) -> np.ndarray:
+def _as_rgb(image, warn: bool = False) -> np.ndarray:
     """The image as float32 (H, W, 3). NaN is refused (nothing is written); a value beyond float32's
-    range (an overflowed float64 render, or infinite) is clamped to it with an
-    :class:`ImageClampWarning` that counts the pixels."""
+    range (an overflowed float64 render, or infinite) is clamped to it, with ``warn`` (the linear
+    EXR, which keeps it) an :class:`ImageClampWarning` that counts the pixels (8-bit and 16-bit
+    formats clip at 1 in any case)."""
     raw = np.asarray(image)
     if raw.ndim != 3 or raw.shape[-1] != 3:
         raise ValueError(f"expected an (H, W, 3) image, got shape {raw.shape}")
@@ -65,21 +66,20 @@ def _as_rgb(image) -> np.ndarray:
         raise ValueError(f"the image has {int(np.isnan(raw).any(-1).sum())} NaN pixels: not written")
     big = np.finfo(np.float32).max
     over = np.abs(raw) > big
-    if over.any():
+    if over.any() and warn:
         import warnings
 
         warnings.warn(ImageClampWarning(
             f"{int(over.any(-1).sum())} pixels beyond the largest float32 (or infinite) written as "
             f"±{big:.4g}"), stacklevel=3)
-        raw = np.clip(raw, -big, big)
-    return raw.astype(np.float32)
+    return np.clip(raw, -big, big).astype(np.float32)
 
 
 def write_exr(path, image) -> None:
     """Writes linear float32 RGB OpenEXR."""
     import OpenEXR
 
-    img = _as_rgb(image)
+    img = _as_rgb(image, warn=True)
 
     def write(tmp):
         header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
@@ -95,13 +95,11 @@ def write_exr(path, image) -> None:
 
 def write_png(path, image, *, bits: int = 8) -> None:
     """Writes sRGB-encoded PNG (8-bit, or 16-bit with ``bits=16``) from a linear image."""
-    from PIL import Image
 
-    enc = srgb_encode(_as_rgb(image))
     if bits == 8:
-        pil = Image.fromarray(np.round(enc * 255).astype(np.uint8), "RGB")
-        _atomic_write(Path(path), lambda tmp: pil.save(tmp, format="PNG"))
+        _write_pillow(path, image, "PNG")
     elif bits == 16:
+        enc = srgb_encode(_as_rgb(image))
         _atomic_write(Path(path), lambda tmp: _write_png16(tmp, np.round(enc * 65535).astype(np.uint16)))
     else:
         raise ValueError("bits must be 8 or 16")
@@ -124,6 +122,14 @@ def _write_png16(path, data: np.ndarray) -> None:
         f.write(png)
 
 
+def _write_pillow(path, image, fmt: str, **options) -> None:
+    """An 8-bit sRGB file in Pillow's format ``fmt``, written atomically."""
+    from PIL import Image
+
+    pil = Image.fromarray(np.round(srgb_encode(_as_rgb(image)) * 255).astype(np.uint8), "RGB")
+    _atomic_write(Path(path), lambda tmp: pil.save(tmp, format=fmt, **options))
+
+
 # 8-bit sRGB formats Pillow writes (POV-Ray's output types T and C, P, J, B)
 _PILLOW_FORMATS = {".tga": "TGA", ".ppm": "PPM", ".jpg": "JPEG", ".jpeg": "JPEG", ".bmp": "BMP"}
 WRITTEN_SUFFIXES = (".exr", ".png", *_PILLOW_FORMATS)
@@ -139,14 +145,9 @@ def write_image(path, image, *, bits: int = 8, rle: bool = False) -> None:
     elif suffix == ".png":
         write_png(path, image, bits=bits)
     elif suffix in _PILLOW_FORMATS:
-        from PIL import Image
-
-        enc = srgb_encode(_as_rgb(image))
-        pil = Image.fromarray(np.round(enc * 255).astype(np.uint8), "RGB")
         fmt = _PILLOW_FORMATS[suffix]
-        extra = ({"compression": "tga_rle"} if fmt == "TGA" and rle
-                 else {"quality": 95} if fmt == "JPEG" else {})
-        _atomic_write(Path(path), lambda tmp: pil.save(tmp, format=fmt, **extra))
+        _write_pillow(path, image, fmt, **({"compression": "tga_rle"} if fmt == "TGA" and rle
+                                           else {"quality": 95} if fmt == "JPEG" else {}))
     else:
         raise ValueError(f"unsupported image format {suffix!r}: use one of {', '.join(WRITTEN_SUFFIXES)}")
 

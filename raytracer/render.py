@@ -8,6 +8,7 @@ the forward render nor its gradient holds more than one tile's rays at a time.
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 import os
@@ -73,6 +74,10 @@ def plan(scene: Scene) -> Plan:
     return make_plan(scene)
 
 
+# a size that fitted is not checked again by the calls of a fit's loop (a failure is not cached)
+_fits_memory = functools.lru_cache(maxsize=64)(check_render_memory)
+
+
 def _check(width: int, height: int, spp: int) -> int:
     for name, value in (("width", width), ("height", height), ("spp", spp)):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
@@ -82,7 +87,7 @@ def _check(width: int, height: int, spp: int) -> int:
         raise ValueError(f"spp must be a perfect square (1, 4, 9, 16, …), got {spp}")
     if width < 1 or height < 1:
         raise ValueError(f"image size must be positive, got {width}×{height}")
-    check_render_memory(width, height, 8 if jax.config.jax_enable_x64 else 4)  # LimitError, before anything
+    _fits_memory(width, height, 8 if jax.config.jax_enable_x64 else 4)  # LimitError, before anything
     return k
 
 

@@ -38,19 +38,16 @@ def _leaves(objects, matrix=None):
             yield obj.shape, m
 
 
-def precision_warnings(scene) -> list[SceneWarning]:
-    """The warnings for a float32 scene (none for a float64 one, or a traced one)."""
-    location = scene.camera.location
+def precision_warnings(camera, objects) -> list[SceneWarning]:
+    """The warnings for a float32 scene's camera and objects (none for float64, or traced values)."""
+    location = camera.location
     if not isinstance(location, np.ndarray) or location.dtype != np.float32:
         return []
-    leaves = list(_leaves(scene.objects))
+    leaves = list(_leaves(objects))
     step = max(1, len(leaves) // SAMPLED)
     lows, highs = [], []
     for shape, m in leaves[::step]:
-        try:
-            box = world_bounds(shape, m)
-        except (TypeError, ValueError):
-            continue
+        box = world_bounds(shape, m)
         if box is None:
             continue
         lo, hi = (np.asarray(x, np.float64) for x in box)
@@ -60,7 +57,7 @@ def precision_warnings(scene) -> list[SceneWarning]:
     if not lows:
         return []
     lows, highs = np.array(lows), np.array(highs)
-    eye = np.asarray(scene.camera.frame()[0], np.float64)
+    eye = np.asarray(camera.frame()[0], np.float64)
     extent = float(np.linalg.norm(highs.max(axis=0) - lows.min(axis=0)))
     out = []
     if extent < SMALLEST_EXTENT:

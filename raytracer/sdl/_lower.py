@@ -298,16 +298,10 @@ def lower_scene(p, fit_zero_terms: bool = True) -> S.Scene:
     except OutOfPrecision as e:
         raise SceneError(str(e), p.camera.loc) from None
     environment = lower_environment(p, fit_zero_terms)
+    p.warnings.extend(precision_warnings(camera, objects))
     try:
-        scene = build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                      background=p.background, environment=environment, settings=settings,
-                      warnings=tuple(p.warnings))
+        return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
+                     background=p.background, environment=environment, settings=settings,
+                     warnings=tuple(p.warnings))
     except OutOfPrecision as e:  # the background is the only value not converted before
         raise SceneError(str(e), p.statement_locs.get("background")) from None
-    extra = precision_warnings(scene)
-    if not extra:
-        return scene
-    p.warnings.extend(extra)
-    return build(S.Scene, camera=camera, objects=tuple(objects), lights=tuple(low.lights),
-                 background=p.background, environment=environment, settings=settings,
-                 warnings=tuple(p.warnings))
