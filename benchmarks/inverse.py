@@ -20,6 +20,8 @@ Fits:
 * ``shadow``: the centre of a sphere the camera does not see (``no_image``) from the shadows it
   casts on a plain floor in two lights, started 30 % of its radius off in each axis: the shadows'
   outlines are the only signal.
+* ``penumbra``: the same unseen sphere from the penumbra it casts in an area light of 4×4
+  samples (each sample's shadow outline is an edge of the term's), started as ``shadow``.
 
 * ``ior``: the index of refraction of a glass sphere in front of a checker wall, started 0.15 low:
   the cell edges seen through the glass move with it.
@@ -61,6 +63,10 @@ FITS = {  # name: (objects, offsets of the parameters from the truth, views, lig
     "shadow": ("plane { y, -0.8 pigment { rgb 0.8 } }\n"
                "sphere { <0, 0.1, 0.3>, 0.5 pigment { rgb 1 } no_image }",
                {"objects[1].shape.center": np.array([0.15, -0.15, 0.15])}, FLOOR_VIEW, LIGHT),
+    "penumbra": ("plane { y, -0.8 pigment { rgb 0.8 } }\n"
+                 "sphere { <0, 0.1, 0.3>, 0.5 pigment { rgb 1 } no_image }",
+                 {"objects[1].shape.center": np.array([0.15, -0.15, 0.15])}, FLOOR_VIEW,
+                 "light_source { <-1.5, 3, -2> rgb 1 area_light <1.5, 0, 0>, <0, 0, 1.5>, 4, 4 }"),
     "ior": ("plane { z, 3 pigment { checker rgb <0.9, 0.85, 0.7> rgb <0.15, 0.2, 0.3> scale 0.5 } }\n"
             "sphere { 0, 1 pigment { rgbf <1, 1, 1, 0.95> } finish { ambient 0 diffuse 0 } "
             "interior { ior 1.5 } }",

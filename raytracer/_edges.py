@@ -12,17 +12,22 @@ outline over what lies behind it (``AbstractShape.silhouette_margin``), or a sea
 surfaces cross (the difference of their distances along the ray) — the cell of its primitive's
 discrete pattern (``Pattern.cell``, ``Pattern.face``), or the first shadow caster between the point
 it sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
-line from that point to the light) — and the same along the ray's path through mirrors and glass:
+line from that point to the light) or one sample of an area light's fixed grid (each sample's hard
+shadow is an edge of its own, with its weight's share of the light) — and the same along the ray's
+path through mirrors and glass:
 a surface whose pigment can transmit passes the refracted ray on (or, past the critical angle, the
 mirror ray), one whose finish reflects the mirror ray, up to ``PATH_BOUNCES`` of them, each a
 deterministic, differentiable function of the image point and the scene. The term is computed
 deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
 1. Each lattice sample's signature (at each level of its path: the primitive, its pattern cell, the
-   branch taken there, each such light's caster); a pair of neighbouring samples
-   (across the whole image, in rows and in columns) with different ones holds a crossing of Γ. The
-   pairs are compacted (``jnp.nonzero`` with a static room), so the work follows the edges' length.
-2. On each pair, the first change of signature is bisected (a fixed number of steps, values only),
+   branch taken there, each such light's or grid sample's caster); a pair of neighbouring samples
+   (across the whole image, in rows and in columns) with different ones holds a crossing of Γ — in
+   channel 0 where the path, its cells or a point light's caster differ, else one crossing for each
+   grid sample whose caster differs (a penumbra's sample outlines lie closer together than the
+   lattice's spacing, and each is an edge). The (pair, channel)s are compacted (``jnp.nonzero``
+   with a static room), so the work follows the edges' length.
+2. On each pair, the first change of its channel is bisected (a fixed number of steps, values only),
    and at the first level of the path where the two sides differ, the margin ``g`` whose zero it
    is chosen: the nearer primitive's outline along that level's ray, the farther one's, their
    seam, the pattern's cell face, or a shadow caster's outline — the one nearest the crossing.
@@ -46,8 +51,9 @@ tube over its far one: one primitive on both sides, the signature does not chang
 without a margin (polynomials, meshes, open cylinders and cones), a pattern without a face (hexagon,
 brick, a turbulent checker), a CSG operand's cut and ``clipped_by`` get no term (``Edges.unresolved``
 counts those crossings), nor does a shadow on a mesh or a path through one; neither does the
-onset of total internal reflection (a change of branch alone). Not in this term: area lights'
-shadows, a shadow's edge inside another caster's shadow (the first caster along the shadow ray is
+onset of total internal reflection (a change of branch alone). Not in this term: the shadows of
+area lights whose samples adaptive sampling chooses (a warning says so), a shadow's edge inside
+another caster's shadow (the first caster along the shadow ray is
 the one seen), what the mirror ray of a transparent surface shows (the path follows its refracted
 ray), and paths longer than ``PATH_BOUNCES``. The path's ray crosses a surface as if from air into
 the surface's interior or back (POV-Ray's list of nested interiors is not followed).
@@ -55,6 +61,7 @@ the surface's interior or back (POV-Ray's list of nested interiors is not follow
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import equinox as eqx
@@ -70,7 +77,15 @@ from .scene import Scene, environment_of
 from .shading import _accel, lighting
 from .shading._geometry import _to_object, closest_hit, prim_bits
 from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
-from .shading._model import hard_shadow_lights, initial_media, light_geometry, make_context
+from .shading._model import (
+    adaptive_shadow_lights,
+    grid_shadow_lights,
+    hard_shadow_lights,
+    initial_media,
+    light_geometry,
+    make_context,
+    shadow_sample_points,
+)
 from .shading.camera import camera_rays
 from .shading.whitted import trace
 
@@ -244,13 +259,23 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                        environment_of(scene))
     h = 1.0 / k
     rows, cols = height * k, width * k
-    room = _room(width, height, k) if room is None else -(-room // CHUNK) * CHUNK
     sg = jax.lax.stop_gradient
 
     mats = packed.mats
     cells = bool(_discrete(mats))
-    # lights whose shadow is one ray: the first caster on it is part of what a sample sees
+    # lights whose shadow is one ray: the first caster on it is part of what a sample sees; and
+    # area lights sampled on a fixed grid: the first caster towards each sample of it (an entry of
+    # its own, and a channel of its own below, since its edges lie within a penumbra close together)
     shadow_lights = hard_shadow_lights(ctx)
+    grid_lights = tuple((i, shadow_sample_points(ctx, scene.lights[i])[0].shape[0])
+                        for i in grid_shadow_lights(ctx))
+    n_points, n_samples = len(shadow_lights), sum(n for _, n in grid_lights)
+    if adaptive_shadow_lights(ctx):  # (said when the term is traced: once a program)
+        warnings.warn("the shadow edges of area lights with adaptive sampling get no boundary term "
+                      f"(lights {', '.join(map(str, adaptive_shadow_lights(ctx)))}): their samples "
+                      "change with the scene; without `adaptive` the grid's shadows are seen",
+                      RuntimeWarning, stacklevel=2)
+    entries = n_points + n_samples  # a level's shadow entries: point lights, then grid samples
     casters = _accel.MASK_SHADOW | _accel.MASK_FILTER
     vis_shadow = jnp.asarray((prim_bits(plan)[geo.cand_prim] & casters) != 0)
     # a camera ray's path: the camera ray, then each surface's refracted ray (where its pigment can
@@ -258,10 +283,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     effects = plan.effects
     bounces = min(PATH_BOUNCES, max(int(scene.settings.max_trace_level) - 1, 0))
     levels = 1 + (bounces if (effects.reflection or effects.refraction) else 0)
-    width_ = 3 + len(shadow_lights)  # a level's entries: primitive, cell, branch, casters
+    width_ = 3 + entries  # a level's entries: primitive, cell, branch, casters
     transparent = jnp.asarray(mats.tables["transparent"], bool)
     # float32 points of discrete patterns computed at the surface, as the shading computes them
     refine = cells and dtype == jnp.float32
+    # each grid sample's shadow outline is an edge of its own: room for four image perimeters of it
+    if room is None:
+        room = _room(width, height, k) + n_samples * 4 * k * (width + height)
+    room = -(-room // CHUNK) * CHUNK
 
     def guard(x):
         """The model's rounding guard at point ``x`` (a start offset along a ray, a spawn offset),
@@ -288,11 +317,11 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         o_next = jnp.where(branch == REFRACT, p - offset * n, p + offset * n)
         return o_next, d_next, tir
 
-    # 1. what each lattice sample sees, its signature (levels × (3 + lights),) flattened: at each
+    # 1. what each lattice sample sees, its signature (levels × (3 + entries),) flattened: at each
     # level of its path, the primitive (-1: none), the cell of its discrete pattern (0: none), the
     # branch the path takes there (STOP, REFLECT, REFRACT, TIR), and for each light of
-    # ``shadow_lights`` the first shadow caster between the point seen and the light (-1: none, or
-    # the light is behind the surface)
+    # ``shadow_lights``, then each sample of each light of ``grid_lights``, the first shadow caster
+    # between the point seen and the light or sample (-1: none, or the light is behind the surface)
     def seen(u, v):
         # one level of the path: a loop over the levels, so that the program holds one copy of it
         def level_of(carry, index):
@@ -306,7 +335,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             p_cell = p if hit.point is None else hit.point
             cell = _cell(mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
             casts = []
-            if shadow_lights:  # the shadow ray as the model spawns it: from just off the surface
+            if entries:  # the shadow ray as the model spawns it: from just off the surface
                 n = jnp.where(jnp.dot(hit.normal, d) < 0, hit.normal, -hit.normal)
                 p_out = p + guard(p) * n
                 start = guard(p_out)
@@ -316,6 +345,16 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                     on = (found & caster.found & (caster.t < shadow_len - start)
                           & (jnp.dot(n, l) > lighting.NL_EPSILON))
                     casts.append(jnp.where(on, caster.prim, -1))
+            for i, _ in grid_lights:  # towards each sample, as the model's shadow rays go
+                lit = found & (jnp.dot(n, light_geometry(ctx, scene.lights[i], p)[0]) > lighting.NL_EPSILON)
+
+                def towards(q, start=start, p_out=p_out, lit=lit):
+                    to = q - p_out
+                    dist = jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30))
+                    caster = closest_hit(geo, plan, p_out, to / dist, start, vis_shadow, casters)
+                    return jnp.where(lit & caster.found & (caster.t < dist - start), caster.prim, -1)
+
+                casts.extend(jax.vmap(towards)(shadow_sample_points(ctx, scene.lights[i])[0]))
             branch = jnp.asarray(STOP)
             if levels > 1:
                 prim = jnp.maximum(hit.prim, 0)
@@ -353,9 +392,46 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                                                (jnp.arange(1, levels), rows[:-1, 0], rows[:-1, 2]))
         return out_o, out_d
 
-    def first_level(s_a, s_b):
-        """The first level of the path where the signatures differ."""
-        return jnp.argmax(jnp.any(s_a.reshape(levels, width_) != s_b.reshape(levels, width_), axis=1))
+    own = 3 + n_points  # a level's entries of channel 0: primitive, cell, branch, point-light casters
+    channels = 1 + n_samples
+
+    def differs(s_a, s_b):
+        """(..., channels): the channels in which signatures differ — 0: a level's primitive, cell,
+        branch or point-light caster; 1 + s: the caster towards grid sample s at some level, where
+        channel 0 agrees (an edge of the path itself counts once, in channel 0)."""
+        ne = (s_a != s_b).reshape(*s_a.shape[:-1], levels, width_)
+        path = jnp.any(ne[..., :own], axis=(-2, -1))
+        grid = jnp.any(ne[..., own:], axis=-2) & ~path[..., None]
+        return jnp.concatenate([path[..., None], grid], axis=-1)
+
+    def changed(s_a, s_b, ch):
+        """``(changed, level, entry)``: whether channel ``ch`` of the signatures differs, the first
+        level of the path where it does, and there the shadow entry that differs (channel 0: the
+        first point light's; else its grid sample's)."""
+        ne = (s_a != s_b).reshape(levels, width_)
+        level = jnp.argmax(jnp.any(ne[:, :own], axis=1))
+        differ = jnp.any(ne[:, :own])
+        if n_samples:
+            column = own + jnp.clip(ch - 1, 0, n_samples - 1)
+            grid = ne[:, column]
+            level = jnp.where(ch == 0, level, jnp.argmax(grid))
+            differ = jnp.where(ch == 0, differ, jnp.any(grid))
+        entry = jnp.argmax(ne[level, 3:own]) if n_points else jnp.zeros((), jnp.int32)
+        entry = jnp.where(ch == 0, entry, n_points + ch - 1)
+        return differ, level, entry
+
+    def towards_light(sc, entry, p):
+        """The unit direction from ``p`` to the light or grid sample of shadow entry ``entry``."""
+        l = jnp.zeros(3, p.dtype)
+        for k_, i in enumerate(shadow_lights):
+            l = jnp.where(entry == k_, light_geometry(ctx, sc.lights[i], p)[0], l)
+        start = n_points
+        for i, n in grid_lights:
+            to = shadow_sample_points(ctx, sc.lights[i])[0][jnp.clip(entry - start, 0, n - 1)] - p
+            l = jnp.where((entry >= start) & (entry < start + n),
+                          to / jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30)), l)
+            start += n
+        return l
 
     def pattern_point(sc, pk, sig, level, prim, u, v):
         """The pattern-space point of ``prim``'s top layer where the ray at ``level`` of the path
@@ -370,16 +446,17 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     centres = (jnp.arange(max(rows, cols), dtype=dtype) + 0.5) * h
     sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v))(centres[:cols]), centres[:rows])
 
-    # pairs that differ: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
-    across = jnp.any(sig[:, :-1] != sig[:, 1:], axis=-1).reshape(-1)
-    down = jnp.any(sig[:-1, :] != sig[1:, :], axis=-1).reshape(-1)
+    # pairs that differ, by channel: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
+    across = differs(sig[:, :-1], sig[:, 1:]).reshape(-1)
+    down = differs(sig[:-1, :], sig[1:, :]).reshape(-1)
     found = jnp.concatenate([across, down])
     count = jnp.sum(found)
     which = jnp.nonzero(found, size=room, fill_value=0)[0]
     live = jnp.arange(room) < count
     in_rows = which < across.size
-    r = jnp.where(in_rows, which // max(cols - 1, 1), (which - across.size) // cols)
-    c = jnp.where(in_rows, which % max(cols - 1, 1), (which - across.size) % cols)
+    pair, ch = jnp.where(in_rows, which, which - across.size) // channels, which % channels
+    r = jnp.where(in_rows, pair // max(cols - 1, 1), pair // cols)
+    c = jnp.where(in_rows, pair % max(cols - 1, 1), pair % cols)
     pa = sig[r, c]
     u0, v0 = (c.astype(dtype) + 0.5) * h, (r.astype(dtype) + 0.5) * h
     axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
@@ -387,16 +464,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     _, _, has = tables
     has = jnp.asarray(has)
 
-    def margins(sc, pk, s_lo, s_hi, face, u, v):
+    def margins(sc, pk, s_lo, s_hi, face, level, entry, u, v):
         """(4 or 6,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
         of, at image point (u, v) of scene ``sc`` packed as ``pk``, along the ray of their paths'
-        first differing level: the outline of ``s_lo``'s primitive there, the outline of
-        ``s_hi``'s, their seam (the distances' difference), the cell face ``face`` = (normal,
-        offset) of a discrete pattern on one primitive (``normal · q − offset``, q its
-        pattern-space point), and with shadows, the outlines of the first light whose caster
-        differs, of its caster on ``s_lo``'s side and on ``s_hi``'s, along the line from the point
-        seen towards that light."""
-        level = first_level(s_lo, s_hi)
+        level ``level``: the outline of ``s_lo``'s primitive there, the outline of ``s_hi``'s,
+        their seam (the distances' difference), the cell face ``face`` = (normal, offset) of a
+        discrete pattern on one primitive (``normal · q − offset``, q its pattern-space point), and
+        with shadows, the outlines of shadow entry ``entry``'s caster on ``s_lo``'s side and on
+        ``s_hi``'s, along the line from the point seen towards that light or grid sample."""
         a, b = s_lo.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
         geo_ = pk.geo
         o, d = path_ray(sc, pk, s_lo, level, u, v)
@@ -408,24 +483,22 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         if cells:  # the same ray and crossing as the outline's
             on_face = jnp.dot(face[0], point_in_pattern(pk, lo_, o, d, t_lo)) - face[1]
         out = [_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face]
-        if shadow_lights:
-            j = jnp.argmax(a[3:] != b[3:])
+        if entries:
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
-            l = jnp.zeros(3, o.dtype)
-            for k_, i in enumerate(shadow_lights):
-                l = jnp.where(j == k_, light_geometry(ctx, sc.lights[i], p)[0], l)
+            l = towards_light(sc, entry, p)
             seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point (a mesh)
-            out += [_margin(geo_, tables, jnp.maximum(s[3 + j], 0), p, l) + seen_at for s in (a, b)]
+            out += [_margin(geo_, tables, jnp.maximum(s[3 + entry], 0), p, l) + seen_at for s in (a, b)]
         return jnp.stack(out)
 
-    def locate(s_a, u, v, e):
-        """The first change of what is seen along the pair's segment from its first sample, by
-        bisection of the signature seen (a fixed number of steps): ``(lo, hi, signature seen at
-        hi, kind, face)`` — ``lo``, ``hi`` in pixels along ``e`` from (u, v); ``kind`` the margin
-        whose zero it is, at the paths' first differing level (0: the outline of ``s_a``'s
-        primitive, 1: of the primitive beyond, 2: their seam, 3: a cell face of one primitive's
-        pattern, 4, 5: the outline of a shadow's caster on either side; the one nearest the
-        crossing in pixels, -1 where none is within a hundredth of the spacing)."""
+    def locate(s_a, u, v, e, ch):
+        """The first change of channel ``ch`` of what is seen along the pair's segment from its
+        first sample, by bisection of the signature seen (a fixed number of steps): ``(lo, hi,
+        signature seen at hi, kind, face, level, entry, g_u, g_v)`` — ``lo``, ``hi`` in pixels
+        along ``e`` from (u, v); ``kind`` the margin whose zero it is, at the paths' first level
+        where the channel differs (0: the outline of ``s_a``'s primitive, 1: of the primitive
+        beyond, 2: their seam, 3: a cell face of one primitive's pattern, 4, 5: the outline of
+        shadow entry ``entry``'s caster on either side; the one nearest the crossing in pixels, -1
+        where none is within a hundredth of the spacing), and its derivatives along the image."""
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
         # (step 0 sees the pair's second sample: one copy of ``seen`` in the program)
@@ -434,13 +507,13 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             first = i == 0
             mid = jnp.where(first, hi, 0.5 * (lo + hi))
             s_mid = seen(u + mid * e[0], v + mid * e[1])
-            same = jnp.all(s_mid == s_a) & ~first
+            same = ~changed(s_a, s_mid, ch)[0] & ~first
             return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid),
                     jnp.where(same, s_hi, s_mid))
 
         start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a)
         lo, hi, s_hi = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
-        level = first_level(s_a, s_hi)
+        _, level, entry = changed(s_a, s_hi, ch)
         a, b = s_a.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
         p_lo, p_hi = a[0], b[0]
         one = (p_lo == p_hi) & (p_lo >= 0)
@@ -456,27 +529,27 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # every margin and its derivatives along the image at the crossing: one jvp, two tangents
         point = jnp.stack([u + mid * e[0], v + mid * e[1]])
         def at(uv):
-            return margins(scene, packed, s_a, s_hi, face, uv[0], uv[1])
+            return margins(scene, packed, s_a, s_hi, face, level, entry, uv[0], uv[1])
 
         g, (g_u, g_v) = jax.vmap(lambda t: jax.jvp(at, (point,), (t,)), out_axes=(None, 0))(
             jnp.eye(2, dtype=dtype))
         g_s = g_u * e[0] + g_v * e[1]
         has_lo, has_hi = (p_lo >= 0) & has[jnp.maximum(p_lo, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
-        valid = [has_lo & ~one, has_hi & ~one, has_lo & has_hi & ~one, one & has_face & (a[1] != b[1])]
-        if shadow_lights:
-            differs = a[3:] != b[3:]
-            j = jnp.argmax(differs)
-            valid += [one & jnp.any(differs) & (c_ >= 0) & has[jnp.maximum(c_, 0)]
-                      for c_ in (a[3 + j], b[3 + j])]
+        path = ch == 0
+        valid = [path & has_lo & ~one, path & has_hi & ~one, path & has_lo & has_hi & ~one,
+                 path & one & has_face & (a[1] != b[1])]
+        if entries:  # (channel 0's shadow entries are the point lights')
+            shadow = one & (a[3 + entry] != b[3 + entry]) & (path == (entry < n_points))
+            valid += [shadow & (c_ >= 0) & has[jnp.maximum(c_, 0)] for c_ in (a[3 + entry], b[3 + entry])]
         valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
         kind = jnp.argmin(distance)
-        return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, g_u[kind],
-                g_v[kind])
+        return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, level, entry,
+                g_u[kind], g_v[kind])
 
     # (3. the chosen margin's derivatives along the image come with it: g_u, g_v)
-    lo, hi, pb, kind, face, g_u, g_v = _live_map(locate, live, pa, u0, v0, axis)
+    lo, hi, pb, kind, face, level, entry, g_u, g_v = _live_map(locate, live, pa, u0, v0, axis, ch)
     face = jax.tree.map(sg, face)
     ok = live & (kind >= 0)
     g_u, g_v = sg(jnp.where(ok, g_u, 0.0)), sg(jnp.where(ok, g_v, 0.0))
@@ -489,8 +562,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     def chosen_margins(dyn_):
         sc = eqx.combine(dyn_, static)
         pk = pack(sc, plan)
-        return _live_map(lambda kind_, s_a, s_b, face_, u, v: margins(sc, pk, s_a, s_b, face_, u, v)[
-            jnp.maximum(kind_, 0)], ok, kind, pa, pb, face, pu, pv)
+        return _live_map(lambda kind_, s_a, s_b, face_, level_, entry_, u, v: margins(
+            sc, pk, s_a, s_b, face_, level_, entry_, u, v)[jnp.maximum(kind_, 0)],
+            ok, kind, pa, pb, face, level, entry, pu, pv)
 
     g_theta = jax.jvp(chosen_margins, (dynamic,), (tangent,))[1]
 

@@ -81,6 +81,37 @@ def shadow_conic(frame, centre, radius, towards_light, plane_y: float, width: in
     return q
 
 
+def cone_shadow_conic(frame, centre, radius, light, plane_y: float, width: int, height: int):
+    """:func:`shadow_conic` for a light at the point ``light`` (a point light, or one sample of an
+    area light's grid): the plane point ``x`` is in the shadow where it lies in the cone from the
+    light that grazes the sphere, ``((x − q)·a)² ≥ (|a|² − r²)|x − q|²``, ``a = c − q`` (q the
+    light). Multiplied by ``d_y²``, with ``w = (x − q) d_y = (eye − q) d_y + (plane_y − eye_y) d``
+    linear in d: ``Q = (w·a)² − (|a|² − r²)|w|²``, a quadratic in (u, v)."""
+    eye = np.asarray(frame[0], np.float64)
+    q_light = np.asarray(light, np.float64)
+    a = np.asarray(centre, np.float64) - q_light
+    direction = _direction_of(width, height, frame)
+
+    def q(u, v):
+        d = direction(np.atleast_1d(u), np.atleast_1d(v))
+        w = (eye - q_light)[None, :] * d[:, 1:2] + (plane_y - eye[1]) * d
+        return (w @ a) ** 2 - (a @ a - radius * radius) * np.sum(w * w, -1)
+
+    return q
+
+
+def plane_point(frame, plane_y: float, width: int, height: int):
+    """``(u, v) → (N, 3)``: where the ray through image point (u, v) meets the plane ``y = plane_y``."""
+    eye = np.asarray(frame[0], np.float64)
+    direction = _direction_of(width, height, frame)
+
+    def point(u, v):
+        d = direction(np.atleast_1d(u), np.atleast_1d(v))
+        return eye[None, :] + ((plane_y - eye[1]) / d[:, 1])[:, None] * d
+
+    return point
+
+
 def sphere_through_slab(frame, centre, radius, z_near: float, z_far: float, ior: float, width: int,
                         height: int):
     """The margin of a sphere seen through a glass slab ``z_near ≤ z ≤ z_far`` of index ``ior``

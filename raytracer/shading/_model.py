@@ -744,6 +744,25 @@ def hard_shadow_lights(ctx: TraceContext) -> tuple[int, ...]:
                  and _shadow_sampler(light_types(light, ctx.plan.effects)) is None)
 
 
+def grid_shadow_lights(ctx: TraceContext) -> tuple[int, ...]:
+    """The indices of the lights whose shadow is the weighted sum over a fixed grid of shadow rays
+    (static): area lights sampled in full — without ``adaptive``, or with one that splits every
+    block down to the grid — not those whose samples adaptive sampling chooses per point."""
+    return tuple(i for i, light in enumerate(ctx.lights)
+                 if _sampled(ctx, light) and not _adaptive(ctx, light))
+
+
+def adaptive_shadow_lights(ctx: TraceContext) -> tuple[int, ...]:
+    """The indices of the lights whose shadow samples POV-Ray's adaptive sampling chooses per point
+    (static)."""
+    return tuple(i for i, light in enumerate(ctx.lights) if _adaptive(ctx, light))
+
+
+def shadow_sample_points(ctx: TraceContext, light: Light):
+    """``(positions (N, 3), weights (N,))``: the targets of a sampled light's shadow rays."""
+    return _shadow_sampler(light_types(light, ctx.plan.effects))(light, ctx.dtype)
+
+
 def _unshadowed(ctx: TraceContext, light: Light, p, n):
     """Direction to the light, the colour arriving before the shadow (each of its types' factors:
     fade, spot cone), ``n·l`` and the shadow ray's length. Only types whose effects the plan turns
