@@ -322,7 +322,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # branch the path takes there (STOP, REFLECT, REFRACT, TIR), and for each light of
     # ``shadow_lights``, then each sample of each light of ``grid_lights``, the first shadow caster
     # between the point seen and the light or sample (-1: none, or the light is behind the surface)
-    def seen(u, v):
+    def seen(u, v, sample=None):
+        """The signature of image point (u, v); with ``sample`` (a grid sample's index, traced), of
+        the grid's casters only that sample's (the others -1): what a bisection of its channel, or
+        of channel 0, which has none, needs."""
         # one level of the path: a loop over the levels, so that the program holds one copy of it
         def level_of(carry, index):
             o, d, alive, mirror = carry
@@ -345,16 +348,26 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                     on = (found & caster.found & (caster.t < shadow_len - start)
                           & (jnp.dot(n, l) > lighting.NL_EPSILON))
                     casts.append(jnp.where(on, caster.prim, -1))
-            for i, _ in grid_lights:  # towards each sample, as the model's shadow rays go
-                lit = found & (jnp.dot(n, light_geometry(ctx, scene.lights[i], p)[0]) > lighting.NL_EPSILON)
+            if grid_lights:  # towards each sample, as the model's shadow rays go
+                towards = []  # (position, lit) of every sample
+                for i, n_i in grid_lights:
+                    l_i = light_geometry(ctx, scene.lights[i], p)[0]
+                    lit = found & (jnp.dot(n, l_i) > lighting.NL_EPSILON)
+                    towards.append((shadow_sample_points(ctx, scene.lights[i])[0],
+                                    jnp.broadcast_to(lit, (n_i,))))
+                targets, lit = (jnp.concatenate(x) for x in zip(*towards, strict=True))
 
-                def towards(q, start=start, p_out=p_out, lit=lit):
+                def caster_towards(q, lit, start=start, p_out=p_out):
                     to = q - p_out
                     dist = jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30))
                     caster = closest_hit(geo, plan, p_out, to / dist, start, vis_shadow, casters)
                     return jnp.where(lit & caster.found & (caster.t < dist - start), caster.prim, -1)
 
-                casts.extend(jax.vmap(towards)(shadow_sample_points(ctx, scene.lights[i])[0]))
+                if sample is None:
+                    casts.extend(jax.vmap(caster_towards)(targets, lit))
+                else:
+                    one = caster_towards(targets[sample], lit[sample])
+                    casts.extend(jnp.where(jnp.arange(n_samples) == sample, one, -1))
             branch = jnp.asarray(STOP)
             if levels > 1:
                 prim = jnp.maximum(hit.prim, 0)
@@ -502,11 +515,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
         # (step 0 sees the pair's second sample: one copy of ``seen`` in the program)
+        # (a channel's bisection traces its own grid sample's shadow ray, not the grid's)
+        sample = jnp.clip(ch - 1, 0, n_samples - 1) if n_samples else None
+
         def step(i, state):
             lo, hi, s_hi = state
             first = i == 0
             mid = jnp.where(first, hi, 0.5 * (lo + hi))
-            s_mid = seen(u + mid * e[0], v + mid * e[1])
+            s_mid = seen(u + mid * e[0], v + mid * e[1], sample)
             same = ~changed(s_a, s_mid, ch)[0] & ~first
             return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid),
                     jnp.where(same, s_hi, s_mid))
