@@ -2,6 +2,8 @@
 
 ``python -m validation [--against mitsuba|povray|all] [--report DIR] [SCENE…]``
 ``python -m validation --against gradients``: our gradients vs Mitsuba prb (``validation.gradients``)
+``python -m validation --against edges``: our boundary term vs Mitsuba's projective sampling
+(``validation.edge_gradients``)
 
 Prints one line per scene × reference and exits with status 1 if any comparison fails.
 """
@@ -16,7 +18,7 @@ from . import suite
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m validation", description=__doc__.splitlines()[0])
-    p.add_argument("--against", choices=("mitsuba", "povray", "all", "gradients"), default="all",
+    p.add_argument("--against", choices=("mitsuba", "povray", "all", "gradients", "edges"), default="all",
                    help="which reference renderer(s) to compare with (default: all)")
     p.add_argument("--report", metavar="DIR", help="write an HTML report with images into DIR")
     p.add_argument("--list", action="store_true", help="list the scenes and what each checks")
@@ -27,6 +29,10 @@ def main(argv=None) -> int:
         from . import gradients
 
         return gradients.main()
+    if args.against == "edges":
+        from . import edge_gradients
+
+        return edge_gradients.main()
     if args.list:
         for s in suite.SCENES:
             refs = ",".join(r for r in suite.REFERENCES if s.thresholds(r) is not None)
