@@ -34,8 +34,12 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 3. There, by forward-mode derivatives: ``g_u, g_v`` along the image and ``g_θ`` along the
    parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; rows and columns share the edge
    integral by the weights ``g_u⁴/(g_u⁴ + g_v⁴)`` and ``g_v⁴/(…)`` (they add up to ∫ ds, and neither
-   pass divides by a vanishing ``g_u``), so a row's crossing adds ``−h (L⁻ − L⁺) g_θ g_u³/(g_u⁴ +
-   g_v⁴)``, ``h`` the lattice spacing in pixels, spread over the pixels its band of the edge passes.
+   pass divides by a vanishing ``g_u``), so a row's crossing adds ``−b (L⁻ − L⁺) g_θ g_u³/(g_u⁴ +
+   g_v⁴)``, spread over the pixels its stretch of the edge passes. ``b`` is the stretch of rows the
+   crossing stands for: on a smooth edge its band of the lattice, ``h`` (the spacing in pixels);
+   where the edge turns between two lattice lines (a polygon's vertex, a box's corner, a cell's
+   corner where another edge ends it), up to where its tangent line meets that of the crossing
+   beyond the turn — the vertex itself on straight edges (``_extents``).
 4. ``L⁻``, ``L⁺``: two camera rays just either side of the crossing, traced through the whole
    model (shadows, reflections, refraction), so the jump is that of the image.
 
@@ -44,8 +48,10 @@ The term is linear in the tangent (only ``g_θ`` carries it), so reverse mode is
 own plus this one.
 
 Discretised, and where it fails: the row and column sums are a quadrature of the edge integral with
-spacing ``h`` — second order on smooth edges, first order where an edge turns within a lattice cell
-(polygon vertices, checker corners); two edges between neighbouring samples count as one, and
+spacing ``h`` — second order on smooth edges; a vertex between straight edges is located (exact for
+a polygon's), but not one whose edges both run steeply across the lattice lines of both passes,
+nor the corners of features a few lattice steps across (first order there, as a curve's tip is);
+two edges between neighbouring samples count as one, and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
 tube over its far one: one primitive on both sides, the signature does not change); a shape
 without a margin (polynomials, meshes, open cylinders and cones), a pattern without a face (hexagon,
@@ -242,6 +248,179 @@ def _live_map(fn, live, *args):
 
     out = jax.lax.map(one, chunks)
     return jax.tree.map(lambda x: x.reshape(n, *x.shape[2:]), out)
+
+
+def _transition(pa, pb, j, ch, levels: int, width_: int, own: int, n_samples: int):
+    """(room, D) × 2: whether the crossings ``j`` (room, D) separate the same signatures as each
+    crossing (its first side ``pa``, its other ``pb``) in the crossing's channel ``ch``, in the
+    same order, and in the other order."""
+    def agree(x, y):  # x of each crossing against y of the crossings j
+        ne = (y[j] != x[:, None, :]).reshape(*j.shape, levels, width_)
+        path = jnp.any(ne[..., :own], axis=(-2, -1))
+        if not n_samples:
+            return ~path
+        column = jnp.clip(ch - 1, 0, n_samples - 1)[:, None, None, None]
+        grid = jnp.any(jnp.take_along_axis(ne[..., own:], column, axis=-1)[..., 0], axis=-1)
+        return jnp.where((ch == 0)[:, None], ~path, ~grid)
+
+    return agree(pa, pa) & agree(pb, pb), agree(pa, pb) & agree(pb, pa)
+
+
+# an edge turns between two lattice lines (a vertex) where two crossings' tangent lines meet at
+# more than this sine of an angle (11.5°); a smooth edge turns by the lattice spacing times its
+# curvature and keeps the band's midpoint rule
+TURN = 0.2
+# and only between crossings whose edge runs across their lines at a slope of at most this: a steep
+# crossing's neighbour is far along the edge, where its tangent line no longer follows a curved one
+STEEP = 1.5
+# a crossing's neighbour on the next row (column) of the lattice is looked for this many lattice
+# steps either side of where its tangent line meets that row
+WINDOW = 2
+
+
+def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, rows: int, cols: int,
+             channels: int, h: float):
+    """``(low, high)``: the stretch ``[across + low, across + high]`` of the across axis (v for a
+    row's crossing, u for a column's) whose edge integral each crossing stands for.
+
+    A crossing stands for its band of the lattice, ±h/2, on a smooth edge; where the edge turns
+    between two lattice lines — a polygon's vertex, a box's corner — the band's straight piece is
+    not the edge, and the error is first order in h. So where the next line (row or column) holds
+    a crossing of the same transition near where this one's tangent line meets it, the two stand
+    for the edge up to where their tangent lines meet: a vertex exactly, and on a smooth edge the
+    midpoint to second order. Elsewhere (the edge ends, turns back, or leaves the window) ±h/2."""
+    room = r.shape[0]
+    index = jnp.arange(room)
+    first, second = jnp.where(in_rows, r, c), jnp.where(in_rows, c, r)  # across, along lattice index
+    sizes = {True: (rows, max(cols - 1, 1)), False: (cols, max(rows - 1, 1))}
+    grids = {}
+    for rows_pass, (n_a, n_b) in sizes.items():
+        mine = usable & (in_rows if rows_pass else ~in_rows)
+        grids[rows_pass] = jnp.full((n_a, n_b, channels), -1, jnp.int32).at[first, second, ch].max(
+            jnp.where(mine, index, -1).astype(jnp.int32), mode="drop")
+    deltas = jnp.arange(-WINDOW, WINDOW + 1)
+    sg = jax.lax.stop_gradient
+
+    def boundary(step):
+        line = first + step
+        predicted = at + step * h * slope
+        lanes = jnp.floor(predicted / h - 0.5).astype(jnp.int32)[:, None] + deltas[None, :]
+        cand, inside = [], []
+        for rows_pass, (n_a, n_b) in sizes.items():
+            cand.append(grids[rows_pass][jnp.clip(line, 0, n_a - 1)[:, None], jnp.clip(lanes, 0, n_b - 1),
+                                         ch[:, None]])
+            inside.append(((line >= 0) & (line < n_a))[:, None] & (lanes >= 0) & (lanes < n_b))
+        cand = jnp.where(in_rows[:, None], cand[0], cand[1])
+        inside = jnp.where(in_rows[:, None], inside[0], inside[1])
+        j = jnp.maximum(cand, 0)
+        valid = inside & (cand >= 0) & usable[:, None] & same(j)[0]
+        distance = jnp.where(valid, jnp.abs(at[j] - predicted[:, None]), jnp.inf)
+        k = jnp.argmin(distance, axis=1)
+        found = jnp.isfinite(distance[index, k])
+        n = j[index, k]
+        # where the two tangent lines meet, in the across coordinate (Cramer's rule)
+        rhs_i, rhs_n = along * at + other * across, along[n] * at[n] + other[n] * across[n]
+        det = along * other[n] - other * along[n]
+        scale = jnp.sqrt((along ** 2 + other ** 2) * (along[n] ** 2 + other[n] ** 2))
+        meet = (along * rhs_n - along[n] * rhs_i) / jnp.where(det != 0, det, 1.0)
+        shallow = found & (jnp.abs(slope) <= STEEP) & (jnp.abs(slope[n]) <= STEEP)
+        bend = jnp.where(shallow, jnp.abs(det) / jnp.where(scale > 0, scale, 1.0), jnp.inf)
+        vertex = bend > TURN
+        meet = jnp.clip(meet, jnp.minimum(across, across[n]), jnp.maximum(across, across[n]))
+        return vertex & shallow, shallow & ~vertex, n, meet, bend
+
+    # in the image plane: each crossing's point and its margin's gradient
+    pu, pv = jnp.where(in_rows, at, across), jnp.where(in_rows, across, at)
+    gu, gv = jnp.where(in_rows, along, other), jnp.where(in_rows, other, along)
+
+    def turn(step):
+        """Where the edge ends between this line and the next (``step``) at another edge — its own
+        turning onto the other pass's lines at a vertex, or another edge that crosses it (a cell
+        corner, an outline over it): the meeting of this crossing's tangent line with that of a
+        crossing of the other pass nearby, within two lattice steps of both."""
+        # the other pass's lattice pairs between the two lines, and the next ones beyond (the other
+        # edge may cross the other pass's lines only beyond the vertex), on its lines about this one
+        bands = (first + (step - 1) // 2)[:, None] + jnp.array([0, step])[None, :]
+        lanes = second[:, None] + jnp.arange(-1, 3)[None, :]
+        bands, lanes = (jnp.broadcast_to(x, (room, 2, 4)).reshape(room, 8)
+                        for x in (bands[:, :, None], lanes[:, None, :]))
+        cand, inside = [], []
+        for rows_pass in (True, False):
+            n_a, n_b = sizes[not rows_pass]
+            cand.append(grids[not rows_pass][jnp.clip(lanes, 0, n_a - 1), jnp.clip(bands, 0, n_b - 1),
+                                             ch[:, None]])
+            inside.append((lanes >= 0) & (lanes < n_a) & (bands >= 0) & (bands < n_b))
+        cand = jnp.where(in_rows[:, None], cand[0], cand[1])
+        inside = jnp.where(in_rows[:, None], inside[0], inside[1])
+        j = jnp.maximum(cand, 0)
+        rhs_i = (gu * pu + gv * pv)[:, None]
+        rhs_j = gu[j] * pu[j] + gv[j] * pv[j]
+        det = gu[:, None] * gv[j] - gv[:, None] * gu[j]
+        scale = jnp.sqrt((gu ** 2 + gv ** 2)[:, None] * (gu[j] ** 2 + gv[j] ** 2))
+        safe = jnp.where(det != 0, det, 1.0)
+        mu = (rhs_i * gv[j] - gv[:, None] * rhs_j) / safe
+        mv = (gu[:, None] * rhs_j - gu[j] * rhs_i) / safe
+        meet = jnp.where(in_rows[:, None], mv, mu)  # in the across coordinate
+        reach = jnp.maximum(jnp.hypot(mu - pu[:, None], mv - pv[:, None]), jnp.hypot(mu - pu[j], mv - pv[j]))
+        offset = step * (meet - across[:, None])
+        valid = (inside & (cand >= 0) & usable[:, None] & (jnp.abs(det) > TURN * scale)
+                 & (jnp.abs(slope) <= STEEP)[:, None] & (jnp.abs(slope[j]) <= STEEP)
+                 & (offset >= 0) & (offset <= h) & (reach <= 2 * h))
+        distance = jnp.where(valid, reach, jnp.inf)
+        k = jnp.argmin(distance, axis=1)
+        return jnp.isfinite(distance[index, k]), meet[index, k]
+
+    # a vertex with this side's neighbour, else with a crossing of that line that found this one
+    # looking back (a steep edge's crossing may not see a shallow one beyond a vertex that sees it);
+    # a smooth neighbour: the band's midpoint; none (or a steep one): where another edge ends this
+    # one, else the midpoint
+    searched = {step: boundary(step) for step in (-1, 1)}
+    ends = []
+    for step in (-1, 1):
+        vertex, smooth, _, meet, _ = searched[step]
+        vertex_back, _, n_back, meet_back, bend_back = searched[-step]
+        target = jnp.where(vertex_back, n_back, room)  # (room: dropped)
+        seen_back = jnp.zeros(room, bool).at[target].set(True, mode="drop")
+        meet_seen = jnp.zeros(room, meet.dtype).at[target].set(meet_back, mode="drop")
+        turned, meet_turn = turn(step)
+        # (only from a straight edge: the other side's neighbour in line; a small curve's
+        # crossings bend by more than that between lattice lines, and meet the other pass's)
+        turned = turned & (bend_back <= TURN / 4)
+        middle = across + 0.5 * step * h
+        end = jnp.where(vertex, meet, jnp.where(seen_back, meet_seen, jnp.where(
+            smooth, middle, jnp.where(turned, meet_turn, middle))))
+        ends.append(sg(end - across))
+    return ends[0], ends[1]
+
+
+def _spread(contribution, in_rows, at, across, low, high, slope, span, width: int, height: int, dtype):
+    """(H, W, 3): each crossing's contribution spread over the pixels its stretch of the edge passes
+    through: the stretch ``[across + low, across + high]`` cut at the pixel lines across, and each
+    piece's straight run along the axis (slope ``slope``) shared by length among the cells it
+    overlaps (a run longer than three cells keeps its whole share in these three)."""
+    tiny = jnp.finfo(dtype).tiny
+    image = jnp.zeros((height, width, 3), dtype)
+    pixel = jnp.floor(across)
+    for piece in (-1, 0, 1):
+        a = jnp.clip(across + low, pixel + piece, pixel + piece + 1)
+        b = jnp.clip(across + high, pixel + piece, pixel + piece + 1)
+        part = jnp.where(span > 0, (b - a) / jnp.where(span > 0, span, 1.0), float(piece == 0))
+        run_a, run_b = at + (a - across) * slope, at + (b - across) * slope
+        run_lo, run_hi = jnp.minimum(run_a, run_b), jnp.maximum(run_a, run_b)
+        centre = jnp.floor(0.5 * (run_lo + run_hi))
+        overlaps = [jnp.clip(jnp.minimum(run_hi, centre + s + 1) - jnp.maximum(run_lo, centre + s), 0.0, None)
+                    for s in (-1, 0, 1)]
+        total = overlaps[0] + overlaps[1] + overlaps[2]
+        across_cell = (pixel + piece).astype(jnp.int32)
+        for shift, overlap in zip((-1, 0, 1), overlaps, strict=True):
+            share = jnp.where(total > tiny, overlap / jnp.maximum(total, tiny), float(shift == 0))
+            along_cell = (centre + shift).astype(jnp.int32)
+            px = jnp.where(in_rows, along_cell, across_cell)
+            py = jnp.where(in_rows, across_cell, along_cell)
+            inside = (px >= 0) & (px < width) & (py >= 0) & (py < height) & (part > 0)
+            image = image.at[jnp.clip(py, 0, height - 1), jnp.clip(px, 0, width - 1)].add(
+                jnp.where(inside[:, None], (part * share)[:, None] * contribution, 0.0))
+    return image
 
 
 @eqx.filter_jit
@@ -600,32 +779,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     along, other = jnp.where(in_rows, g_u, g_v), jnp.where(in_rows, g_v, g_u)
     quartic = along ** 4 + other ** 4
     usable = ok & (quartic > 0)
-    weight = sg(jnp.where(usable, -h * along ** 3 / jnp.where(usable, quartic, 1.0), 0.0))
+    at, across = sg(jnp.where(in_rows, pu, pv)), sg(jnp.where(in_rows, pv, pu))
+    slope = sg(jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0))  # d(at)/d(across)
+    low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope,
+                         lambda j: _transition(pa, pb, j, ch, levels, width_, own, n_samples),
+                         rows, cols, channels, h)
+    span = high - low
+    weight = sg(jnp.where(usable, -span * along ** 3 / jnp.where(usable, quartic, 1.0), 0.0))
     contribution = jnp.where(usable[:, None], (weight * g_theta)[:, None] * jump, 0.0)  # (room, 3)
-    # the crossing stands for the edge over its band of the lattice (h wide across its axis): where
-    # the edge leaves the crossing's pixel within the band (a straight piece of slope −g_other/g_along),
-    # the neighbouring pixel gets its share
-    at = sg(jnp.where(in_rows, pu, pv))
-    half = sg(0.5 * h * jnp.abs(other) / jnp.where(along != 0, jnp.abs(along), 1.0))
-    half = jnp.where(usable, half, 0.0)
-    cell = jnp.floor(at)
-
-    def overlap(shift):  # of the band's stretch of the edge with cell + shift, in the axis' units
-        lo_, hi_ = cell + shift, cell + shift + 1
-        return jnp.clip(jnp.minimum(at + half, hi_) - jnp.maximum(at - half, lo_), 0.0, None)
-
-    # a stretch longer than three cells keeps its whole contribution in these three
-    total = overlap(-1) + overlap(0) + overlap(1)
-    tiny = jnp.finfo(dtype).tiny
-    image = jnp.zeros((height, width, 3), dtype)
-    for shift in (-1, 0, 1):
-        share = jnp.where(total > tiny, overlap(shift) / jnp.maximum(total, tiny), float(shift == 0))
-        along_cell = (cell + shift).astype(jnp.int32)
-        across_cell = jnp.floor(sg(jnp.where(in_rows, pv, pu))).astype(jnp.int32)
-        px = jnp.where(in_rows, along_cell, across_cell)
-        py = jnp.where(in_rows, across_cell, along_cell)
-        inside = (px >= 0) & (px < width) & (py >= 0) & (py < height)
-        image = image.at[jnp.clip(py, 0, height - 1), jnp.clip(px, 0, width - 1)].add(
-            jnp.where(inside[:, None], share[:, None] * contribution, 0.0))
+    image = _spread(contribution, in_rows, at, across, low, high, slope, span, width, height, dtype)
     unresolved = jnp.sum(live & ~ok)
     return Edges(image, count, unresolved, jnp.maximum(count - room, 0), jnp.sum(dropped))

@@ -15,9 +15,11 @@ Scenes (flat radiance over black: the image's derivative is the boundary term al
 
 * ``sphere``: a sphere moved along x, y and z, and its radius grown.
 * ``box``: a box turned so that three faces show, moved along x — the case of mitsuba3 issue 1895,
-  where ``prb_projective``'s primary term was reported about 2.7× too large; ``prb_projective``'s
-  value is printed beside, and ours is checked in ``tests/test_edges.py`` against the box's outline
-  integrated in closed form.
+  where ``prb_projective``'s primary term was reported about 2.7× too large. Mitsuba's ``cube``
+  gives each face its own four vertices, so that each edge of the box is also an open boundary of
+  two faces, and its term is twice the truth in both integrators (printed, not held); the box is
+  compared as a PLY mesh whose faces share its corners. Ours is also checked in
+  ``tests/test_edges.py`` against a box's outline integrated in closed form.
 
 A comparison passes when the relative L2 difference over the pixels the outline crosses is within
 :data:`MAX_REL_L2` beyond Mitsuba's own relative standard error, and the image sums agree within
@@ -88,8 +90,13 @@ class EdgeResult:
         return (f"{self.scene:7s} {self.tangent:12s} {self.integrator:30s} rel L2 {100 * self.rel_l2:6.2f} % "
                 f"(Mitsuba's noise {100 * self.noise:5.2f} %)  sum ours {self.ours_sum:+.5f} Mitsuba "
                 f"{self.mitsuba_sum:+.5f} ± {self.mitsuba_sum_error:.5f}  ratio {self.mitsuba_to_ours:.3f}  "
-                f"NaN {self.nans}  "
-                f"{'ok' if self.passed else 'FAIL'}")
+                f"NaN {self.nans}  {self.status}")
+
+    @property
+    def status(self) -> str:
+        if self.integrator.endswith("Mitsuba's cube"):  # printed for mitsuba3 issue 1895
+            return "(not held: Mitsuba's cube)"
+        return "ok" if self.passed else "FAIL"
 
 
 def our_tangent_image(scene, name: str, direction, width: int, height: int, spp: int = 16) -> np.ndarray:
