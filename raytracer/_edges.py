@@ -9,7 +9,8 @@ parameter θ moves, the derivative of the pixel has a second term besides the me
 
 v_n the normal speed of Γ. Here Γ is where what a camera ray sees changes: its primitive — an
 outline over what lies behind it (``AbstractShape.silhouette_margin``), or a seam where two
-surfaces cross (the difference of their distances along the ray) — the cell of its primitive's
+surfaces cross or a CSG difference's cut meets the surface it cuts (the difference of their
+distances along the ray, each primitive crossed nearest the distance seen) — the cell of its primitive's
 discrete pattern (``Pattern.cell``, ``Pattern.face``), or the first shadow caster between the point
 it sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
 line from that point to the light) or one sample of an area light's fixed grid (each sample's hard
@@ -55,7 +56,7 @@ two edges between neighbouring samples count as one, and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
 tube over its far one: one primitive on both sides, the signature does not change); a shape
 without a margin (polynomials, meshes, open cylinders and cones), a pattern without a face (hexagon,
-brick, a turbulent checker), a CSG operand's cut and ``clipped_by`` get no term (``Edges.unresolved``
+brick, a turbulent checker) and ``clipped_by`` get no term (``Edges.unresolved``
 counts those crossings), nor does a shadow on a mesh or a path through one; neither does the
 onset of total internal reflection (a change of branch alone). Not in this term: the shadows of
 area lights whose samples adaptive sampling chooses (a warning says so), a shadow's edge inside
@@ -153,13 +154,17 @@ def _margin(geo, tables, p, o, d):
     return _per_prim(geo, tables, p, o, d, lambda s, oo, dd, _: s.silhouette_margin(oo, dd), jnp.nan)
 
 
-def _nearest_hit(geo, tables, p, o, d, t_min):
+def _nearest_hit(geo, tables, p, o, d, t_min, t_ref=None):
     """``(t, n)``: the first crossing beyond ``t_min`` of the line ``o + t d`` with primitive ``p``
-    (any shape but a mesh; ``inf`` where none) and its unit world normal."""
+    (any shape but a mesh; ``inf`` where none) and its unit world normal; with a finite ``t_ref``
+    (held), the crossing beyond ``t_min`` nearest it — the one seen where a CSG operand's far side
+    is (a difference's cut) or where a surface is seen through another (the choice is held: its
+    value and derivatives are that crossing's)."""
     def nearest(s, oo, dd, m):
         t, n = s.hits(oo, dd)
         t = jnp.where(t > t_min, t, jnp.inf)
-        i = jnp.argmin(t)
+        key = t if t_ref is None else jnp.where(jnp.isfinite(t_ref), jnp.abs(t - t_ref), t)
+        i = jnp.argmin(jax.lax.stop_gradient(key))
         return jnp.concatenate([t[i][None], world_normal(n[i], m)])
 
     fill = jnp.concatenate([jnp.full(1, jnp.inf, o.dtype), jnp.zeros(3, o.dtype)])
@@ -167,8 +172,8 @@ def _nearest_hit(geo, tables, p, o, d, t_min):
     return out[0], out[1:]
 
 
-def _nearest_t(geo, tables, p, o, d, t_min):
-    return _nearest_hit(geo, tables, p, o, d, t_min)[0]
+def _nearest_t(geo, tables, p, o, d, t_min, t_ref=None):
+    return _nearest_hit(geo, tables, p, o, d, t_min, t_ref)[0]
 
 
 def _discrete(mats):
@@ -504,7 +509,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     def seen(u, v, sample=None):
         """The signature of image point (u, v); with ``sample`` (a grid sample's index, traced), of
         the grid's casters only that sample's (the others -1): what a bisection of its channel, or
-        of channel 0, which has none, needs."""
+        of channel 0, which has none, needs. With it, the distance to the surface seen at each
+        level (levels,) (inf: none)."""
         # one level of the path: a loop over the levels, so that the program holds one copy of it
         def level_of(carry, index):
             o, d, alive, mirror = carry
@@ -556,11 +562,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
                 alive, mirror = branch != STOP, branch == REFLECT
             row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch, *casts])
-            return (o, d, alive, mirror), row.astype(jnp.int32)
+            return (o, d, alive, mirror), (row.astype(jnp.int32), jnp.where(found, hit.t, jnp.inf))
 
         o, d = _image_ray(scene.camera, width, height, u, v)
-        _, rows_ = jax.lax.scan(level_of, (o, d, jnp.asarray(True), jnp.asarray(False)), jnp.arange(levels))
-        return rows_.reshape(-1)
+        _, (rows_, ts) = jax.lax.scan(level_of, (o, d, jnp.asarray(True), jnp.asarray(False)),
+                                      jnp.arange(levels))
+        return rows_.reshape(-1), ts
 
     def path_ray(sc, pk, sig, level, u, v):
         """The ray at ``level`` of the path of signature ``sig`` through image point (u, v) of scene
@@ -625,18 +632,18 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             start += n
         return l
 
-    def pattern_point(sc, pk, sig, level, prim, u, v):
+    def pattern_point(sc, pk, sig, level, prim, t_ref, u, v):
         """The pattern-space point of ``prim``'s top layer where the ray at ``level`` of the path
-        through (u, v) crosses it."""
+        through (u, v) crosses it (nearest ``t_ref``)."""
         o, d = path_ray(sc, pk, sig, level, u, v)
-        return point_in_pattern(pk, prim, o, d, _nearest_t(pk.geo, tables, prim, o, d, guard(o)))
+        return point_in_pattern(pk, prim, o, d, _nearest_t(pk.geo, tables, prim, o, d, guard(o), t_ref))
 
     def point_in_pattern(pk, prim, o, d, t):
         """The pattern-space point of ``prim``'s top layer at ``o + t d`` (``o`` where t is inf)."""
         return _pattern_point(pk.mats, prim * pk.mats.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
     centres = (jnp.arange(max(rows, cols), dtype=dtype) + 0.5) * h
-    sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v))(centres[:cols]), centres[:rows])
+    sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v)[0])(centres[:cols]), centres[:rows])
 
     # pairs that differ, by channel: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
     across = differs(sig[:, :-1], sig[:, 1:]).reshape(-1)
@@ -656,21 +663,23 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     _, _, has = tables
     has = jnp.asarray(has)
 
-    def margins(sc, pk, s_lo, s_hi, face, level, entry, u, v):
+    def margins(sc, pk, s_lo, s_hi, face, level, entry, t_ref, u, v):
         """(4 or 6,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
         of, at image point (u, v) of scene ``sc`` packed as ``pk``, along the ray of their paths'
         level ``level``: the outline of ``s_lo``'s primitive there, the outline of ``s_hi``'s,
         their seam (the distances' difference), the cell face ``face`` = (normal, offset) of a
         discrete pattern on one primitive (``normal · q − offset``, q its pattern-space point), and
         with shadows, the outlines of shadow entry ``entry``'s caster on ``s_lo``'s side and on
-        ``s_hi``'s, along the line from the point seen towards that light or grid sample."""
+        ``s_hi``'s, along the line from the point seen towards that light or grid sample. Each
+        primitive's crossing is the one nearest ``t_ref`` (held), the distance seen at the
+        crossing: a CSG difference's cut is seen on its subtracted operand's far side."""
         a, b = s_lo.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
         geo_ = pk.geo
         o, d = path_ray(sc, pk, s_lo, level, u, v)
         lo_, hi_ = jnp.maximum(a[0], 0), jnp.maximum(b[0], 0)
         scale = guard(o)
-        t_lo = _nearest_t(geo_, tables, lo_, o, d, scale)
-        seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale)
+        t_lo = _nearest_t(geo_, tables, lo_, o, d, scale, t_ref)
+        seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale, t_ref)
         on_face = jnp.zeros((), o.dtype)
         if cells:  # the same ray and crossing as the outline's
             on_face = jnp.dot(face[0], point_in_pattern(pk, lo_, o, d, t_lo)) - face[1]
@@ -698,17 +707,20 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         sample = jnp.clip(ch - 1, 0, n_samples - 1) if n_samples else None
 
         def step(i, state):
-            lo, hi, s_hi = state
+            lo, hi, s_hi, t_hi = state
             first = i == 0
             mid = jnp.where(first, hi, 0.5 * (lo + hi))
-            s_mid = seen(u + mid * e[0], v + mid * e[1], sample)
+            s_mid, t_mid = seen(u + mid * e[0], v + mid * e[1], sample)
             same = ~changed(s_a, s_mid, ch)[0] & ~first
             return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid),
-                    jnp.where(same, s_hi, s_mid))
+                    jnp.where(same, s_hi, s_mid), jnp.where(same, t_hi, t_mid))
 
-        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a)
-        lo, hi, s_hi = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
+        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a, jnp.full(levels, jnp.inf, dtype))
+        lo, hi, s_hi, t_hi = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
         _, level, entry = changed(s_a, s_hi, ch)
+        # the distance seen just beyond the crossing, at its level: each side's primitive is crossed
+        # nearest it (a difference's cut is on its subtracted operand's far side)
+        t_ref = jax.lax.stop_gradient(t_hi[level])
         a, b = s_a.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
         p_lo, p_hi = a[0], b[0]
         one = (p_lo == p_hi) & (p_lo >= 0)
@@ -716,7 +728,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         has_face = jnp.zeros((), bool)
         if cells:  # the face between the cells just before and just after the crossing
             prim = jnp.maximum(p_lo, 0)
-            q_a, q_b = (pattern_point(scene, packed, s_a, level, prim, u + s * e[0], v + s * e[1])
+            q_a, q_b = (pattern_point(scene, packed, s_a, level, prim, t_ref, u + s * e[0], v + s * e[1])
                         for s in (lo - SIDE_OFFSET, hi + SIDE_OFFSET))
             normal, offset, has_face = _face(mats, prim, q_a, q_b)
             face = (normal, offset)
@@ -724,7 +736,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # every margin and its derivatives along the image at the crossing: one jvp, two tangents
         point = jnp.stack([u + mid * e[0], v + mid * e[1]])
         def at(uv):
-            return margins(scene, packed, s_a, s_hi, face, level, entry, uv[0], uv[1])
+            return margins(scene, packed, s_a, s_hi, face, level, entry, t_ref, uv[0], uv[1])
 
         g, (g_u, g_v) = jax.vmap(lambda t: jax.jvp(at, (point,), (t,)), out_axes=(None, 0))(
             jnp.eye(2, dtype=dtype))
@@ -740,11 +752,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
         kind = jnp.argmin(distance)
-        return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, level, entry,
+        return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, level, entry, t_ref,
                 g_u[kind], g_v[kind])
 
     # (3. the chosen margin's derivatives along the image come with it: g_u, g_v)
-    lo, hi, pb, kind, face, level, entry, g_u, g_v = _live_map(locate, live, pa, u0, v0, axis, ch)
+    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v = _live_map(locate, live, pa, u0, v0, axis, ch)
+    t_ref = sg(t_ref)
     face = jax.tree.map(sg, face)
     ok = live & (kind >= 0)
     g_u, g_v = sg(jnp.where(ok, g_u, 0.0)), sg(jnp.where(ok, g_v, 0.0))
@@ -757,9 +770,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     def chosen_margins(dyn_):
         sc = eqx.combine(dyn_, static)
         pk = pack(sc, plan)
-        return _live_map(lambda kind_, s_a, s_b, face_, level_, entry_, u, v: margins(
-            sc, pk, s_a, s_b, face_, level_, entry_, u, v)[jnp.maximum(kind_, 0)],
-            ok, kind, pa, pb, face, level, entry, pu, pv)
+        return _live_map(lambda kind_, s_a, s_b, face_, level_, entry_, t_ref_, u, v: margins(
+            sc, pk, s_a, s_b, face_, level_, entry_, t_ref_, u, v)[jnp.maximum(kind_, 0)],
+            ok, kind, pa, pb, face, level, entry, t_ref, pu, pv)
 
     g_theta = jax.jvp(chosen_margins, (dynamic,), (tangent,))[1]
 
