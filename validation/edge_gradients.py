@@ -233,18 +233,17 @@ RUNS = (("sphere", "direct_projective", True), ("box", "direct_projective", True
         ("box", "prb_projective", False))
 
 
-def run(on_result=None) -> list[EdgeResult]:
-    results = []
+def run():
+    """Every comparison of :data:`RUNS`, as each is made."""
     for name, integrator, welded in RUNS:
-        for r in compare(name, integrator=integrator, welded=welded):
-            results.append(r)
-            if on_result is not None:
-                on_result(r)
-    return results
+        yield from compare(name, integrator=integrator, welded=welded)
 
 
 def main() -> int:
-    results = run(on_result=lambda r: print(r.line(), flush=True))
+    results = []
+    for r in run():
+        print(r.line(), flush=True)
+        results.append(r)
     held = [r for r in results if not r.integrator.endswith("Mitsuba's cube")]
     bad = [r for r in held if not r.passed]
     print(f"edges: {len(held) - len(bad)} of {len(held)} derivative images within {100 * MAX_REL_L2:g} % "
