@@ -428,6 +428,27 @@ def _spread(contribution, in_rows, at, across, low, high, slope, span, width: in
     return image
 
 
+def _left_out(plan, mats, ctx) -> list[str]:
+    """What the scene has whose edges the term does not see (static): shapes without a margin,
+    ``clipped_by``, discrete patterns without cell faces, adaptive area lights' shadows."""
+    out = []
+    shapes = sorted({prim.obj.shape.kind for prim in plan.prims if prim.rendered
+                     and (not type(prim.obj.shape).has_margin() or getattr(prim.obj.shape, "open", False))})
+    if shapes:
+        out.append("the outlines of " + ", ".join(("open " if name in ("cylinder", "cone") else "") + name
+                                                  for name in shapes))
+    if any(not prim.rendered for prim in plan.prims):
+        out.append("the cuts of clipped_by")
+    cells = sorted(mats.pattern_names[k] for k, face in _discrete(mats) if face is None or mats.turbulent[k])
+    if cells:
+        out.append("the cell edges of " + ", ".join(cells) + " (no face, or turbulent)")
+    if adaptive_shadow_lights(ctx):
+        out.append(f"the shadows of area lights with adaptive sampling (lights "
+                   f"{', '.join(map(str, adaptive_shadow_lights(ctx)))}: their samples change with the "
+                   "scene; without `adaptive` the grid's shadows are seen)")
+    return out
+
+
 @eqx.filter_jit
 def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                   capacity: int | None = None, room: int | None = None) -> Edges:
@@ -454,11 +475,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     grid_lights = tuple((i, shadow_sample_points(ctx, scene.lights[i])[0].shape[0])
                         for i in grid_shadow_lights(ctx))
     n_points, n_samples = len(shadow_lights), sum(n for _, n in grid_lights)
-    if adaptive_shadow_lights(ctx):  # (said when the term is traced: once a program)
-        warnings.warn("the shadow edges of area lights with adaptive sampling get no boundary term "
-                      f"(lights {', '.join(map(str, adaptive_shadow_lights(ctx)))}): their samples "
-                      "change with the scene; without `adaptive` the grid's shadows are seen",
-                      RuntimeWarning, stacklevel=2)
+    left_out = _left_out(plan, packed.mats, ctx)
+    if left_out:  # (said when the term is traced: once a program)
+        warnings.warn("edges=True: no boundary term for " + "; ".join(left_out) + " (docs/gradients.md): "
+                      "their derivatives hold what is seen fixed", RuntimeWarning, stacklevel=2)
     entries = n_points + n_samples  # a level's shadow entries: point lights, then grid samples
     casters = _accel.MASK_SHADOW | _accel.MASK_FILTER
     vis_shadow = jnp.asarray((prim_bits(plan)[geo.cand_prim] & casters) != 0)

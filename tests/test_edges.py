@@ -238,7 +238,7 @@ def test_an_area_lights_penumbra_is_the_outlines_of_its_samples_shadows(x64):
         assert int(edges.unresolved) == 0 and int(edges.overflow) == 0
     assert errors[0] < 0.01 and errors[1] < errors[0] / 3, errors
     adaptive = rt.load_scene(text.replace("3, 2 }", "3, 2 adaptive 0 }"))
-    with pytest.warns(RuntimeWarning, match="adaptive sampling get no boundary term"):
+    with pytest.warns(RuntimeWarning, match="no boundary term for the shadows of area lights with adaptive"):
         jax.eval_shape(lambda: _term(adaptive, tangent, width, height, 4))
 
 
@@ -388,7 +388,8 @@ def test_a_torus_and_a_quadric_outline_as_their_closed_forms(x64):
     margin a line's distance from the core circle, minimised over the circle) and a quadric
     sphere a disc (the discriminant). Along a tangent of R, r and the quadric's constant the term
     is the closed forms' outline integrals within 1 % at 4×4 samples a pixel. A mesh has no
-    margin: its outline's crossings are counted as unresolved and get no term, not a guess;
+    margin: its outline's crossings are counted as unresolved and get no term, not a guess, and a
+    warning names it;
     adaptive anti-aliasing has no lattice. (The term alone, ``boundary_term``: the radiance is
     flat, so the render's own tangent is zero.)"""
     width, height, colour = 24, 18, np.array([1.0, 0.5, 0.25])
@@ -414,7 +415,8 @@ def test_a_torus_and_a_quadric_outline_as_their_closed_forms(x64):
     reference = (term(lambda s: disc(-1.5, 0.4, 1.35 + 0.1 * s))
                  - term(lambda s: disc(-1.5, 0.4, 0.65 + 0.5 * s))
                  + term(lambda s: disc(1.9, 0.9, np.sqrt(0.64 - s))))[..., None] * colour
-    edges = _term(scene, tangent, width, height, 4)
+    with pytest.warns(RuntimeWarning, match="no boundary term for the outlines of mesh"):
+        edges = _term(scene, tangent, width, height, 4)
     assert _rel_l2(np.asarray(edges.tangent), reference) < 0.01
     assert int(edges.unresolved) > 0 and int(edges.overflow) == 0 and int(edges.dropped) == 0
     with pytest.raises(ValueError, match="adaptive"):
