@@ -55,8 +55,8 @@ nor the corners of features a few lattice steps across (first order there, as a 
 two edges between neighbouring samples count as one, and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
 tube over its far one: one primitive on both sides, the signature does not change); a shape
-without a margin (polynomials, meshes, open cylinders and cones), a pattern without a face (hexagon,
-brick, a turbulent checker) and ``clipped_by`` get no term (``Edges.unresolved``
+without a margin (polynomials, meshes, open cylinders and cones), a pattern without a face (brick,
+a turbulent checker or hexagon) and ``clipped_by`` get no term (``Edges.unresolved``
 counts those crossings), nor does a shadow on a mesh or a path through one; neither does the
 onset of total internal reflection (a change of branch alone). Not in this term: the shadows of
 area lights whose samples adaptive sampling chooses (a warning says so), a shadow's edge inside

@@ -390,3 +390,42 @@ def checker_floor_term(frame_at, offset, size: float, height_y: float, colours, 
         jump = colours[(first[0] + first[1] + layer) % 2] - colours[(second[0] + second[1] + layer) % 2]
         out += segments_term(ends[n:n + 1], motions[n:n + 1], [jump], width, height)
     return out
+
+
+def hexagon_floor_term(frame_at, size: float, height_y: float, colours, width: int, height: int,
+                       cells: int = 8) -> np.ndarray:
+    """(H, W): :func:`checker_floor_term` for POV-Ray's ``hexagon`` pattern on the floor ``y =
+    height_y``, scaled by ``size``: hexagons of side ``size`` in x-z with vertices on ±x, centred at
+    size·(1.5 i, √3 (j + i/2)), cell (i, j) of colour ``colours[(j − i) mod 3]``. Each edge, between
+    two neighbouring centres, is a straight image segment whose ends move as their projections do."""
+    eps = 1e-6
+    f0, fp, fm = frame_at(0.0), frame_at(eps), frame_at(-eps)
+    forward = np.asarray(f0[1], np.float64) / np.linalg.norm(f0[1])
+    root3 = np.sqrt(3.0)
+
+    def centre(i, j):
+        return np.array([1.5 * i, root3 * (j + 0.5 * i)]) * size
+
+    out = np.zeros((height, width))
+    # each cell's edges towards the neighbours (i + 1, j), (i, j + 1), (i + 1, j − 1): every edge once
+    for i in range(-cells, cells + 1):
+        for j in range(-cells, cells + 1):
+            c = centre(i, j)
+            for di, dj in ((1, 0), (0, 1), (1, -1)):
+                n = centre(i + di, j + dj)
+                mid, along = 0.5 * (c + n), np.array([-(n - c)[1], (n - c)[0]]) / (2 * root3)  # half a side
+                a, b = mid - along, mid + along  # the edge's two vertices (|b − a| = size)
+                points = np.array([[a[0], height_y, a[1]], [b[0], height_y, b[1]]])
+                if np.any((points - np.asarray(f0[0])) @ forward <= 0.1):
+                    continue
+                ends = project(f0, width, height, points)
+                motion = (project(fp, width, height, points) - project(fm, width, height, points)) / (2 * eps)
+                edge = ends[1] - ends[0]
+                normal = np.array([edge[1], -edge[0]])
+                seen_c = project(f0, width, height, np.array([[c[0], height_y, c[1]]]))[0]
+                first, second = (i, j), (i + di, j + dj)
+                if np.dot(seen_c - ends[0], normal) > 0:  # the normal points into (i, j)
+                    first, second = second, first
+                jump = colours[(first[1] - first[0]) % 3] - colours[(second[1] - second[0]) % 3]
+                out += segments_term(ends[None], motion[None], [jump], width, height)
+    return out

@@ -43,6 +43,25 @@ def checker_cell(q):
     return n[0] * 73856093 ^ n[1] * 19349663 ^ n[2] * 83492791
 
 
+def _hexagon_cell(p):
+    """``(centre x, centre z, value)`` of the hexagon holding ``p`` (see :func:`hexagon`): the
+    nearest of the centres c(i, j) = (1.5 i, √3 (j + i/2)), which lies in one of the two columns
+    bracketing x."""
+    x, z = p[0], p[2]
+    i0 = jnp.floor(x / 1.5)
+    best = None
+    for di in (0.0, 1.0):
+        i = i0 + di
+        j = jnp.round(z / _SQRT3 - 0.5 * i)
+        cx, cz = 1.5 * i, _SQRT3 * (j + 0.5 * i)
+        d2 = (x - cx) ** 2 + (z - cz) ** 2
+        here = (d2, cx, cz, jnp.mod(j - i, 3.0))
+        if best is not None:
+            here = tuple(jnp.where(d2 < best[0], a, b) for a, b in zip(here, best, strict=True))
+        best = here
+    return best[1], best[2], best[3]
+
+
 def hexagon(p, inputs):
     """Hexagonal rods along y, side 1, vertices on ±x, tiled in the x-z plane.
 
@@ -50,21 +69,27 @@ def hexagon(p, inputs):
     the origin), 1 = COLOR_2 (the neighbour in +z), 2 = COLOR_3 (the neighbours at (1.5, ±√3/2)
     alternate 2 and 1 going round; POV-Ray's "COLOR_3 to either side").
     """
-    x, z = p[0], p[2]
-    i0 = jnp.floor(x / 1.5)
-    best_d2, best_colour = None, None
-    for di in (0.0, 1.0):  # the nearest centre lies in one of the two bracketing columns
-        i = i0 + di
-        j = jnp.round(z / _SQRT3 - 0.5 * i)
-        d2 = (x - 1.5 * i) ** 2 + (z - _SQRT3 * (j + 0.5 * i)) ** 2
-        colour = jnp.mod(j - i, 3.0)
-        if best_d2 is None:
-            best_d2, best_colour = d2, colour
-        else:
-            closer = d2 < best_d2
-            best_colour = jnp.where(closer, colour, best_colour)
-            best_d2 = jnp.where(closer, d2, best_d2)
-    return best_colour
+    return _hexagon_cell(p)[2]
+
+
+def hexagon_cell(q):
+    """The hexagon of ``q`` as one int32: its centre's indices (i, j) hashed."""
+    cx, cz, _ = _hexagon_cell(q)
+    i = jnp.round(cx / 1.5)
+    j = jnp.round(cz / _SQRT3 - 0.5 * i)
+    return i.astype(jnp.int32) * 73856093 ^ j.astype(jnp.int32) * 19349663
+
+
+def hexagon_face(q_a, q_b):
+    """The face between the hexagons of ``q_a`` and ``q_b``: each point lies in the cell of its
+    nearest centre, so the face is the plane halfway between the two centres, square to the line
+    joining them (normal from ``q_a``'s cell to ``q_b``'s)."""
+    ax, az, _ = _hexagon_cell(q_a)
+    bx, bz, _ = _hexagon_cell(q_b)
+    zero = jnp.zeros((), q_a.dtype)
+    step = jnp.stack([bx - ax, zero, bz - az]).astype(q_a.dtype)
+    normal = step / jnp.sqrt(jnp.maximum(jnp.sum(step * step), jnp.finfo(q_a.dtype).tiny))
+    return normal, jnp.dot(normal, jnp.stack([0.5 * (ax + bx), zero, 0.5 * (az + bz)]).astype(q_a.dtype))
 
 
 def brick(p, inputs, *, brick_size, mortar):
@@ -86,7 +111,8 @@ def brick(p, inputs, *, brick_size, mortar):
 PATTERNS = (
     Pattern("checker", checker, colours=2, default_map=((0.0, BLUE), (1.0, GREEN)), face=checker_face,
             cell=checker_cell),
-    Pattern("hexagon", hexagon, colours=3, default_map=((0.0, BLUE), (1.0, GREEN), (2.0, RED))),
+    Pattern("hexagon", hexagon, colours=3, default_map=((0.0, BLUE), (1.0, GREEN), (2.0, RED)),
+            face=hexagon_face, cell=hexagon_cell),
     Pattern("brick", brick, colours=2, default_map=((0.0, WHITE), (1.0, RED)),
             # POV-Ray's defaults: brick + mortar per axis, and the mortar's width
             modifiers={"brick_size": (8.0, 3.0, 4.5), "mortar": 0.5}),
