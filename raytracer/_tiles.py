@@ -394,7 +394,7 @@ def _room_key(packed: Packed, *rest):
     handful of arrays whatever the number of objects (the scene itself: ~16 per object)."""
     leaves, treedef = jax.tree.flatten(packed)
     arrays = [x for x in leaves if isinstance(x, (jax.Array, np.ndarray))]
-    if not all(jax.core.is_concrete(x) for x in arrays if isinstance(x, jax.Array)):
+    if any(isinstance(x, jax.core.Tracer) for x in arrays):
         return None
     key = treedef, tuple((np.shape(x), np.result_type(x).str) for x in arrays), rest
     try:
