@@ -23,7 +23,8 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
 1. Each lattice sample's signature (at each level of its path: the primitive, its pattern cell, the
    branch taken there, each such light's or grid sample's caster); a pair of neighbouring samples
-   (across the whole image, in rows and in columns) with different ones holds a crossing of Γ — in
+   (across the whole image and a ring of samples half a spacing outside it, in rows and in
+   columns) with different ones holds a crossing of Γ — in
    channel 0 where the path, its cells or a point light's caster differ, else one crossing for each
    grid sample whose caster differs (a penumbra's sample outlines lie closer together than the
    lattice's spacing, and each is an edge). The (pair, channel)s are compacted (``jnp.nonzero``
@@ -55,8 +56,8 @@ nor the corners of features a few lattice steps across (first order there, as a 
 two edges between neighbouring samples count as one, and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
 tube over its far one: one primitive on both sides, the signature does not change); a shape
-without a margin (polynomials, meshes, open cylinders and cones), a pattern without a face (brick,
-a turbulent checker or hexagon) and ``clipped_by`` get no term (``Edges.unresolved``
+without a margin (polynomials, meshes, open cylinders and cones), a turbulent discrete pattern
+and ``clipped_by`` get no term (``Edges.unresolved``
 counts those crossings), nor does a shadow on a mesh or a path through one; neither does the
 onset of total internal reflection (a change of branch alone). Not in this term: the shadows of
 area lights whose samples adaptive sampling chooses (a warning says so), a shadow's edge inside
@@ -211,9 +212,13 @@ def _face(mats, prim, q_a, q_b):
     for k, face in _discrete(mats):
         if face is None or mats.turbulent[k]:
             continue
-        n_k, c_k = face(q_a, q_b)
+        found = jnp.asarray(True)
+        if face is patterns.axis_face:  # found by probing the row's own pattern
+            n_k, c_k, found = face(q_a, q_b, lambda q, k=k: _raw_value(mats, k, row, q))
+        else:
+            n_k, c_k = face(q_a, q_b)
         normal, offset, has = (jnp.where(pid == k, n_k, normal), jnp.where(pid == k, c_k, offset),
-                               has | (pid == k))
+                               has | ((pid == k) & found))
     return normal, offset, has
 
 
@@ -309,7 +314,8 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
     def boundary(step):
         line = first + step
         predicted = at + step * h * slope
-        lanes = jnp.floor(predicted / h - 0.5).astype(jnp.int32)[:, None] + deltas[None, :]
+        # (lattice point i lies at (i − ½) h: the pair b spans [(b − ½) h, (b + ½) h])
+        lanes = jnp.floor(predicted / h + 0.5).astype(jnp.int32)[:, None] + deltas[None, :]
         cand, inside = [], []
         for rows_pass, (n_a, n_b) in sizes.items():
             cand.append(grids[rows_pass][jnp.clip(line, 0, n_a - 1)[:, None], jnp.clip(lanes, 0, n_b - 1),
@@ -441,7 +447,7 @@ def _left_out(plan, mats, ctx) -> list[str]:
         out.append("the cuts of clipped_by")
     cells = sorted(mats.pattern_names[k] for k, face in _discrete(mats) if face is None or mats.turbulent[k])
     if cells:
-        out.append("the cell edges of " + ", ".join(cells) + " (no face, or turbulent)")
+        out.append("the cell edges of " + ", ".join(cells) + " (turbulent, or without a face)")
     if adaptive_shadow_lights(ctx):
         out.append(f"the shadows of area lights with adaptive sampling (lights "
                    f"{', '.join(map(str, adaptive_shadow_lights(ctx)))}: their samples change with the "
@@ -463,7 +469,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     ctx = make_context(plan, geo, packed.mats, scene.lights, scene.settings, scene.background, dtype,
                        environment_of(scene))
     h = 1.0 / k
-    rows, cols = height * k, width * k
+    # the lattice: k×k samples a pixel, and a ring of samples half a spacing outside the image, so
+    # that an edge running along the image's border within half a spacing of it is crossed too
+    rows, cols = height * k + 2, width * k + 2
     sg = jax.lax.stop_gradient
 
     mats = packed.mats
@@ -662,7 +670,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         """The pattern-space point of ``prim``'s top layer at ``o + t d`` (``o`` where t is inf)."""
         return _pattern_point(pk.mats, prim * pk.mats.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
-    centres = (jnp.arange(max(rows, cols), dtype=dtype) + 0.5) * h
+    centres = (jnp.arange(max(rows, cols), dtype=dtype) - 0.5) * h
     sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v)[0])(centres[:cols]), centres[:rows])
 
     # pairs that differ, by channel: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
@@ -677,7 +685,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     r = jnp.where(in_rows, pair // max(cols - 1, 1), pair // cols)
     c = jnp.where(in_rows, pair % max(cols - 1, 1), pair % cols)
     pa = sig[r, c]
-    u0, v0 = (c.astype(dtype) + 0.5) * h, (r.astype(dtype) + 0.5) * h
+    u0, v0 = (c.astype(dtype) - 0.5) * h, (r.astype(dtype) - 0.5) * h
     axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
 
     _, _, has = tables

@@ -429,3 +429,40 @@ def hexagon_floor_term(frame_at, size: float, height_y: float, colours, width: i
                 jump = colours[(first[1] - first[0]) % 3] - colours[(second[1] - second[0]) % 3]
                 out += segments_term(ends[None], motion[None], [jump], width, height)
     return out
+
+
+def brick_floor_term(frame_at, scale: float, height_y: float, colours, width: int, height: int,
+                     size=(8.0, 3.0, 4.5), mortar: float = 0.5, cells: int = 12) -> np.ndarray:
+    """(H, W): :func:`checker_floor_term` for POV-Ray's ``brick`` pattern (``brick_size`` ``size``,
+    ``mortar``, scaled by ``scale``) on the floor ``y = height_y``, which must cut a row of bricks:
+    in pattern space the row's bricks are the rectangles x ∈ [8k + sx, 8k + sx + 8 − mortar],
+    z ∈ [4.5m + sz, 4.5m + sz + 4.5 − mortar] (odd rows shifted half a brick in x, even ones in z),
+    ``colours`` = (mortar, brick). Each rectangle's four edges are straight image segments with the
+    brick inside."""
+    eps = 1e-6
+    f0, fp, fm = frame_at(0.0), frame_at(eps), frame_at(-eps)
+    forward = np.asarray(f0[1], np.float64) / np.linalg.norm(f0[1])
+    bx, by, bz = size
+    row = np.floor(height_y / scale / by)
+    if (height_y / scale - row * by) >= by - mortar:
+        raise ValueError("the floor lies in a mortar layer")
+    odd = row % 2 == 1
+    sx, sz = (-0.5 * bx, 0.0) if odd else (0.0, -0.5 * bz)
+    out = np.zeros((height, width))
+    for k in range(-cells, cells + 1):
+        for m in range(-2 * cells, 2 * cells + 1):
+            x0, z0 = (bx * k + sx) * scale, (bz * m + sz) * scale
+            x1, z1 = x0 + (bx - mortar) * scale, z0 + (bz - mortar) * scale
+            centre = np.array([[0.5 * (x0 + x1), height_y, 0.5 * (z0 + z1)]])
+            corners = [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
+            for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+                points = np.array([[a[0], height_y, a[1]], [b[0], height_y, b[1]]])
+                if np.any((points - np.asarray(f0[0])) @ forward <= 0.1):
+                    continue
+                ends = project(f0, width, height, points)
+                motion = (project(fp, width, height, points) - project(fm, width, height, points)) / (2 * eps)
+                edge = ends[1] - ends[0]
+                inside = np.dot(project(f0, width, height, centre)[0] - ends[0], [edge[1], -edge[0]]) > 0
+                jump = (colours[0] - colours[1]) if inside else (colours[1] - colours[0])
+                out += segments_term(ends[None], motion[None], [jump], width, height)
+    return out

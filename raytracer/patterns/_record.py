@@ -73,7 +73,9 @@ class Pattern:
                       the plane ``normal · q = offset`` between the cells of pattern-space points
                       ``q_a`` and ``q_b`` (``normal · q − offset`` positive on ``q_b``'s side), whose
                       motion is the boundary term of a cell edge (``raytracer/_edges.py``); None:
-                      its cell edges get none.
+                      its cell edges get none. ``patterns.axis_face`` for faces square to the
+                      pattern's axes, found by probing its value (then called
+                      ``face(q_a, q_b, value)`` → (normal, offset, found)).
         cell:         with ``face``: ``cell(q) → int32``, an id of the cell of pattern-space point
                       ``q`` that differs between any two cells sharing a face (two cells of one
                       colour too, so that a corner's two faces are told apart).

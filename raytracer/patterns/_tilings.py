@@ -108,12 +108,35 @@ def brick(p, inputs, *, brick_size, mortar):
     return inside.astype(p.dtype)
 
 
+# bisection steps that find an axis-square face between two pattern-space points a hair apart
+_AXIS_BISECTIONS = 40
+
+
+def axis_face(q_a, q_b, value):
+    """``(normal, offset, found)``: the face between the cells of ``q_a`` and ``q_b`` for a pattern
+    whose faces are planes square to its axes (brick), found by probing its ``value`` (q → value):
+    the axis along which moving ``q_a`` to ``q_b``'s coordinate changes the value is the face's
+    normal, and bisection along it finds the face (``found`` False where no single axis does:
+    a corner between the two points)."""
+    v_a = value(q_a)
+    changes = jnp.stack([value(q_a.at[k].set(q_b[k])) != v_a for k in range(3)])
+    axis = jnp.argmax(changes)
+    lo, hi = q_a[axis], q_b[axis]
+    for _ in range(_AXIS_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        same = value(q_a.at[axis].set(mid)) == v_a
+        lo, hi = jnp.where(same, mid, lo), jnp.where(same, hi, mid)
+    sign = jnp.where(q_b[axis] > q_a[axis], 1.0, -1.0).astype(q_a.dtype)
+    normal = jnp.where(jnp.arange(3) == axis, sign, 0.0).astype(q_a.dtype)
+    return normal, sign * 0.5 * (lo + hi), jnp.sum(changes) == 1
+
+
 PATTERNS = (
     Pattern("checker", checker, colours=2, default_map=((0.0, BLUE), (1.0, GREEN)), face=checker_face,
             cell=checker_cell),
     Pattern("hexagon", hexagon, colours=3, default_map=((0.0, BLUE), (1.0, GREEN), (2.0, RED)),
             face=hexagon_face, cell=hexagon_cell),
-    Pattern("brick", brick, colours=2, default_map=((0.0, WHITE), (1.0, RED)),
+    Pattern("brick", brick, colours=2, default_map=((0.0, WHITE), (1.0, RED)), face=axis_face,
             # POV-Ray's defaults: brick + mortar per axis, and the mortar's width
             modifiers={"brick_size": (8.0, 3.0, 4.5), "mortar": 0.5}),
 )
