@@ -52,6 +52,20 @@ def _term(scene, tangent, width, height, k):
     return boundary_term(dynamic, along, static, width, height, k)
 
 
+def _moving_camera(scene, direction=(1.0, 0.4, -0.3)):
+    """``(tangent, frame_at)``: the camera's place moved along ``direction``, and its frame (float64
+    NumPy) at a step s along it."""
+    params = rt.params.parameters(scene)
+    direction = np.asarray(direction, np.float64)
+    location = np.asarray(params["camera.location"], np.float64)
+
+    def frame_at(s):
+        moved = rt.params.replace(scene, {**params, "camera.location": jnp.asarray(location + s * direction)})
+        return [np.asarray(x, np.float64) for x in moved.camera.frame()]
+
+    return {"camera.location": jnp.asarray(direction)}, frame_at
+
+
 def _rel_l2(value, reference):
     mask = np.abs(reference).max(-1) > 0
     return np.linalg.norm((value - reference)[mask]) / np.linalg.norm(reference[mask])
@@ -141,16 +155,10 @@ def test_a_checker_floors_cell_edges_move_with_the_camera_as_their_projections_d
                           "plane { y, -0.5 pigment { checker rgb 0.9 rgb 0.15 scale 1.3 "
                           f"translate <0.37, 0, 0.21> }} {FLAT} }}")
     params = rt.params.parameters(scene)
-    direction = np.array([1.0, 0.4, -0.3])
-    location = np.asarray(params["camera.location"], np.float64)
-
-    def frame_at(s):
-        moved = rt.params.replace(scene, {**params, "camera.location": jnp.asarray(location + s * direction)})
-        return [np.asarray(x, np.float64) for x in moved.camera.frame()]
+    tangent, frame_at = _moving_camera(scene)
 
     reference = checker_floor_term(frame_at, (0.37, 0.21), 1.3, -0.5, (0.9, 0.15), width, height)
     reference = reference[..., None] * np.ones(3)
-    tangent = {"camera.location": jnp.asarray(direction)}
     errors = [_rel_l2(_jvp(scene, params, tangent, width, height, spp)[1], reference) for spp in (16, 64)]
     assert errors[0] < 0.012 and errors[1] < 0.008, errors
 
@@ -166,17 +174,11 @@ def test_a_hexagon_floors_cell_edges_move_as_their_projections_do(x64):
     scene = rt.load_scene(HEAD + "camera { location <0.2, 4, -1.5> look_at <0, 0, 0> angle 50 }\n"
                           "plane { y, -0.5 pigment { hexagon rgb 0.9 rgb 0.15 rgb 0.5 scale 0.8 } "
                           f"{FLAT} }}")
-    params = rt.params.parameters(scene)
-    direction = np.array([1.0, 0.4, -0.3])
-    location = np.asarray(params["camera.location"], np.float64)
-
-    def frame_at(s):
-        moved = rt.params.replace(scene, {**params, "camera.location": jnp.asarray(location + s * direction)})
-        return [np.asarray(x, np.float64) for x in moved.camera.frame()]
+    tangent, frame_at = _moving_camera(scene)
 
     colours = (0.9, 0.15, 0.5)
     reference = hexagon_floor_term(frame_at, 0.8, -0.5, colours, width, height)[..., None] * np.ones(3)
-    tangent = {"camera.location": jnp.asarray(direction)}  # (flat cells: the render's own tangent is 0)
+    # (flat cells: the render's own tangent is 0, the term is the whole)
     errors = [_rel_l2(np.asarray(_term(scene, tangent, width, height, k).tangent), reference) for k in (4, 8)]
     assert errors[0] < 0.02 and errors[1] < 0.006, errors
 
@@ -190,16 +192,9 @@ def test_a_brick_floors_mortar_edges_move_as_their_projections_do(x64):
     width, height = 32, 24
     scene = rt.load_scene(HEAD + "camera { location <0.2, 4, -1.5> look_at <0, 0, 0> angle 50 }\n"
                           f"plane {{ y, -0.5 pigment {{ brick rgb 0.9 rgb 0.2 scale 0.25 }} {FLAT} }}")
-    params = rt.params.parameters(scene)
-    direction = np.array([1.0, 0.4, -0.3])
-    location = np.asarray(params["camera.location"], np.float64)
-
-    def frame_at(s):
-        moved = rt.params.replace(scene, {**params, "camera.location": jnp.asarray(location + s * direction)})
-        return [np.asarray(x, np.float64) for x in moved.camera.frame()]
+    tangent, frame_at = _moving_camera(scene)
 
     reference = brick_floor_term(frame_at, 0.25, -0.5, (0.9, 0.2), width, height)[..., None] * np.ones(3)
-    tangent = {"camera.location": jnp.asarray(direction)}
     errors = [_rel_l2(np.asarray(_term(scene, tangent, width, height, k).tangent), reference) for k in (4, 8)]
     assert errors[0] < 0.025 and errors[1] < 0.01, errors
 

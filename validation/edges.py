@@ -392,15 +392,35 @@ def checker_floor_term(frame_at, offset, size: float, height_y: float, colours, 
     return out
 
 
+def _frames(frame_at, eps: float = 1e-6):
+    """The camera's frame at the parameter's 0 and ±eps (its motion by central differences)."""
+    return frame_at(0.0), frame_at(eps), frame_at(-eps), eps
+
+
+def _floor_edge(frames, a, b, height_y: float, centre, brighter: float, width: int, height: int):
+    """(H, W): the term of the straight floor edge from (x, z) ``a`` to ``b`` on ``y = height_y``,
+    whose side holding the floor point (x, z) ``centre`` is ``brighter`` than the other: its image
+    segment moves as its ends' projections do (zero if it reaches behind the camera)."""
+    f0, fp, fm, eps = frames
+    forward = np.asarray(f0[1], np.float64) / np.linalg.norm(f0[1])
+    points = np.array([[a[0], height_y, a[1]], [b[0], height_y, b[1]]])
+    if np.any((points - np.asarray(f0[0])) @ forward <= 0.1):
+        return 0.0
+    ends = project(f0, width, height, points)
+    motion = (project(fp, width, height, points) - project(fm, width, height, points)) / (2 * eps)
+    edge = ends[1] - ends[0]
+    seen = project(f0, width, height, np.array([[centre[0], height_y, centre[1]]]))[0]
+    into = np.dot(seen - ends[0], [edge[1], -edge[0]]) > 0  # the segment's normal points into centre's side
+    return segments_term(ends[None], motion[None], [-brighter if into else brighter], width, height)
+
+
 def hexagon_floor_term(frame_at, size: float, height_y: float, colours, width: int, height: int,
                        cells: int = 8) -> np.ndarray:
     """(H, W): :func:`checker_floor_term` for POV-Ray's ``hexagon`` pattern on the floor ``y =
     height_y``, scaled by ``size``: hexagons of side ``size`` in x-z with vertices on ±x, centred at
     size·(1.5 i, √3 (j + i/2)), cell (i, j) of colour ``colours[(j − i) mod 3]``. Each edge, between
     two neighbouring centres, is a straight image segment whose ends move as their projections do."""
-    eps = 1e-6
-    f0, fp, fm = frame_at(0.0), frame_at(eps), frame_at(-eps)
-    forward = np.asarray(f0[1], np.float64) / np.linalg.norm(f0[1])
+    frames = _frames(frame_at)
     root3 = np.sqrt(3.0)
 
     def centre(i, j):
@@ -414,20 +434,10 @@ def hexagon_floor_term(frame_at, size: float, height_y: float, colours, width: i
             for di, dj in ((1, 0), (0, 1), (1, -1)):
                 n = centre(i + di, j + dj)
                 mid, along = 0.5 * (c + n), np.array([-(n - c)[1], (n - c)[0]]) / (2 * root3)  # half a side
-                a, b = mid - along, mid + along  # the edge's two vertices (|b − a| = size)
-                points = np.array([[a[0], height_y, a[1]], [b[0], height_y, b[1]]])
-                if np.any((points - np.asarray(f0[0])) @ forward <= 0.1):
-                    continue
-                ends = project(f0, width, height, points)
-                motion = (project(fp, width, height, points) - project(fm, width, height, points)) / (2 * eps)
-                edge = ends[1] - ends[0]
-                normal = np.array([edge[1], -edge[0]])
-                seen_c = project(f0, width, height, np.array([[c[0], height_y, c[1]]]))[0]
-                first, second = (i, j), (i + di, j + dj)
-                if np.dot(seen_c - ends[0], normal) > 0:  # the normal points into (i, j)
-                    first, second = second, first
-                jump = colours[(first[1] - first[0]) % 3] - colours[(second[1] - second[0]) % 3]
-                out += segments_term(ends[None], motion[None], [jump], width, height)
+                # the edge's two vertices (|b − a| = size), (i, j)'s side brighter by the difference
+                brighter = colours[(j - i) % 3] - colours[(j + dj - i - di) % 3]
+                out = out + _floor_edge(frames, mid - along, mid + along, height_y, c, brighter,
+                                        width, height)
     return out
 
 
@@ -439,9 +449,7 @@ def brick_floor_term(frame_at, scale: float, height_y: float, colours, width: in
     z ∈ [4.5m + sz, 4.5m + sz + 4.5 − mortar] (odd rows shifted half a brick in x, even ones in z),
     ``colours`` = (mortar, brick). Each rectangle's four edges are straight image segments with the
     brick inside."""
-    eps = 1e-6
-    f0, fp, fm = frame_at(0.0), frame_at(eps), frame_at(-eps)
-    forward = np.asarray(f0[1], np.float64) / np.linalg.norm(f0[1])
+    frames = _frames(frame_at)
     bx, by, bz = size
     row = np.floor(height_y / scale / by)
     if (height_y / scale - row * by) >= by - mortar:
@@ -453,16 +461,9 @@ def brick_floor_term(frame_at, scale: float, height_y: float, colours, width: in
         for m in range(-2 * cells, 2 * cells + 1):
             x0, z0 = (bx * k + sx) * scale, (bz * m + sz) * scale
             x1, z1 = x0 + (bx - mortar) * scale, z0 + (bz - mortar) * scale
-            centre = np.array([[0.5 * (x0 + x1), height_y, 0.5 * (z0 + z1)]])
+            centre = (0.5 * (x0 + x1), 0.5 * (z0 + z1))
             corners = [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
             for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
-                points = np.array([[a[0], height_y, a[1]], [b[0], height_y, b[1]]])
-                if np.any((points - np.asarray(f0[0])) @ forward <= 0.1):
-                    continue
-                ends = project(f0, width, height, points)
-                motion = (project(fp, width, height, points) - project(fm, width, height, points)) / (2 * eps)
-                edge = ends[1] - ends[0]
-                inside = np.dot(project(f0, width, height, centre)[0] - ends[0], [edge[1], -edge[0]]) > 0
-                jump = (colours[0] - colours[1]) if inside else (colours[1] - colours[0])
-                out += segments_term(ends[None], motion[None], [jump], width, height)
+                out = out + _floor_edge(frames, a, b, height_y, centre, colours[1] - colours[0],
+                                        width, height)
     return out
