@@ -212,11 +212,7 @@ def _face(mats, prim, q_a, q_b):
     for k, face in _discrete(mats):
         if face is None or mats.turbulent[k]:
             continue
-        found = jnp.asarray(True)
-        if face is patterns.axis_face:  # found by probing the row's own pattern
-            n_k, c_k, found = face(q_a, q_b, lambda q, k=k: _raw_value(mats, k, row, q))
-        else:
-            n_k, c_k = face(q_a, q_b)
+        n_k, c_k, found = face(q_a, q_b, lambda q, k=k: _raw_value(mats, k, row, q))
         normal, offset, has = (jnp.where(pid == k, n_k, normal), jnp.where(pid == k, c_k, offset),
                                has | ((pid == k) & found))
     return normal, offset, has
@@ -297,8 +293,10 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
     between two lattice lines — a polygon's vertex, a box's corner — the band's straight piece is
     not the edge, and the error is first order in h. So where the next line (row or column) holds
     a crossing of the same transition near where this one's tangent line meets it, the two stand
-    for the edge up to where their tangent lines meet: a vertex exactly, and on a smooth edge the
-    midpoint to second order. Elsewhere (the edge ends, turns back, or leaves the window) ±h/2."""
+    for the edge up to where their tangent lines meet, if they bend by more than ``TURN`` (a
+    vertex, exactly); where the edge ends there at another (its own turn onto the other pass's
+    lines, a cell corner, an outline over it), up to where its tangent line meets that edge's, found
+    among the other pass's crossings nearby; elsewhere (a smooth edge, a steep crossing) ±h/2."""
     room = r.shape[0]
     index = jnp.arange(room)
     first, second = jnp.where(in_rows, r, c), jnp.where(in_rows, c, r)  # across, along lattice index
@@ -722,12 +720,13 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     def locate(s_a, u, v, e, ch):
         """The first change of channel ``ch`` of what is seen along the pair's segment from its
         first sample, by bisection of the signature seen (a fixed number of steps): ``(lo, hi,
-        signature seen at hi, kind, face, level, entry, g_u, g_v)`` — ``lo``, ``hi`` in pixels
+        signature seen at hi, kind, face, level, entry, t_ref, g_u, g_v)`` — ``lo``, ``hi`` in pixels
         along ``e`` from (u, v); ``kind`` the margin whose zero it is, at the paths' first level
         where the channel differs (0: the outline of ``s_a``'s primitive, 1: of the primitive
         beyond, 2: their seam, 3: a cell face of one primitive's pattern, 4, 5: the outline of
         shadow entry ``entry``'s caster on either side; the one nearest the crossing in pixels, -1
-        where none is within a hundredth of the spacing), and its derivatives along the image."""
+        where none is within a hundredth of the spacing), ``t_ref`` the distance seen beyond the
+        crossing at that level, and the margin's derivatives along the image."""
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
         # (step 0 sees the pair's second sample: one copy of ``seen`` in the program)
@@ -785,7 +784,6 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
     # (3. the chosen margin's derivatives along the image come with it: g_u, g_v)
     lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v = _live_map(locate, live, pa, u0, v0, axis, ch)
-    t_ref = sg(t_ref)
     face = jax.tree.map(sg, face)
     ok = live & (kind >= 0)
     g_u, g_v = sg(jnp.where(ok, g_u, 0.0)), sg(jnp.where(ok, g_v, 0.0))

@@ -185,7 +185,7 @@ def test_a_hexagon_floors_cell_edges_move_as_their_projections_do(x64):
 
 def test_a_brick_floors_mortar_edges_move_as_their_projections_do(x64):
     """Brick's faces are planes square to its axes: the term finds the one between two points by
-    probing the pattern (``patterns.axis_face``). A flat brick floor seen from above by a moving
+    probing the pattern (``patterns._tilings.axis_face``). A flat brick floor seen from above by a moving
     camera: every brick is a rectangle of mortar edges (``validation.edges.brick_floor_term``),
     within 2.5 % at 4×4 samples a pixel and 1 % at 8×8 (measured 1.8 % and 0.75 %: the mortar is
     one pixel wide, four lattice steps, and its T-junctions are first order)."""

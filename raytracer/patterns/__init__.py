@@ -41,7 +41,6 @@ from ._noise import noise as noise
 from ._noise import turbulence as turbulence
 from ._record import Pattern as Pattern
 from ._record import PatternInputs as PatternInputs
-from ._tilings import axis_face as axis_face
 from ._waves import WAVES as WAVES
 from ._waves import apply_wave as apply_wave
 

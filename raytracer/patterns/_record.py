@@ -69,13 +69,13 @@ class Pattern:
         noise:        its value costs lattice noise evaluations (tens of them with turbulence):
                       the shader then computes shadow filters pattern by pattern
                       (``shading/_materials.costly_patterns``).
-        face:         a discrete pattern's cell faces: ``face(q_a, q_b) → (normal (3,), offset ())``,
-                      the plane ``normal · q = offset`` between the cells of pattern-space points
-                      ``q_a`` and ``q_b`` (``normal · q − offset`` positive on ``q_b``'s side), whose
-                      motion is the boundary term of a cell edge (``raytracer/_edges.py``); None:
-                      its cell edges get none. ``patterns.axis_face`` for faces square to the
-                      pattern's axes, found by probing its value (then called
-                      ``face(q_a, q_b, value)`` → (normal, offset, found)).
+        face:         a discrete pattern's cell faces: ``face(q_a, q_b, value) → (normal (3,),
+                      offset (), found ())``, the plane ``normal · q = offset`` between the cells
+                      of pattern-space points ``q_a`` and ``q_b`` (``normal · q − offset``
+                      positive on ``q_b``'s side), whose motion is the boundary term of a cell edge
+                      (``raytracer/_edges.py``); ``value`` (q → the pattern's value with the
+                      layer's parameters) for faces found by probing (``_tilings.axis_face``),
+                      ``found`` False where there is none to find; None: its cell edges get none.
         cell:         with ``face``: ``cell(q) → int32``, an id of the cell of pattern-space point
                       ``q`` that differs between any two cells sharing a face (two cells of one
                       colour too, so that a corner's two faces are told apart).

@@ -27,14 +27,14 @@ def checker(p, inputs):
     return k - 2.0 * jnp.floor(0.5 * k)
 
 
-def checker_face(q_a, q_b):
+def checker_face(q_a, q_b, value):
     """The face between the unit cells of ``q_a`` and ``q_b``: the integer plane of the axis along
     which their cells differ most (neighbouring cells: the one axis they differ along)."""
     step = jnp.floor(q_b) - jnp.floor(q_a)
     axis = jnp.argmax(jnp.abs(step))
     sign = jnp.where(step[axis] < 0, -1.0, 1.0).astype(q_a.dtype)
     normal = jnp.where(jnp.arange(3) == axis, sign, 0.0).astype(q_a.dtype)
-    return normal, sign * jnp.maximum(jnp.floor(q_a), jnp.floor(q_b))[axis]
+    return normal, sign * jnp.maximum(jnp.floor(q_a), jnp.floor(q_b))[axis], jnp.asarray(True)
 
 
 def checker_cell(q):
@@ -80,7 +80,7 @@ def hexagon_cell(q):
     return i.astype(jnp.int32) * 73856093 ^ j.astype(jnp.int32) * 19349663
 
 
-def hexagon_face(q_a, q_b):
+def hexagon_face(q_a, q_b, value):
     """The face between the hexagons of ``q_a`` and ``q_b``: each point lies in the cell of its
     nearest centre, so the face is the plane halfway between the two centres, square to the line
     joining them (normal from ``q_a``'s cell to ``q_b``'s)."""
@@ -89,7 +89,8 @@ def hexagon_face(q_a, q_b):
     zero = jnp.zeros((), q_a.dtype)
     step = jnp.stack([bx - ax, zero, bz - az]).astype(q_a.dtype)
     normal = step / jnp.sqrt(jnp.maximum(jnp.sum(step * step), jnp.finfo(q_a.dtype).tiny))
-    return normal, jnp.dot(normal, jnp.stack([0.5 * (ax + bx), zero, 0.5 * (az + bz)]).astype(q_a.dtype))
+    offset = jnp.dot(normal, jnp.stack([0.5 * (ax + bx), zero, 0.5 * (az + bz)]).astype(q_a.dtype))
+    return normal, offset, jnp.asarray(True)
 
 
 def brick(p, inputs, *, brick_size, mortar):
