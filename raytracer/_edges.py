@@ -47,7 +47,10 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
 The term is linear in the tangent (only ``g_θ`` carries it), so reverse mode is its transpose:
 ``render(…, edges=True)`` wraps the render in a ``jax.custom_jvp`` whose tangent is the render's
-own plus this one.
+own plus this one. Every step after the compaction runs over the room's chunks that hold crossings
+and no others (a loop whose length the program computes); the linear map and its transpose are two
+such loops (``_linear.linear_call``), so forward and reverse mode both cost what the edges' length
+asks, not what the room holds.
 
 Discretised, and where it fails: the row and column sums are a quadrature of the edge integral with
 spacing ``h`` — second order on smooth edges; a vertex between straight edges is located (exact for
@@ -76,8 +79,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
+from jax.flatten_util import ravel_pytree
 
 from . import patterns
+from ._linear import linear_call
 from ._packed import pack
 from ._plan import make_plan
 from .kernels import world_normal
@@ -97,12 +103,16 @@ from .shading._model import (
 from .shading.camera import camera_rays
 from .shading.whitted import trace
 
-# bisection steps from a lattice spacing to the crossing: 2⁻¹⁴ of it (1.5e-5 px at 4×4 samples a pixel;
-# the margin chosen there is then evaluated at its own zero to first order)
-BISECTIONS = 14
+# bisection steps from a lattice spacing to the crossing: 2⁻¹⁰ of it (2.4e-4 px at 4×4 samples a pixel),
+# then a Newton step on the margin chosen there, so that the crossing is placed to second order
+# (the edge tests' errors are those of 14 steps without it; 8 steps lose an area light's penumbra)
+BISECTIONS = 10
 # the boundary term's lattice is at least this many samples across a pixel (a render of fewer rays,
 # spp 1 or 4, still gets its edges at this resolution: the term's error falls as its square)
 EDGE_LATTICE = 4
+# the lattice's signatures are computed this many samples at a time or more (whole rows): wide
+# operations, few of them (the lattice of a 64×48 image at 4×4 samples a pixel is one block)
+LATTICE_BLOCK = 65536
 # the two rays that see either side of a crossing are this far (pixels) beyond the bisection's
 # last interval
 SIDE_OFFSET = 1e-3
@@ -224,8 +234,8 @@ def _image_ray(camera, width: int, height: int, u, v):
     return o[0], d[0]
 
 
-# crossings are located, differentiated and traced this many at a time; a chunk without a live one
-# (the room's tail) costs nothing
+# crossings are located, differentiated and traced this many at a time, in chunks of the room up to
+# the last that holds one (the room's tail is not run)
 CHUNK = 256
 
 
@@ -237,31 +247,24 @@ def _room(width: int, height: int, k: int) -> int:
     return -(-min(pairs, 32 * k * (width + height)) // CHUNK) * CHUNK
 
 
-def _live_map(fn, live, *args):
-    """``vmap(fn)(*args)`` over the room, ``CHUNK`` crossings at a time, skipping the chunks without a
-    live one (their results are zeros)."""
-    n = live.shape[0]
-    chunks = jax.tree.map(lambda x: x.reshape(n // CHUNK, CHUNK, *x.shape[1:]), (live, args))
-    # one trace of ``fn``: the shapes of the chunk's results and the chunk itself come from the same
-    # jitted function's trace cache (``jax.eval_shape`` of a fresh vmap would trace it again)
-    batched = jax.jit(jax.vmap(fn))
-
-    def one(chunk):
-        alive, xs = chunk
-        shapes = batched.eval_shape(*xs)
-        return jax.lax.cond(jnp.any(alive), lambda a: batched(*a),
-                            lambda a: jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes), xs)
-
-    out = jax.lax.map(one, chunks)
-    return jax.tree.map(lambda x: x.reshape(n, *x.shape[2:]), out)
+def _take(x, i):
+    """Chunk ``i`` (``CHUNK`` rows) of the room-sized array ``x``."""
+    return jax.lax.dynamic_slice_in_dim(x, i * CHUNK, CHUNK)
 
 
-def _transition(pa, pb, j, ch, levels: int, width_: int, own: int, n_samples: int):
-    """(room, D) × 2: whether the crossings ``j`` (room, D) separate the same signatures as each
-    crossing (its first side ``pa``, its other ``pb``) in the crossing's channel ``ch``, in the
+def _put(x, i, value):
+    """``x`` with chunk ``i`` set to ``value``."""
+    return jax.lax.dynamic_update_slice_in_dim(x, value.astype(x.dtype), i * CHUNK, 0)
+
+
+def _transition(pa, pb, idx, j, ch, levels: int, width_: int, own: int, n_samples: int):
+    """(N, D) × 2: whether the crossings ``j`` (N, D) separate the same signatures as the crossings
+    ``idx`` (N,) (its first side ``pa``, its other ``pb``) in the crossing's channel ``ch``, in the
     same order, and in the other order."""
+    ch = ch[idx]
+
     def agree(x, y):  # x of each crossing against y of the crossings j
-        ne = (y[j] != x[:, None, :]).reshape(*j.shape, levels, width_)
+        ne = (y[j] != x[idx][:, None, :]).reshape(*j.shape, levels, width_)
         path = jnp.any(ne[..., :own], axis=(-2, -1))
         if not n_samples:
             return ~path
@@ -285,7 +288,7 @@ WINDOW = 2
 
 
 def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, rows: int, cols: int,
-             channels: int, h: float):
+             channels: int, h: float, n_live):
     """``(low, high)``: the stretch ``[across + low, across + high]`` of the across axis (v for a
     row's crossing, u for a column's) whose edge integral each crossing stands for.
 
@@ -296,110 +299,141 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
     for the edge up to where their tangent lines meet, if they bend by more than ``TURN`` (a
     vertex, exactly); where the edge ends there at another (its own turn onto the other pass's
     lines, a cell corner, an outline over it), up to where its tangent line meets that edge's, found
-    among the other pass's crossings nearby; elsewhere (a smooth edge, a steep crossing) ±h/2."""
+    among the other pass's crossings nearby; elsewhere (a smooth edge, a steep crossing) ±h/2.
+    Computed for the ``n_live`` chunks of the room that hold crossings (``same(idx, j)``: whether
+    crossings ``j`` separate the same signatures as crossings ``idx``, in the same order)."""
     room = r.shape[0]
-    index = jnp.arange(room)
     first, second = jnp.where(in_rows, r, c), jnp.where(in_rows, c, r)  # across, along lattice index
     sizes = {True: (rows, max(cols - 1, 1)), False: (cols, max(rows - 1, 1))}
     grids = {}
     for rows_pass, (n_a, n_b) in sizes.items():
         mine = usable & (in_rows if rows_pass else ~in_rows)
         grids[rows_pass] = jnp.full((n_a, n_b, channels), -1, jnp.int32).at[first, second, ch].max(
-            jnp.where(mine, index, -1).astype(jnp.int32), mode="drop")
+            jnp.where(mine, jnp.arange(room), -1).astype(jnp.int32), mode="drop")
     deltas = jnp.arange(-WINDOW, WINDOW + 1)
-    sg = jax.lax.stop_gradient
+    lanes_ = jnp.arange(CHUNK)
 
-    def boundary(step):
-        line = first + step
-        predicted = at + step * h * slope
+    def boundary(idx, step):
+        """For the crossings ``idx``: whether the next line (``step``) holds a crossing of the same
+        transition near where its tangent line meets that line, bending by more than ``TURN``
+        (a vertex) or not (a smooth edge); that crossing, where the two tangent lines meet, and
+        the bend."""
+        in_rows_i, ch_i, at_i, across_i = in_rows[idx], ch[idx], at[idx], across[idx]
+        along_i, other_i, slope_i = along[idx], other[idx], slope[idx]
+        line = first[idx] + step
+        predicted = at_i + step * h * slope_i
         # (lattice point i lies at (i − ½) h: the pair b spans [(b − ½) h, (b + ½) h])
         lanes = jnp.floor(predicted / h + 0.5).astype(jnp.int32)[:, None] + deltas[None, :]
         cand, inside = [], []
         for rows_pass, (n_a, n_b) in sizes.items():
             cand.append(grids[rows_pass][jnp.clip(line, 0, n_a - 1)[:, None], jnp.clip(lanes, 0, n_b - 1),
-                                         ch[:, None]])
+                                         ch_i[:, None]])
             inside.append(((line >= 0) & (line < n_a))[:, None] & (lanes >= 0) & (lanes < n_b))
-        cand = jnp.where(in_rows[:, None], cand[0], cand[1])
-        inside = jnp.where(in_rows[:, None], inside[0], inside[1])
+        cand = jnp.where(in_rows_i[:, None], cand[0], cand[1])
+        inside = jnp.where(in_rows_i[:, None], inside[0], inside[1])
         j = jnp.maximum(cand, 0)
-        valid = inside & (cand >= 0) & usable[:, None] & same(j)[0]
+        valid = inside & (cand >= 0) & usable[idx][:, None] & same(idx, j)[0]
         distance = jnp.where(valid, jnp.abs(at[j] - predicted[:, None]), jnp.inf)
         k = jnp.argmin(distance, axis=1)
-        found = jnp.isfinite(distance[index, k])
-        n = j[index, k]
+        found = jnp.isfinite(distance[lanes_, k])
+        n = j[lanes_, k]
         # where the two tangent lines meet, in the across coordinate (Cramer's rule)
-        rhs_i, rhs_n = along * at + other * across, along[n] * at[n] + other[n] * across[n]
-        det = along * other[n] - other * along[n]
-        scale = jnp.sqrt((along ** 2 + other ** 2) * (along[n] ** 2 + other[n] ** 2))
-        meet = (along * rhs_n - along[n] * rhs_i) / jnp.where(det != 0, det, 1.0)
-        shallow = found & (jnp.abs(slope) <= STEEP) & (jnp.abs(slope[n]) <= STEEP)
+        rhs_i, rhs_n = along_i * at_i + other_i * across_i, along[n] * at[n] + other[n] * across[n]
+        det = along_i * other[n] - other_i * along[n]
+        scale = jnp.sqrt((along_i ** 2 + other_i ** 2) * (along[n] ** 2 + other[n] ** 2))
+        meet = (along_i * rhs_n - along[n] * rhs_i) / jnp.where(det != 0, det, 1.0)
+        shallow = found & (jnp.abs(slope_i) <= STEEP) & (jnp.abs(slope[n]) <= STEEP)
         bend = jnp.where(shallow, jnp.abs(det) / jnp.where(scale > 0, scale, 1.0), jnp.inf)
         vertex = bend > TURN
-        meet = jnp.clip(meet, jnp.minimum(across, across[n]), jnp.maximum(across, across[n]))
+        meet = jnp.clip(meet, jnp.minimum(across_i, across[n]), jnp.maximum(across_i, across[n]))
         return vertex & shallow, shallow & ~vertex, n, meet, bend
 
     # in the image plane: each crossing's point and its margin's gradient
     pu, pv = jnp.where(in_rows, at, across), jnp.where(in_rows, across, at)
     gu, gv = jnp.where(in_rows, along, other), jnp.where(in_rows, other, along)
 
-    def turn(step):
-        """Where the edge ends between this line and the next (``step``) at another edge — its own
-        turning onto the other pass's lines at a vertex, or another edge that crosses it (a cell
-        corner, an outline over it): the meeting of this crossing's tangent line with that of a
-        crossing of the other pass nearby, within two lattice steps of both."""
+    def turn(idx, step):
+        """Where the edge of the crossings ``idx`` ends between their line and the next (``step``)
+        at another edge — its own turning onto the other pass's lines at a vertex, or another edge
+        that crosses it (a cell corner, an outline over it): the meeting of the crossing's tangent
+        line with that of a crossing of the other pass nearby, within two lattice steps of both."""
+        in_rows_i, pu_i, pv_i, gu_i, gv_i, across_i = (x[idx] for x in (in_rows, pu, pv, gu, gv, across))
         # the other pass's lattice pairs between the two lines, and the next ones beyond (the other
         # edge may cross the other pass's lines only beyond the vertex), on its lines about this one
-        bands = (first + (step - 1) // 2)[:, None] + jnp.array([0, step])[None, :]
-        lanes = second[:, None] + jnp.arange(-1, 3)[None, :]
-        bands, lanes = (jnp.broadcast_to(x, (room, 2, 4)).reshape(room, 8)
+        bands = (first[idx] + (step - 1) // 2)[:, None] + jnp.array([0, step])[None, :]
+        lanes = second[idx][:, None] + jnp.arange(-1, 3)[None, :]
+        bands, lanes = (jnp.broadcast_to(x, (CHUNK, 2, 4)).reshape(CHUNK, 8)
                         for x in (bands[:, :, None], lanes[:, None, :]))
         cand, inside = [], []
         for rows_pass in (True, False):
             n_a, n_b = sizes[not rows_pass]
             cand.append(grids[not rows_pass][jnp.clip(lanes, 0, n_a - 1), jnp.clip(bands, 0, n_b - 1),
-                                             ch[:, None]])
+                                             ch[idx][:, None]])
             inside.append((lanes >= 0) & (lanes < n_a) & (bands >= 0) & (bands < n_b))
-        cand = jnp.where(in_rows[:, None], cand[0], cand[1])
-        inside = jnp.where(in_rows[:, None], inside[0], inside[1])
+        cand = jnp.where(in_rows_i[:, None], cand[0], cand[1])
+        inside = jnp.where(in_rows_i[:, None], inside[0], inside[1])
         j = jnp.maximum(cand, 0)
-        rhs_i = (gu * pu + gv * pv)[:, None]
+        rhs_i = (gu_i * pu_i + gv_i * pv_i)[:, None]
         rhs_j = gu[j] * pu[j] + gv[j] * pv[j]
-        det = gu[:, None] * gv[j] - gv[:, None] * gu[j]
-        scale = jnp.sqrt((gu ** 2 + gv ** 2)[:, None] * (gu[j] ** 2 + gv[j] ** 2))
+        det = gu_i[:, None] * gv[j] - gv_i[:, None] * gu[j]
+        scale = jnp.sqrt((gu_i ** 2 + gv_i ** 2)[:, None] * (gu[j] ** 2 + gv[j] ** 2))
         safe = jnp.where(det != 0, det, 1.0)
-        mu = (rhs_i * gv[j] - gv[:, None] * rhs_j) / safe
-        mv = (gu[:, None] * rhs_j - gu[j] * rhs_i) / safe
-        meet = jnp.where(in_rows[:, None], mv, mu)  # in the across coordinate
-        reach = jnp.maximum(jnp.hypot(mu - pu[:, None], mv - pv[:, None]), jnp.hypot(mu - pu[j], mv - pv[j]))
-        offset = step * (meet - across[:, None])
-        valid = (inside & (cand >= 0) & usable[:, None] & (jnp.abs(det) > TURN * scale)
-                 & (jnp.abs(slope) <= STEEP)[:, None] & (jnp.abs(slope[j]) <= STEEP)
+        mu = (rhs_i * gv[j] - gv_i[:, None] * rhs_j) / safe
+        mv = (gu_i[:, None] * rhs_j - gu[j] * rhs_i) / safe
+        meet = jnp.where(in_rows_i[:, None], mv, mu)  # in the across coordinate
+        reach = jnp.maximum(jnp.hypot(mu - pu_i[:, None], mv - pv_i[:, None]),
+                            jnp.hypot(mu - pu[j], mv - pv[j]))
+        offset = step * (meet - across_i[:, None])
+        valid = (inside & (cand >= 0) & usable[idx][:, None] & (jnp.abs(det) > TURN * scale)
+                 & (jnp.abs(slope[idx]) <= STEEP)[:, None] & (jnp.abs(slope[j]) <= STEEP)
                  & (offset >= 0) & (offset <= h) & (reach <= 2 * h))
         distance = jnp.where(valid, reach, jnp.inf)
         k = jnp.argmin(distance, axis=1)
-        return jnp.isfinite(distance[index, k]), meet[index, k]
+        return jnp.isfinite(distance[lanes_, k]), meet[lanes_, k]
+
+    def chunks(fn, shapes):
+        """``fn(idx)`` for each live chunk's crossings ``idx``, into room-sized arrays."""
+        def body(i, out):
+            return jax.tree.map(lambda x, y: _put(x, i, y), out, fn(i * CHUNK + lanes_))
+        empty = jax.tree.map(lambda x: jnp.zeros((room, *x.shape[1:]), x.dtype), shapes)
+        return jax.lax.fori_loop(0, n_live, body, empty)
+
+    def both(idx):
+        return boundary(idx, -1), boundary(idx, 1)
+
+    lanes0 = jnp.zeros(CHUNK, jnp.int32)
+    searched = dict(zip((-1, 1), chunks(both, jax.eval_shape(both, lanes0)), strict=True))
 
     # a vertex with this side's neighbour, else with a crossing of that line that found this one
     # looking back (a steep edge's crossing may not see a shallow one beyond a vertex that sees it);
     # a smooth neighbour: the band's midpoint; none (or a steep one): where another edge ends this
     # one, else the midpoint
-    searched = {step: boundary(step) for step in (-1, 1)}
-    ends = []
+    seen = {}
     for step in (-1, 1):
-        vertex, smooth, _, meet, _ = searched[step]
-        vertex_back, _, n_back, meet_back, bend_back = searched[-step]
-        target = jnp.where(vertex_back, n_back, room)  # (room: dropped)
-        seen_back = jnp.zeros(room, bool).at[target].set(True, mode="drop")
-        meet_seen = jnp.zeros(room, meet.dtype).at[target].set(meet_back, mode="drop")
-        turned, meet_turn = turn(step)
-        # (only from a straight edge: the other side's neighbour in line; a small curve's
-        # crossings bend by more than that between lattice lines, and meet the other pass's)
-        turned = turned & (bend_back <= TURN / 4)
-        middle = across + 0.5 * step * h
-        end = jnp.where(vertex, meet, jnp.where(seen_back, meet_seen, jnp.where(
-            smooth, middle, jnp.where(turned, meet_turn, middle))))
-        ends.append(sg(end - across))
-    return ends[0], ends[1]
+        _, _, n_back, meet_back, _ = searched[-step]
+        target = jnp.where(searched[-step][0], n_back, room)  # (room: dropped)
+        seen[step] = (jnp.zeros(room, bool).at[target].set(True, mode="drop"),
+                      jnp.zeros(room, meet_back.dtype).at[target].set(meet_back, mode="drop"))
+
+    def ends(idx):
+        out = []
+        for step in (-1, 1):
+            vertex, smooth, _, meet, _ = (x[idx] for x in searched[step])
+            bend_back = searched[-step][4][idx]
+            seen_back, meet_seen = (x[idx] for x in seen[step])
+            turned, meet_turn = turn(idx, step)
+            # (only from a straight edge: the other side's neighbour in line; a small curve's
+            # crossings bend by more than that between lattice lines, and meet the other pass's)
+            turned = turned & (bend_back <= TURN / 4)
+            across_i = across[idx]
+            middle = across_i + 0.5 * step * h
+            end = jnp.where(vertex, meet, jnp.where(seen_back, meet_seen, jnp.where(
+                smooth, middle, jnp.where(turned, meet_turn, middle))))
+            out.append(end - across_i)
+        return tuple(out)
+
+    low, high = chunks(ends, jax.eval_shape(ends, lanes0))
+    return jax.lax.stop_gradient(low), jax.lax.stop_gradient(high)
 
 
 def _spread(contribution, in_rows, at, across, low, high, slope, span, width: int, height: int, dtype):
@@ -669,7 +703,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         return _pattern_point(pk.mats, prim * pk.mats.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
     centres = (jnp.arange(max(rows, cols), dtype=dtype) - 0.5) * h
-    sig = jax.lax.map(lambda v: jax.vmap(lambda u: seen(u, v)[0])(centres[:cols]), centres[:rows])
+    per_block = max(1, min(rows, -(-LATTICE_BLOCK // cols)))
+    blocks = -(-rows // per_block)
+    v_rows = jnp.concatenate([centres[:rows], jnp.full(blocks * per_block - rows, centres[0])])
+    sig = jax.lax.map(lambda vs: jax.vmap(lambda v: jax.vmap(lambda u: seen(u, v)[0])(centres[:cols]))(vs),
+                      v_rows.reshape(blocks, per_block))
+    sig = sig.reshape(blocks * per_block, cols, -1)[:rows]
 
     # pairs that differ, by channel: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
     across = differs(sig[:, :-1], sig[:, 1:]).reshape(-1)
@@ -720,13 +759,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     def locate(s_a, u, v, e, ch):
         """The first change of channel ``ch`` of what is seen along the pair's segment from its
         first sample, by bisection of the signature seen (a fixed number of steps): ``(lo, hi,
-        signature seen at hi, kind, face, level, entry, t_ref, g_u, g_v)`` — ``lo``, ``hi`` in pixels
+        signature seen at hi, kind, face, level, entry, t_ref, g_u, g_v, cross)`` — ``lo``, ``hi`` in pixels
         along ``e`` from (u, v); ``kind`` the margin whose zero it is, at the paths' first level
         where the channel differs (0: the outline of ``s_a``'s primitive, 1: of the primitive
         beyond, 2: their seam, 3: a cell face of one primitive's pattern, 4, 5: the outline of
         shadow entry ``entry``'s caster on either side; the one nearest the crossing in pixels, -1
         where none is within a hundredth of the spacing), ``t_ref`` the distance seen beyond the
-        crossing at that level, and the margin's derivatives along the image."""
+        crossing at that level, the margin's derivatives along the image, and the crossing itself
+        (pixels along ``e``: a Newton step on that margin from the bracket's middle, within it)."""
         # what is seen at ``hi`` is carried from the step that put it there: seen again, a ray a
         # rounding away may see the other side (the steps end at float resolution, on the edge)
         # (step 0 sees the pair's second sample: one copy of ``seen`` in the program)
@@ -779,38 +819,44 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
         kind = jnp.argmin(distance)
+        # the crossing: one Newton step on the chosen margin from the bracket's middle, within it
+        # (its place second order in the bracket's width)
+        cross = jnp.clip(mid - g[kind] / jnp.where(g_s[kind] != 0, g_s[kind], 1.0), lo, hi)
         return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, level, entry, t_ref,
-                g_u[kind], g_v[kind])
+                g_u[kind], g_v[kind], cross)
 
-    # (3. the chosen margin's derivatives along the image come with it: g_u, g_v)
-    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v = _live_map(locate, live, pa, u0, v0, axis, ch)
-    face = jax.tree.map(sg, face)
-    ok = live & (kind >= 0)
-    g_u, g_v = sg(jnp.where(ok, g_u, 0.0)), sg(jnp.where(ok, g_v, 0.0))
-    mid = 0.5 * (lo + hi)
-
-    # 3. the chosen margin's derivative along the tangent: every crossing's margin one function of
-    # the scene, packed once, so reverse mode transposes the packing once, not once a crossing
-    pu, pv = sg(u0 + mid * axis[:, 0]), sg(v0 + mid * axis[:, 1])
-
-    def chosen_margins(dyn_):
-        sc = eqx.combine(dyn_, static)
-        pk = pack(sc, plan)
-        return _live_map(lambda kind_, s_a, s_b, face_, level_, entry_, t_ref_, u, v: margins(
-            sc, pk, s_a, s_b, face_, level_, entry_, t_ref_, u, v)[jnp.maximum(kind_, 0)],
-            ok, kind, pa, pb, face, level, entry, t_ref, pu, pv)
-
-    g_theta = jax.jvp(chosen_margins, (dynamic,), (tangent,))[1]
-
-    # 4. the jump: rays just before and just after the crossing along its axis, through the model
-    before = jnp.stack([u0 + (lo - SIDE_OFFSET) * axis[:, 0], v0 + (lo - SIDE_OFFSET) * axis[:, 1]], -1)
-    after = jnp.stack([u0 + (hi + SIDE_OFFSET) * axis[:, 0], v0 + (hi + SIDE_OFFSET) * axis[:, 1]], -1)
-    points = jnp.concatenate([before, after])
-    o, d = camera_rays(scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
+    # 2.–4. a loop over the chunks of the room that hold crossings (the rest costs nothing): each
+    # crossing located, and the two camera rays just before and just after it along its axis traced
+    # through the model (3.: the chosen margin's derivatives along the image come with it: g_u, g_v)
+    n_live = ((jnp.minimum(count, room) + CHUNK - 1) // CHUNK).astype(jnp.int32)
     media = initial_media(ctx, scene.camera.frame()[0])
-    colours, dropped = trace(ctx, o, d, chunk=CHUNK, capacity=capacity, media=media,
-                       alive=jnp.concatenate([ok, ok]))
-    jump = sg(colours[:room] - colours[room:])  # L⁻ − L⁺
+    inputs = (pa, u0, v0, axis, ch)
+    # one trace of ``locate``: the buffers' shapes and the loop's body come from the same jitted
+    # function's trace cache
+    located = jax.jit(jax.vmap(locate))
+    shapes = located.eval_shape(*(_take(x, 0) for x in inputs))
+
+    def locate_chunk(i, state):
+        out, lost = state
+        pa_, u_, v_, e_, ch_ = (_take(x, i) for x in inputs)
+        res = located(pa_, u_, v_, e_, ch_)
+        lo_, hi_, kind_ = res[0], res[1], res[3]
+        ok_ = _take(live, i) & (kind_ >= 0)
+        points = jnp.concatenate([jnp.stack([u_ + s_ * e_[:, 0], v_ + s_ * e_[:, 1]], -1)
+                                  for s_ in (lo_ - SIDE_OFFSET, hi_ + SIDE_OFFSET)])
+        o, d = camera_rays(scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
+        colours, dropped = trace(ctx, o, d, chunk=CHUNK, capacity=capacity, media=media,
+                                 alive=jnp.concatenate([ok_, ok_]))
+        out = jax.tree.map(lambda x, y: _put(x, i, y), out, (*res, colours[:CHUNK] - colours[CHUNK:]))
+        return out, lost + jnp.sum(dropped).astype(jnp.int32)
+
+    empty = jax.tree.map(lambda x: jnp.zeros((room, *x.shape[1:]), x.dtype), (*shapes, shapes[0]))
+    empty = (*empty[:-1], jnp.zeros((room, 3), dtype))
+    found_, dropped = jax.lax.fori_loop(0, n_live, locate_chunk, (empty, jnp.zeros((), jnp.int32)))
+    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, jump = jax.tree.map(sg, found_)
+    ok = live & (kind >= 0)
+    g_u, g_v = jnp.where(ok, g_u, 0.0), jnp.where(ok, g_v, 0.0)
+    pu, pv = u0 + cross * axis[:, 0], v0 + cross * axis[:, 1]
 
     # a crossing of a row moves by −g_θ/g_u; its share of the edge integral is w_u = g_u⁴/(g_u⁴ + g_v⁴)
     # (a column's w_v = 1 − w_u): the shares add up to ∫ ds, and the row integrand vanishes as
@@ -818,14 +864,73 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     along, other = jnp.where(in_rows, g_u, g_v), jnp.where(in_rows, g_v, g_u)
     quartic = along ** 4 + other ** 4
     usable = ok & (quartic > 0)
-    at, across = sg(jnp.where(in_rows, pu, pv)), sg(jnp.where(in_rows, pv, pu))
-    slope = sg(jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0))  # d(at)/d(across)
+    at, across = jnp.where(in_rows, pu, pv), jnp.where(in_rows, pv, pu)
+    slope = jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0)  # d(at)/d(across)
     low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope,
-                         lambda j: _transition(pa, pb, j, ch, levels, width_, own, n_samples),
-                         rows, cols, channels, h)
+                         lambda idx, j: _transition(pa, pb, idx, j, ch, levels, width_, own, n_samples),
+                         rows, cols, channels, h, n_live)
     span = high - low
-    weight = sg(jnp.where(usable, -span * along ** 3 / jnp.where(usable, quartic, 1.0), 0.0))
-    contribution = jnp.where(usable[:, None], (weight * g_theta)[:, None] * jump, 0.0)  # (room, 3)
-    image = _spread(contribution, in_rows, at, across, low, high, slope, span, width, height, dtype)
+    weight = jnp.where(usable, -span * along ** 3 / jnp.where(usable, quartic, 1.0), 0.0)
+    scale = jnp.where(usable[:, None], weight[:, None] * jump, 0.0)  # (room, 3): the jump L⁻ − L⁺ per g_θ
+
+    # 3. the chosen margin's derivative along the tangent g_θ, and the term: each crossing's
+    # ``scale · g_θ`` spread over the pixels its stretch of the edge passes. A linear map of the
+    # tangent by a loop over the live chunks, and its transpose by another (``linear_call``: JAX
+    # transposes no loop whose length the program computes): reverse mode's work follows the
+    # edges too. The margins are a function of the scene's arrays and of its packed arrays (packed
+    # once, outside the loops; reverse mode transposes the packing once).
+    pk_held = eqx.filter(packed, eqx.is_inexact_array, inverse=True)
+
+    def packed_floats(dyn_):
+        return eqx.filter(pack(eqx.combine(dyn_, static), plan), eqx.is_inexact_array)
+
+    pk_floats, pk_dot = jax.jvp(packed_floats, (dynamic,), (tangent,))
+    flat_dot, unravel = ravel_pytree((tangent, pk_dot))
+    per_margin = (kind, pa, pb, face, level, entry, t_ref, pu, pv)
+    per_spread = (scale, in_rows, at, across, low, high, slope, span)
+
+    def chosen(point, i, per):
+        """(CHUNK,): the chosen margin of chunk ``i``'s crossings, the scene's arrays and its packed
+        arrays ``point``."""
+        dyn_, pkf = point
+        sc, pk = eqx.combine(dyn_, static), eqx.combine(pkf, pk_held)
+        kind_, *rest = (jax.tree.map(lambda x: _take(x, i), y) for y in per)
+        return jax.vmap(lambda k_, *a: margins(sc, pk, *a)[jnp.maximum(k_, 0)])(kind_, *rest)
+
+    # (closure-free: the transpose is traced when reverse mode gets to it, after this trace ends,
+    # so every array it uses is an argument; the margins' own arrays are the jaxpr's constants)
+    point = (dynamic, pk_floats)
+    program = jax.make_jaxpr(chosen)(point, jnp.zeros((), jnp.int32), per_margin)
+
+    def margin_of(consts, point, i, per):
+        fn = jaxpr_as_fun(ClosedJaxpr(program.jaxpr, consts))
+        return fn(*jax.tree.leaves((point, i, per)))[0]
+
+    def spread_chunk(per, i, g):
+        scale_, *rest = (_take(x, i) for x in per)
+        return _spread(scale_ * g[:, None], *rest, width, height, dtype)
+
+    def term(res, flat):
+        consts, point, n, per_m, per_s = res
+        lin = unravel(flat)
+
+        def body(i, image):
+            g = jax.jvp(lambda p: margin_of(consts, p, i, per_m), (point,), (lin,))[1]
+            return image + spread_chunk(per_s, i, g)
+
+        return jax.lax.fori_loop(0, n, body, jnp.zeros((height, width, 3), dtype))
+
+    def term_transposed(res, ct):
+        consts, point, n, per_m, per_s = res
+
+        def body(i, acc):
+            (g_ct,) = jax.linear_transpose(lambda g: spread_chunk(per_s, i, g), jnp.zeros(CHUNK, dtype))(ct)
+            _, pull = jax.vjp(lambda p: margin_of(consts, p, i, per_m), point)
+            return acc + ravel_pytree(pull(g_ct)[0])[0]
+
+        return jax.lax.fori_loop(0, n, body, jnp.zeros_like(flat_dot))
+
+    held = (program.consts, point, n_live, per_margin, per_spread)
+    image = linear_call(term, term_transposed, held, flat_dot)
     unresolved = jnp.sum(live & ~ok)
-    return Edges(image, count, unresolved, jnp.maximum(count - room, 0), jnp.sum(dropped))
+    return Edges(image, count, unresolved, jnp.maximum(count - room, 0), dropped)
