@@ -25,6 +25,10 @@ Fits:
 
 * ``ior``: the index of refraction of a glass sphere in front of a checker wall, started 0.15 low:
   the cell edges seen through the glass move with it.
+
+``--batched``: the warm forward + backward time and the first call of one loss over five views
+of a sphere on a floor (its centre the parameter), the views as a Python loop in one program,
+``jax.vmap`` and ``jax.lax.map``, with the term and without.
 """
 
 from __future__ import annotations
@@ -125,11 +129,51 @@ def fit(name: str, edges: bool, steps: int, rate: float = 0.02) -> dict:
             "first_call_s": first, "final_loss": float(value)}
 
 
+BATCH = ("plane { y, -0.8 pigment { rgb 0.8 } }\n"
+         "sphere { <0.2, 0.1, 0.3>, 0.8 pigment { rgb <1, 0.6, 0.3> } }")
+
+
+def batched(mode: str, edges: bool, repeats: int = 10) -> dict:
+    """One loss over five views (``mode``: "loop", "vmap" or "map"): warm fwd+bwd and first call."""
+    scene = _scenes(BATCH, VIEWS[:1], LIGHT)[0]
+    params = rt.params.parameters(scene)
+    angles = np.linspace(0.0, 1.2, 5)
+    places = np.stack([4 * np.sin(angles), np.full(5, 0.6), -4 * np.cos(angles)], -1)
+    places = jnp.asarray(places, jnp.float32)
+
+    def image(place, centre):
+        moved = rt.params.replace(scene, {**params, "camera.location": place,
+                                          "objects[1].shape.center": centre})
+        return rt.render(moved, width=WIDTH, height=HEIGHT, spp=SPP, edges=edges)
+
+    def loss(centre):
+        if mode == "vmap":
+            images = jax.vmap(image, in_axes=(0, None))(places, centre)
+        elif mode == "map":
+            images = jax.lax.map(lambda place: image(place, centre), places)
+        else:
+            images = jnp.stack([image(place, centre) for place in places])
+        return jnp.mean(images ** 2)
+
+    step = jax.jit(jax.value_and_grad(loss))
+    centre = params["objects[1].shape.center"]
+    t0 = time.perf_counter()
+    jax.block_until_ready(step(centre))
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(step(centre))
+        times.append(time.perf_counter() - t0)
+    return {"views": mode, "edges": edges, "warm_fwd_bwd_s": float(np.median(times)), "first_call_s": first}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=150)
     ap.add_argument("--fits", nargs="*", default=list(FITS))
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--batched", action="store_true", help="five views as a loop, vmap and lax.map")
     args = ap.parse_args(argv)
     rows = []
     print(f"{'fit':8} {'edges':6} {'conv':5} {'start':>8} {'final':>9} {'steps':>5} {'fwd+bwd ms':>10} "
@@ -141,9 +185,18 @@ def main(argv=None) -> None:
             print(f"{name:8} {edges!s:6} {r['converged']!s:5} {r['start_error']:8.4f} "
                   f"{r['final_error']:9.5f} "
                   f"{r['steps']:5d} {1e3 * r['warm_fwd_bwd_s']:10.1f} {r['first_call_s']:8.1f}", flush=True)
+    views = []
+    if args.batched:
+        print(f"{'views':8} {'edges':6} {'fwd+bwd ms':>10} {'first s':>8}")
+        for mode in ("loop", "vmap", "map"):
+            for edges in (True, False):
+                r = batched(mode, edges)
+                views.append(r)
+                print(f"{mode:8} {edges!s:6} {1e3 * r['warm_fwd_bwd_s']:10.1f} {r['first_call_s']:8.1f}",
+                      flush=True)
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        record = {"width": WIDTH, "height": HEIGHT, "spp": SPP, "fits": rows}
+        record = {"width": WIDTH, "height": HEIGHT, "spp": SPP, "fits": rows, "batched": views}
         args.json.write_text(json.dumps(record, indent=1))
 
 
