@@ -110,9 +110,11 @@ BISECTIONS = 10
 # the boundary term's lattice is at least this many samples across a pixel (a render of fewer rays,
 # spp 1 or 4, still gets its edges at this resolution: the term's error falls as its square)
 EDGE_LATTICE = 4
-# the lattice's signatures are computed this many samples at a time or more (whole rows): wide
-# operations, few of them (the lattice of a 64×48 image at 4×4 samples a pixel is one block)
-LATTICE_BLOCK = 65536
+# the lattice's signatures are computed in blocks of whole rows that trace about this many rays (a
+# sample traces one a level of its path, and one to each point light and area-light sample there):
+# wide operations, few of them, and memory bounded (the 64×48 lattice at 4×4 samples a pixel, three
+# rays a sample, is two blocks)
+LATTICE_BLOCK = 131072
 # the two rays that see either side of a crossing are this far (pixels) beyond the bisection's
 # last interval
 SIDE_OFFSET = 1e-3
@@ -566,13 +568,25 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # branch the path takes there (STOP, REFLECT, REFRACT, TIR), and for each light of
     # ``shadow_lights``, then each sample of each light of ``grid_lights``, the first shadow caster
     # between the point seen and the light or sample (-1: none, or the light is behind the surface)
-    def seen(u, v, sample=None):
+    def seen(u, v, sample=None, focus=None):
         """The signature of image point (u, v); with ``sample`` (a grid sample's index, traced), of
         the grid's casters only that sample's (the others -1): what a bisection of its channel, or
         of channel 0, which has none, needs. With it, the distance to the surface seen at each
-        level (levels,) (inf: none)."""
-        # one level of the path: a loop over the levels, so that the program holds one copy of it
+        level (levels,) (inf: none). With ``focus`` = (reference signature, last level, shadows),
+        the levels past the last and, unless ``shadows``, every shadow entry are not traced but
+        copied from the reference (a bisection's chunk asks only what its crossings differ in;
+        the last level and ``shadows`` are the chunk's, not batched, so that skipping is skipping)."""
+        reference = None if focus is None else focus[0].reshape(levels, width_)
+
         def level_of(carry, index):
+            if focus is None:
+                return traced_level(carry, index, True)
+            skipped = (carry, (reference[index], jnp.asarray(jnp.inf, dtype)))
+            return jax.lax.cond(index <= focus[1], lambda c: traced_level(c, index, focus[2]),
+                                lambda c: skipped, carry)
+
+        # one level of the path: a loop over the levels, so that the program holds one copy of it
+        def traced_level(carry, index, shadows):
             o, d, alive, mirror = carry
             scale = guard(o)
             vis = jnp.where(mirror, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
@@ -582,6 +596,29 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             p = o + jnp.where(found, hit.t, 0.0) * d
             p_cell = p if hit.point is None else hit.point
             cell = _cell(mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
+            casts = []
+
+            def shadow_entries():
+                return jnp.stack(casters_at(found, hit, p, d)).astype(jnp.int32)
+
+            if entries and focus is None:
+                casts = list(shadow_entries())
+            elif entries:
+                casts = list(jax.lax.cond(shadows, shadow_entries,
+                                          lambda: reference[index, 3:].astype(jnp.int32)))
+            branch = jnp.asarray(STOP)
+            if levels > 1:
+                prim = jnp.maximum(hit.prim, 0)
+                branch = jnp.where(transparent[prim], REFRACT, jnp.where(reflects(prim), REFLECT, STOP))
+                branch = jnp.where(found & (index + 1 < levels), branch, STOP)
+                o, d, tir = child(mats, prim, o, d, hit.t, hit.normal, branch)
+                branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
+                alive, mirror = branch != STOP, branch == REFLECT
+            row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch, *casts])
+            return (o, d, alive, mirror), (row.astype(jnp.int32), jnp.where(found, hit.t, jnp.inf))
+
+        def casters_at(found, hit, p, d):
+            """The first caster towards each point light, then each grid sample (or ``sample``)."""
             casts = []
             if entries:  # the shadow ray as the model spawns it: from just off the surface
                 n = jnp.where(jnp.dot(hit.normal, d) < 0, hit.normal, -hit.normal)
@@ -613,16 +650,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 else:
                     one = caster_towards(targets[sample], lit[sample])
                     casts.extend(jnp.where(jnp.arange(n_samples) == sample, one, -1))
-            branch = jnp.asarray(STOP)
-            if levels > 1:
-                prim = jnp.maximum(hit.prim, 0)
-                branch = jnp.where(transparent[prim], REFRACT, jnp.where(reflects(prim), REFLECT, STOP))
-                branch = jnp.where(found & (index + 1 < levels), branch, STOP)
-                o, d, tir = child(mats, prim, o, d, hit.t, hit.normal, branch)
-                branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
-                alive, mirror = branch != STOP, branch == REFLECT
-            row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch, *casts])
-            return (o, d, alive, mirror), (row.astype(jnp.int32), jnp.where(found, hit.t, jnp.inf))
+            return casts
 
         o, d = _image_ray(scene.camera, width, height, u, v)
         _, (rows_, ts) = jax.lax.scan(level_of, (o, d, jnp.asarray(True), jnp.asarray(False)),
@@ -703,7 +731,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         return _pattern_point(pk.mats, prim * pk.mats.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
     centres = (jnp.arange(max(rows, cols), dtype=dtype) - 0.5) * h
-    per_block = max(1, min(rows, -(-LATTICE_BLOCK // cols)))
+    per_block = max(1, min(rows, LATTICE_BLOCK // (levels * (1 + entries) * cols)))
     blocks = -(-rows // per_block)
     v_rows = jnp.concatenate([centres[:rows], jnp.full(blocks * per_block - rows, centres[0])])
     sig = jax.lax.map(lambda vs: jax.vmap(lambda v: jax.vmap(lambda u: seen(u, v)[0])(centres[:cols]))(vs),
@@ -717,10 +745,26 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     count = jnp.sum(found)
     which = jnp.nonzero(found, size=room, fill_value=0)[0]
     live = jnp.arange(room) < count
-    in_rows = which < across.size
-    pair, ch = jnp.where(in_rows, which, which - across.size) // channels, which % channels
-    r = jnp.where(in_rows, pair // max(cols - 1, 1), pair // cols)
-    c = jnp.where(in_rows, pair % max(cols - 1, 1), pair % cols)
+
+    def crossings(which):
+        in_rows = which < across.size
+        pair, ch = jnp.where(in_rows, which, which - across.size) // channels, which % channels
+        r = jnp.where(in_rows, pair // max(cols - 1, 1), pair // cols)
+        c = jnp.where(in_rows, pair % max(cols - 1, 1), pair % cols)
+        return in_rows, ch, r, c
+
+    # the crossings in order of the deepest level their bisection traces (the first where the pair
+    # differs), those whose shadow entries differ after the others: a chunk's bisection traces the
+    # levels and shadow rays its crossings ask for (a chunk of outlines seen directly, one ray)
+    in_rows, ch, r, c = crossings(which)
+    pa, pb_ = sig[r, c], sig[r + ~in_rows, c + in_rows]
+    first_level = jax.vmap(lambda a, b, k: changed(a, b, k)[1])(pa, pb_, ch)
+    ne = (pa != pb_).reshape(room, levels, width_)[..., 3:]
+    in_shadow = (ch > 0) | jnp.any(ne & (jnp.arange(levels)[None, :, None] <= first_level[:, None, None]),
+                                   axis=(1, 2))
+    order = jnp.argsort(jnp.where(live, 2 * first_level + in_shadow, 2 * levels + 2), stable=True)
+    which, first_level, in_shadow = which[order], first_level[order], in_shadow[order]
+    in_rows, ch, r, c = crossings(which)
     pa = sig[r, c]
     u0, v0 = (c.astype(dtype) - 0.5) * h, (r.astype(dtype) - 0.5) * h
     axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
@@ -756,7 +800,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             out += [_margin(geo_, tables, jnp.maximum(s[3 + entry], 0), p, l) + seen_at for s in (a, b)]
         return jnp.stack(out)
 
-    def locate(s_a, u, v, e, ch):
+    def locate(s_a, u, v, e, ch, upto, shadows):
         """The first change of channel ``ch`` of what is seen along the pair's segment from its
         first sample, by bisection of the signature seen (a fixed number of steps): ``(lo, hi,
         signature seen at hi, kind, face, level, entry, t_ref, g_u, g_v, cross)`` — ``lo``, ``hi`` in pixels
@@ -777,7 +821,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             lo, hi, s_hi, t_hi = state
             first = i == 0
             mid = jnp.where(first, hi, 0.5 * (lo + hi))
-            s_mid, t_mid = seen(u + mid * e[0], v + mid * e[1], sample)
+            s_mid, t_mid = seen(u + mid * e[0], v + mid * e[1], sample, (s_a, upto, shadows))
             same = ~changed(s_a, s_mid, ch)[0] & ~first
             return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid),
                     jnp.where(same, s_hi, s_mid), jnp.where(same, t_hi, t_mid))
@@ -833,13 +877,16 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     inputs = (pa, u0, v0, axis, ch)
     # one trace of ``locate``: the buffers' shapes and the loop's body come from the same jitted
     # function's trace cache
-    located = jax.jit(jax.vmap(locate))
-    shapes = located.eval_shape(*(_take(x, 0) for x in inputs))
+    located = jax.jit(jax.vmap(locate, in_axes=(0, 0, 0, 0, 0, None, None)))
+    shapes = located.eval_shape(*(_take(x, 0) for x in inputs), jnp.zeros((), jnp.int32),
+                                jnp.zeros((), bool))
 
     def locate_chunk(i, state):
         out, lost = state
         pa_, u_, v_, e_, ch_ = (_take(x, i) for x in inputs)
-        res = located(pa_, u_, v_, e_, ch_)
+        alive = _take(live, i)
+        upto = jnp.max(jnp.where(alive, _take(first_level, i), 0)).astype(jnp.int32)
+        res = located(pa_, u_, v_, e_, ch_, upto, jnp.any(alive & _take(in_shadow, i)))
         lo_, hi_, kind_ = res[0], res[1], res[3]
         ok_ = _take(live, i) & (kind_ >= 0)
         points = jnp.concatenate([jnp.stack([u_ + s_ * e_[:, 0], v_ + s_ * e_[:, 1]], -1)
