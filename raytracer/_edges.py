@@ -29,7 +29,8 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
    grid sample whose caster differs (a penumbra's sample outlines lie closer together than the
    lattice's spacing, and each is an edge). The (pair, channel)s are compacted (``jnp.nonzero``
    with a static room), so the work follows the edges' length.
-2. On each pair, the first change of its channel is bisected (a fixed number of steps, values only),
+2. On each pair, the first change of its channel is bisected (a fixed number of steps, values only,
+   tracing only the levels and shadow rays the pair differs in, then a Newton step on the margin),
    and at the first level of the path where the two sides differ, the margin ``g`` whose zero it
    is chosen: the nearer primitive's outline along that level's ray, the farther one's, their
    seam, the pattern's cell face, or a shadow caster's outline — the one nearest the crossing.
