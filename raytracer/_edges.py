@@ -90,6 +90,7 @@ from ._plan import make_plan
 from .kernels import world_normal
 from .scene import Scene, environment_of
 from .shading import _accel, lighting
+from .shading._chunks import map_in_place
 from .shading._geometry import _to_object, closest_hit, prim_bits
 from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
 from .shading._model import (
@@ -255,11 +256,6 @@ def _take(x, i):
     return jax.lax.dynamic_slice_in_dim(x, i * CHUNK, CHUNK)
 
 
-def _put(x, i, value):
-    """``x`` with chunk ``i`` set to ``value``."""
-    return jax.lax.dynamic_update_slice_in_dim(x, value.astype(x.dtype), i * CHUNK, 0)
-
-
 def _transition(pa, pb, idx, j, ch, levels: int, width_: int, own: int, n_samples: int):
     """(N, D) × 2: whether the crossings ``j`` (N, D) separate the same signatures as the crossings
     ``idx`` (N,) (its first side ``pa``, its other ``pb``) in the crossing's channel ``ch``, in the
@@ -291,7 +287,7 @@ WINDOW = 2
 
 
 def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, rows: int, cols: int,
-             channels: int, h: float, n_live):
+             channels: int, h: float):
     """``(low, high)``: the stretch ``[across + low, across + high]`` of the across axis (v for a
     row's crossing, u for a column's) whose edge integral each crossing stands for.
 
@@ -303,7 +299,7 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
     vertex, exactly); where the edge ends there at another (its own turn onto the other pass's
     lines, a cell corner, an outline over it), up to where its tangent line meets that edge's, found
     among the other pass's crossings nearby; elsewhere (a smooth edge, a steep crossing) ±h/2.
-    Computed for the ``n_live`` chunks of the room that hold crossings (``same(idx, j)``: whether
+    Computed for the chunks of the room up to the last usable crossing (``same(idx, j)``: whether
     crossings ``j`` separate the same signatures as crossings ``idx``, in the same order)."""
     room = r.shape[0]
     first, second = jnp.where(in_rows, r, c), jnp.where(in_rows, c, r)  # across, along lattice index
@@ -394,18 +390,14 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
         k = jnp.argmin(distance, axis=1)
         return jnp.isfinite(distance[lanes_, k]), meet[lanes_, k]
 
-    def chunks(fn, shapes):
-        """``fn(idx)`` for each live chunk's crossings ``idx``, into room-sized arrays."""
-        def body(i, out):
-            return jax.tree.map(lambda x, y: _put(x, i, y), out, fn(i * CHUNK + lanes_))
-        empty = jax.tree.map(lambda x: jnp.zeros((room, *x.shape[1:]), x.dtype), shapes)
-        return jax.lax.fori_loop(0, n_live, body, empty)
+    def chunks(fn):
+        """``fn(idx)`` for each chunk's crossings ``idx`` up to the last usable one, in room order."""
+        return map_in_place(fn, jnp.arange(room, dtype=jnp.int32), usable, CHUNK)
 
     def both(idx):
         return boundary(idx, -1), boundary(idx, 1)
 
-    lanes0 = jnp.zeros(CHUNK, jnp.int32)
-    searched = dict(zip((-1, 1), chunks(both, jax.eval_shape(both, lanes0)), strict=True))
+    searched = dict(zip((-1, 1), chunks(both), strict=True))
 
     # a vertex with this side's neighbour, else with a crossing of that line that found this one
     # looking back (a steep edge's crossing may not see a shallow one beyond a vertex that sees it);
@@ -435,7 +427,7 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
             out.append(end - across_i)
         return tuple(out)
 
-    low, high = chunks(ends, jax.eval_shape(ends, lanes0))
+    low, high = chunks(ends)
     return jax.lax.stop_gradient(low), jax.lax.stop_gradient(high)
 
 
@@ -873,35 +865,28 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # 2.–4. a loop over the chunks of the room that hold crossings (the rest costs nothing): each
     # crossing located, and the two camera rays just before and just after it along its axis traced
     # through the model (3.: the chosen margin's derivatives along the image come with it: g_u, g_v)
-    n_live = ((jnp.minimum(count, room) + CHUNK - 1) // CHUNK).astype(jnp.int32)
+    # (``_chunks.map_in_place``: a while loop up to the last chunk with a live crossing)
     media = initial_media(ctx, scene.camera.frame()[0])
-    inputs = (pa, u0, v0, axis, ch)
-    # one trace of ``locate``: the buffers' shapes and the loop's body come from the same jitted
-    # function's trace cache
-    located = jax.jit(jax.vmap(locate, in_axes=(0, 0, 0, 0, 0, None, None)))
-    shapes = located.eval_shape(*(_take(x, 0) for x in inputs), jnp.zeros((), jnp.int32),
-                                jnp.zeros((), bool))
 
-    def locate_chunk(i, state):
-        out, lost = state
-        pa_, u_, v_, e_, ch_ = (_take(x, i) for x in inputs)
-        alive = _take(live, i)
-        upto = jnp.max(jnp.where(alive, _take(first_level, i), 0)).astype(jnp.int32)
-        res = located(pa_, u_, v_, e_, ch_, upto, jnp.any(alive & _take(in_shadow, i)))
+    def locate_chunk(x):
+        pa_, u_, v_, e_, ch_, alive, first_, shadow_ = x
+        # (the chunk's deepest level and whether it needs shadows: not batched, so skipping skips)
+        upto = jnp.max(jnp.where(alive, first_, 0)).astype(jnp.int32)
+        res = jax.vmap(locate, in_axes=(0, 0, 0, 0, 0, None, None))(pa_, u_, v_, e_, ch_, upto,
+                                                                   jnp.any(alive & shadow_))
         lo_, hi_, kind_ = res[0], res[1], res[3]
-        ok_ = _take(live, i) & (kind_ >= 0)
+        ok_ = alive & (kind_ >= 0)
         points = jnp.concatenate([jnp.stack([u_ + s_ * e_[:, 0], v_ + s_ * e_[:, 1]], -1)
                                   for s_ in (lo_ - SIDE_OFFSET, hi_ + SIDE_OFFSET)])
         o, d = camera_rays(scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
         colours, dropped = trace(ctx, o, d, chunk=CHUNK, capacity=capacity, media=media,
                                  alive=jnp.concatenate([ok_, ok_]))
-        out = jax.tree.map(lambda x, y: _put(x, i, y), out, (*res, colours[:CHUNK] - colours[CHUNK:]))
-        return out, lost + jnp.sum(dropped).astype(jnp.int32)
+        lost = jnp.zeros(CHUNK, jnp.int32).at[0].set(jnp.sum(dropped).astype(jnp.int32))
+        return (*res, colours[:CHUNK] - colours[CHUNK:], lost)
 
-    empty = jax.tree.map(lambda x: jnp.zeros((room, *x.shape[1:]), x.dtype), (*shapes, shapes[0]))
-    empty = (*empty[:-1], jnp.zeros((room, 3), dtype))
-    found_, dropped = jax.lax.fori_loop(0, n_live, locate_chunk, (empty, jnp.zeros((), jnp.int32)))
-    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, jump = jax.tree.map(sg, found_)
+    found_ = map_in_place(locate_chunk, (pa, u0, v0, axis, ch, live, first_level, in_shadow), live, CHUNK)
+    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, jump, lost = jax.tree.map(sg, found_)
+    dropped = jnp.sum(lost)
     ok = live & (kind >= 0)
     g_u, g_v = jnp.where(ok, g_u, 0.0), jnp.where(ok, g_v, 0.0)
     pu, pv = u0 + cross * axis[:, 0], v0 + cross * axis[:, 1]
@@ -916,7 +901,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     slope = jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0)  # d(at)/d(across)
     low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope,
                          lambda idx, j: _transition(pa, pb, idx, j, ch, levels, width_, own, n_samples),
-                         rows, cols, channels, h, n_live)
+                         rows, cols, channels, h)
     span = high - low
     weight = jnp.where(usable, -span * along ** 3 / jnp.where(usable, quartic, 1.0), 0.0)
     scale = jnp.where(usable[:, None], weight[:, None] * jump, 0.0)  # (room, 3): the jump L⁻ − L⁺ per g_θ
@@ -978,6 +963,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
         return jax.lax.fori_loop(0, n, body, jnp.zeros_like(flat_dot))
 
+    n_live = ((jnp.minimum(count, room) + CHUNK - 1) // CHUNK).astype(jnp.int32)
     held = (program.consts, point, n_live, per_margin, per_spread)
     image = linear_call(term, term_transposed, held, flat_dot)
     unresolved = jnp.sum(live & ~ok)
