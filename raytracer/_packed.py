@@ -131,8 +131,9 @@ def _pack(scene: Scene, scene_plan: Plan, flat=None) -> Packed:
         objects = skeleton(scene.objects, flat)
     else:
         # the program is keyed by the signature: the skeleton is built only if asked for (a weak
-        # reference: a compiled program's cache keeps its key, which must not keep the scene)
-        key = hash(signature), signature
+        # reference: a compiled program's cache keeps its key, which must not keep the scene); the
+        # key is the same in every process (``_programs`` keeps programs on disk by it)
+        key = signature
         objects = Frozen(key=("objects", key), make=functools.partial(_skeleton_of, weakref.ref(scene)))
         keyed(geo, ("geometry", key))
         keyed(mats, ("materials", key))

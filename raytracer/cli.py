@@ -175,7 +175,8 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="stop parsing a scene after this many seconds (default 600)")
     p.add_argument("--debug", action="store_true",
                    help="print the Python traceback of an error (for reporting an internal error)")
-    # (compiled programs are cached in $RAYTRACER_CACHE_DIR, default ~/.cache/raytracer/xla; "off" disables)
+    # (compiled programs are kept in $RAYTRACER_CACHE_DIR, default ~/.cache/raytracer/xla: XLA's
+    # cache, and in programs/ the renders' whole programs, raytracer/_programs.py; "off" disables)
     p.add_argument("--cpu-devices", type=_positive_int, default=None, metavar="N",
                    help="split the CPU into N JAX devices and shard tiles over them "
                         "(sets --xla_force_host_platform_device_count; default: the cores this "

@@ -25,6 +25,7 @@ from ._gc import paused, without_collections
 from ._limits import check_render_memory
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
 from ._plan import Plan, make_plan
+from ._programs import compiled
 from ._tiles import (
     FIRST_CAPACITY,
     FORWARD_CAPACITY,
@@ -210,7 +211,8 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
     Returns ``f(scene) -> image`` that runs the compiled program for any scene of the same
     structure without recompiling. With ``progress`` (a callable ``(parts_done, parts_total)``),
     the image is rendered in ``PROGRESS_PARTS`` calls of one compiled part program, reporting after
-    each; the program has no host callback, so JAX's persistent compilation cache can keep it.
+    each. The program is kept on disk by what its trace reads (``raytracer/_programs.py``): a later
+    process compiling a scene of the same structure, size and spp loads it without a trace.
 
     ``capacity`` compacts the live rays of each trace level into ``capacity`` slots per camera ray
     (``None``: the exact full-width tree). If a render drops rays for lack of
@@ -236,14 +238,14 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
         # tracing a large scene's program with the collector on: each full collection walks the
         # scene's objects (for 100,000 spheres ~2.5 s of collections in a 1.5 s trace)
         with paused():
+            packed = placed(pack(scene, scene_plan), scene_plan)
             if n_parts == 1:
                 # the image in one program, render's own: assembling the parts in another program
                 # compiled it on the first call (~20 ms: the first "warm" render of a 160×120
                 # sample scene took 24 ms, the next ones 3–4 ms)
-                return _render_packed.lower(placed(pack(scene, scene_plan), scene_plan), width, height, k,
-                                            state["capacity"]).compile()
-            return _render_part.lower(placed(pack(scene, scene_plan), scene_plan), width, height, k, n_parts,
-                                      jnp.asarray(0), state["capacity"]).compile()
+                return compiled("render", _render_packed, packed, width, height, k, state["capacity"])
+            return compiled("render part", _render_part, packed, width, height, k, n_parts, jnp.asarray(0),
+                            state["capacity"])
 
     state["compiled"] = build()
 

@@ -19,7 +19,9 @@ float64 fixture, and the ``povray`` marker's skip.
   its own (``$RAYTRACER_REFERENCE_CACHE``), so a reference two tests need is rendered once.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
   workers (``$RAYTRACER_TEST_JAX_CACHE`` overrides it and is then kept), so a program that two
-  workers or two tests build compiles once. A fresh clone starts with an empty cache.
+  workers or two tests build compiles once. A fresh clone starts with an empty cache. The
+  renderer's own kept programs (``raytracer/_programs.py``, ``$RAYTRACER_CACHE_DIR``) go to the
+  same folder, never to the user's ``~/.cache``.
 """
 
 import os
@@ -53,6 +55,7 @@ def pytest_configure(config):
             os.environ[env] = tempfile.mkdtemp(prefix=prefix)
             config._raytracer_owned.append(env)
     jax.config.update("jax_compilation_cache_dir", os.environ[_CACHE_ENV])
+    os.environ["RAYTRACER_CACHE_DIR"] = os.environ[_CACHE_ENV]  # kept programs: <folder>/programs
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 

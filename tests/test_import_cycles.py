@@ -99,7 +99,7 @@ LAYERS = (
     ("raytracer.kernels",),
     ("raytracer.shapes", "raytracer.patterns"),
     ("raytracer.scene",),
-    ("raytracer._packing", "raytracer._plan"),
+    ("raytracer._packing", "raytracer._plan", "raytracer._programs"),
     ("raytracer.shading", "raytracer._native"),
     ("raytracer._packed", "raytracer._tiles", "raytracer._adaptive", "raytracer._edges", "raytracer.render",
      "raytracer.query", "raytracer.distributed"),
