@@ -17,7 +17,7 @@ import traceback
 from collections import Counter
 from pathlib import Path
 
-from ._xla import tune_xla_flags
+from ._xla import split_cpu, tune_xla_flags
 from .errors import InternalError, SceneError, short_numbers
 
 EXIT_SCENE_ERROR = 2  # also a bad command line, as argparse
@@ -643,17 +643,12 @@ def _info(args) -> int:
 
 
 def _split_cpu(devices: int | None) -> None:
-    """One JAX device per core by default: tiles are sharded over the devices, and a 640×480 render
-    of the Whitted benchmark scene took 1.22 s on 2 devices against 1.9 s on one (2 cores;
-    ``benchmarks/distributed.py``). XLA_FLAGS naming a device count wins over the default. Also
-    adds the XLA flags the renderer was measured with (``raytracer/_xla.py``)."""
+    """The XLA flags the renderer was measured with (``raytracer/_xla.py``) and one JAX device per
+    core, or ``devices`` (``--cpu-devices``): tiles are sharded over the devices (a 640×480 render
+    of the Whitted benchmark scene took 1.22 s on 2 devices against 1.9 s on one, 2 cores;
+    ``benchmarks/distributed.py``). XLA_FLAGS naming a device count wins over the default."""
     tune_xla_flags()
-    flags = os.environ.get("XLA_FLAGS", "")
-    if devices is None:
-        if "xla_force_host_platform_device_count" in flags:
-            return
-        devices = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={devices}".strip()
+    split_cpu(devices)
 
 
 def _plugin(name: str):

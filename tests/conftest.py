@@ -35,6 +35,10 @@ FAST_COMPILE_XLA_FLAGS = ("--xla_backend_optimization_level=0 --xla_llvm_disable
 if FAST_COMPILE_XLA_FLAGS not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_XLA_FLAGS}".strip()
 
+# one CPU device a worker, as the suite was measured (``import raytracer`` splits the CPU into one
+# device per core otherwise, ``raytracer/_xla.split_cpu``; tests that shard set their own count)
+os.environ.setdefault("RAYTRACER_CPU_DEVICES", "1")
+
 import jax  # noqa: E402
 import pytest  # noqa: E402
 

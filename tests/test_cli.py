@@ -234,6 +234,7 @@ def test_render_command_sets_one_device_per_core_and_the_tuned_xla_flags(monkeyp
 
     monkeypatch.setattr(_xla, "_backends_started", lambda: False)  # this process's backend is running
     monkeypatch.setenv("XLA_FLAGS", "")
+    monkeypatch.delenv(_xla.DEVICES_ENV, raising=False)  # (the suite's one device a worker)
     cli._split_cpu(None)
     flags = os.environ["XLA_FLAGS"].split()
     assert f"--xla_force_host_platform_device_count={len(os.sched_getaffinity(0))}" in flags
@@ -245,6 +246,10 @@ def test_render_command_sets_one_device_per_core_and_the_tuned_xla_flags(monkeyp
     cli._split_cpu(None)
     assert os.environ["XLA_FLAGS"].startswith(mine)
     assert "--xla_cpu_use_fusion_emitters=false" not in os.environ["XLA_FLAGS"]
+    cli._split_cpu(5)  # --cpu-devices 5: replaces the count, keeps the rest
+    flags = os.environ["XLA_FLAGS"].split()
+    assert "--xla_force_host_platform_device_count=5" in flags and "--xla_cpu_use_fusion_emitters=true" in flags
+    assert sum("device_count" in f for f in flags) == 1
     monkeypatch.setenv("XLA_FLAGS", "")
     monkeypatch.setenv("RAYTRACER_TUNE_XLA", "0")
     _xla.tune_xla_flags()

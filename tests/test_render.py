@@ -5,6 +5,8 @@ only ray goes exactly along the camera direction, so hit points, normals and lig
 are known exactly.
 """
 
+import os
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -713,3 +715,18 @@ blob { threshold 0.5 sphere { 0, 1, 1 } pigment { rgb 1 } }
     want = np.broadcast_to(np.array([0.5, 0.25, 1.0]) ** 2.2, (6, 8, 3))
     np.testing.assert_allclose(np.asarray(rt.render(scene, width=8, height=6)), want, rtol=1e-6)
     np.testing.assert_allclose(np.asarray(compile_render(scene, width=8, height=6)(scene)), want, rtol=1e-6)
+
+
+@pytest.mark.parametrize("chosen", [None, "1"])
+def test_the_api_splits_the_cpu_into_a_device_per_core_unless_told(chosen):
+    """``import raytracer`` before JAX starts: one CPU device per core this process may use, as the
+    command line does (renders shard their tiles over them); ``RAYTRACER_CPU_DEVICES`` chooses."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "RAYTRACER_CPU_DEVICES")}
+    if chosen is not None:
+        env["RAYTRACER_CPU_DEVICES"] = chosen
+    out = subprocess.run([sys.executable, "-c", "import raytracer, jax; print(len(jax.devices()))"],
+                         env=env, capture_output=True, text=True, check=True).stdout
+    assert int(out) == (len(os.sched_getaffinity(0)) if chosen is None else int(chosen))
