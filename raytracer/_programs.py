@@ -129,21 +129,41 @@ class Program:
 def compiled(name: str, fn, *args) -> Program:
     """``fn(*args)`` compiled (``fn`` a JAX-traceable function; static values among ``args`` are
     held fixed), or loaded from the folder of kept programs when a process compiled the same
-    structure before; a program compiled here is kept there."""
+    structure before; a program compiled here is kept there (with the folder off, ``cache_folder``,
+    neither). The last ``LIVE_PROGRAMS`` stay loaded in the process: asked again, one is returned
+    as it is."""
     dynamic, static = eqx.partition(args, eqx.is_array)
+    key = key_of(name, args)
+    if key is None:
+        return Program(jax.jit(lambda dyn: fn(*eqx.combine(dyn, static))).lower(dynamic).compile(),
+                       static, loaded=False)
+    live = _LIVE.pop(key, None)
+    if live is not None:  # this process has it: the most recently used again
+        _LIVE[key] = live
+        return live
     folder = cache_folder()
-    key = None if folder is None else key_of(name, args)
-    if key is not None:
+    if folder is not None:
         program = _load(folder / key, dynamic)
         if program is not None:
-            return Program(program, static, loaded=True)
+            return _live(key, Program(program, static, loaded=True))
     lowered = jax.jit(lambda dyn: fn(*eqx.combine(dyn, static))).lower(dynamic)
-    if key is None:
-        return Program(lowered.compile(), static, loaded=False)
+    if folder is None:
+        return _live(key, Program(lowered.compile(), static, loaded=False))
     with _without_jax_cache():
         program = lowered.compile()
     _store(folder, key, program)
-    return Program(program, static, loaded=False)
+    return _live(key, Program(program, static, loaded=False))
+
+
+LIVE_PROGRAMS = 8  # the programs a process keeps loaded (several scenes, frames, re-renders on change)
+_LIVE: dict[str, Program] = {}
+
+
+def _live(key: str, program: Program) -> Program:
+    _LIVE[key] = program
+    while len(_LIVE) > LIVE_PROGRAMS:
+        _LIVE.pop(next(iter(_LIVE)))
+    return program
 
 
 @contextlib.contextmanager

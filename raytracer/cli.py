@@ -109,7 +109,9 @@ def _parser() -> argparse.ArgumentParser:
                                    "followed here are named in one warning.",
                        epilog=_POVRAY_EPILOG)
     r.add_argument("inputs", nargs="*", metavar="SCENE | OPTION",
-                   help="the .pov file, POV-Ray switches, Key=Value options and .ini files")
+                   help="the .pov file (or several: rendered one after the other in this process, "
+                        "scenes of one structure by one compiled program; -o names a folder), "
+                        "POV-Ray switches, Key=Value options and .ini files")
     r.add_argument("-o", "--output", default=None,
                    help="output image: .exr (linear float32), .png (sRGB), or .tga .ppm .jpg .bmp "
                         "(8-bit sRGB; default: the scene's name with the output type's suffix, "
@@ -128,6 +130,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="the grid of a refined pixel, N×N rays (POV-Ray's +R; default 3)")
     r.add_argument("--aa-gamma", type=_positive_float, default=None, metavar="G",
                    help="colours are compared raised to 1/G (POV-Ray's +AG, Antialias_Gamma; default 2.5)")
+    r.add_argument("--watch", action="store_true",
+                   help="keep running: render again, with the programs already compiled, whenever the "
+                        "scene or a file it includes changes (Ctrl-C stops)")
     r.add_argument("--all-frames", action="store_true",
                    help="render every frame of the --ini animation, to OUTPUT with the frame number "
                         "before its suffix (out.png: out01.png, out02.png, … as POV-Ray names them)")
@@ -313,7 +318,7 @@ def _load(args):
     with _Phase("parse"):
         scene = load_scene(args.scene, include_paths=tuple(args.include_path), strict=args.strict,
                            width=args.width, height=args.height, animation=animation, limits=limits,
-                           fit_zero_terms=False)
+                           fit_zero_terms=False, files=getattr(args, "files", None))
     return scene, time.perf_counter() - t0
 
 
@@ -501,7 +506,14 @@ def _render(args) -> int:
         return EXIT_SCENE_ERROR
     # POV-Ray's options that declare frames render them all, as POV-Ray does (--ini: with --all-frames)
     several = anim is not None and anim.final_frame > anim.initial_frame
-    if not (args.all_frames or (several and args.ini is None and args.frame is None)):
+    frames = args.all_frames or (several and args.ini is None and args.frame is None)
+    if args.watch:
+        if frames or distributed:
+            print("raytracer render: --watch renders one image in one process (not with several "
+                  "frames or processes) (see raytracer render --help)", file=sys.stderr)
+            return EXIT_SCENE_ERROR
+        return _watch(args, out)
+    if not frames:
         return _render_frame(args, out, distributed)
     import jax
 
@@ -517,6 +529,47 @@ def _render(args) -> int:
         if status:
             return status
     return 0
+
+
+_sleep = time.sleep  # (a test's clock)
+WATCH_POLL_S = 0.25
+
+
+def _stamps(files) -> dict:
+    """Each file's modification time and size (None: gone)."""
+    out = {}
+    for f in files:
+        try:
+            st = os.stat(f)
+            out[f] = (st.st_mtime_ns, st.st_size)
+        except OSError:
+            out[f] = None
+    return out
+
+
+def _watch(args, out: Path) -> int:
+    """Renders the scene, then again whenever it or a file it includes changes, in this process:
+    the programs compiled stay loaded (``raytracer/_programs.py``), so a re-render of an edit that
+    keeps the structure pays for the parse and the render only. A scene that fails to load is
+    reported and watched on. Ctrl-C stops (status 0)."""
+    try:
+        while True:
+            args.files = set()
+            try:
+                status = _render_frame(args, out, distributed=False)
+            except SceneError as e:
+                print(f"raytracer: {_harmless(str(e))}", file=sys.stderr)
+                status = EXIT_SCENE_ERROR
+            files = args.files or {args.scene}
+            seen = _stamps(files)
+            print(f"raytracer: watching {len(files)} file{'s' if len(files) != 1 else ''} "
+                  f"(status {status}; Ctrl-C stops)", flush=True)
+            while _stamps(files) == seen:
+                _sleep(WATCH_POLL_S)
+            print("raytracer: changed: rendering again", flush=True)
+    except KeyboardInterrupt:
+        print("raytracer: stopped watching", file=sys.stderr)
+        return 0
 
 
 class _InterruptAnywhere:
@@ -662,6 +715,11 @@ def _plugin(name: str):
     return found[0].load()
 
 
+def _scene_words(args) -> list[str]:
+    """The ``.pov`` files among the render command's words."""
+    return [w for w in args.inputs if w.lower().endswith(".pov") and not w.startswith(("+", "-"))]
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] in (["validate"], ["compare"]):  # every option goes to the plugin unchanged
@@ -669,6 +727,24 @@ def main(argv: list[str] | None = None) -> int:
         return _plugin(argv[0])(argv[1:])
     parser = _parser()
     args, extras = parser.parse_known_args(argv)
+    scenes = _scene_words(args) if args.command == "render" else []
+    if len(scenes) > 1:  # one after the other, in this process: one compiled program per structure
+        if args.output is not None and not args.output.endswith(("/", os.sep)):
+            parser.error(f"{len(scenes)} scenes: -o names a folder (ending in /), where each image "
+                         "takes its scene's name")
+        if args.watch:
+            parser.error("--watch watches one scene")
+        status = 0
+        for scene in scenes:
+            status = max(status, _main([w for w in argv if w == scene or w not in scenes]))
+        return status
+    return _main(argv, parser, args, extras)
+
+
+def _main(argv: list[str], parser=None, args=None, extras=None) -> int:
+    if parser is None:
+        parser = _parser()
+        args, extras = parser.parse_known_args(argv)
     if args.command not in ("render", "info") and extras or any(x.startswith("--") for x in extras):
         parser.error(f"unrecognized arguments: {' '.join(extras)}")
     if args.command in ("render", "info"):

@@ -19,13 +19,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from . import _programs
 from ._adaptive import Adaptive, _render_adaptive
 from ._edges import EDGE_LATTICE, boundary_term
 from ._gc import paused, without_collections
 from ._limits import check_render_memory
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
 from ._plan import Plan, make_plan
-from ._programs import compiled
 from ._tiles import (
     FIRST_CAPACITY,
     FORWARD_CAPACITY,
@@ -243,9 +243,10 @@ def compile_render(scene: Scene, *, width: int, height: int, spp: int = 1, progr
                 # the image in one program, render's own: assembling the parts in another program
                 # compiled it on the first call (~20 ms: the first "warm" render of a 160×120
                 # sample scene took 24 ms, the next ones 3–4 ms)
-                return compiled("render", _render_packed, packed, width, height, k, state["capacity"])
-            return compiled("render part", _render_part, packed, width, height, k, n_parts, jnp.asarray(0),
-                            state["capacity"])
+                return _programs.compiled("render", _render_packed, packed, width, height, k,
+                                          state["capacity"])
+            return _programs.compiled("render part", _render_part, packed, width, height, k, n_parts,
+                                      jnp.asarray(0), state["capacity"])
 
     state["compiled"] = build()
 

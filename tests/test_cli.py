@@ -248,7 +248,8 @@ def test_render_command_sets_one_device_per_core_and_the_tuned_xla_flags(monkeyp
     assert "--xla_cpu_use_fusion_emitters=false" not in os.environ["XLA_FLAGS"]
     cli._split_cpu(5)  # --cpu-devices 5: replaces the count, keeps the rest
     flags = os.environ["XLA_FLAGS"].split()
-    assert "--xla_force_host_platform_device_count=5" in flags and "--xla_cpu_use_fusion_emitters=true" in flags
+    assert "--xla_force_host_platform_device_count=5" in flags
+    assert "--xla_cpu_use_fusion_emitters=true" in flags
     assert sum("device_count" in f for f in flags) == 1
     monkeypatch.setenv("XLA_FLAGS", "")
     monkeypatch.setenv("RAYTRACER_TUNE_XLA", "0")
@@ -487,3 +488,63 @@ def test_an_exr_that_cannot_be_written_is_an_io_error_and_leaves_nothing(tmp_pat
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot write" in err and "No space left on device" in err
     assert list(tmp_path.iterdir()) == []
+
+
+FLAT = ("#version 3.7;\nglobal_settings {{ assumed_gamma 1.0 }}\ncamera {{ location -3 * z look_at 0 }}\n"
+        "light_source {{ <0, 3, -3> rgb 1 }}\n"
+        "sphere {{ 0, 5 pigment {{ rgb {colour} }} finish {{ ambient 1 diffuse 0 }} hollow }}\n")
+
+
+def _programs_used(monkeypatch) -> list:
+    """The compiled programs the renders use, in a process with none loaded yet."""
+    from raytracer import _programs
+
+    monkeypatch.setattr(_programs, "_LIVE", {})
+    used = []
+    made = _programs.compiled
+    monkeypatch.setattr(_programs, "compiled", lambda *a: used.append(made(*a)) or used[-1])
+    return used
+
+
+def test_several_scenes_render_in_one_process_into_a_folder_by_one_program(tmp_path, monkeypatch):
+    """Two scenes of one structure: each image in the folder under its scene's name, the second
+    rendered by the program compiled for the first. The camera is inside a sphere lit by its
+    ambient term alone: every pixel is its pigment."""
+    used = _programs_used(monkeypatch)
+    a, b = tmp_path / "a.pov", tmp_path / "b.pov"
+    a.write_text(FLAT.format(colour="<0.2, 0.4, 0.6>"))
+    b.write_text(FLAT.format(colour="<0.5, 0.25, 0.125>"))
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["render", str(a), str(b), "-o", f"{out}/", "-W", "8", "-H", "6", "+FE"]) == 0
+    np.testing.assert_allclose(rt.read_image(out / "a.exr"), np.broadcast_to([0.2, 0.4, 0.6], (6, 8, 3)),
+                               rtol=1e-6)
+    np.testing.assert_allclose(rt.read_image(out / "b.exr"), np.broadcast_to([0.5, 0.25, 0.125], (6, 8, 3)),
+                               rtol=1e-6)
+    assert len(used) == 2 and used[0] is used[1]
+    with pytest.raises(SystemExit) as stop:  # one file for two images
+        main(["render", str(a), str(b), "-o", str(out / "x.png")])
+    assert stop.value.code == 2
+
+
+def test_watch_renders_again_when_the_scene_changes_without_compiling_again(tmp_path, monkeypatch, capsys):
+    from raytracer import cli
+
+    used = _programs_used(monkeypatch)
+    scene, out = tmp_path / "s.pov", tmp_path / "s.exr"
+    scene.write_text(FLAT.format(colour="<0.2, 0.4, 0.6>"))
+    polls = []
+
+    def sleep(_):
+        polls.append(1)
+        if len(polls) == 1:  # an edit that keeps the structure
+            scene.write_text(FLAT.format(colour="<0.7, 0.1, 0.3>") + "// edited\n")
+        elif len(polls) > 3:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_sleep", sleep)
+    assert main(["render", "--watch", str(scene), "-o", str(out), "-W", "8", "-H", "6"]) == 0
+    np.testing.assert_allclose(rt.read_image(out), np.broadcast_to([0.7, 0.1, 0.3], (6, 8, 3)), rtol=1e-6)
+    text = capsys.readouterr()
+    assert text.out.count("rendering again") == 1 and "watching 1 file" in text.out
+    assert "stopped watching" in text.err and len(used) == 2 and used[0] is used[1]

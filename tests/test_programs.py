@@ -37,18 +37,20 @@ def key(s, width=8, height=6):
 @pytest.fixture
 def folder(tmp_path, monkeypatch):
     monkeypatch.setenv("RAYTRACER_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(_programs, "_LIVE", {})  # the process's loaded programs: none yet
     return tmp_path / "programs"
 
 
 def test_a_kept_program_renders_a_later_scene_of_its_structure_without_a_trace(folder, monkeypatch):
-    """The second ``compile_render`` of the same structure (another radius) loads the program the
-    first kept: the render's body is not traced again, and the image is that of a program compiled
-    for it (bit for bit: the same executable)."""
+    """The second ``compile_render`` of the same structure (another radius), in a process that has
+    not loaded it, loads the program the first kept: the render's body is not traced again, and
+    the image is that of a program compiled for it (bit for bit: the same executable)."""
     traces = []
     body = _tiles._render_tiles
     monkeypatch.setattr(_tiles, "_render_tiles", lambda *a, **k: traces.append(1) or body(*a, **k))
     first = compile_render(scene(), width=8, height=6)
     assert len(traces) == 1 and len(list(folder.iterdir())) == 1
+    _programs._LIVE.clear()  # as a new process
     later = scene(radius=0.8)
     loaded = np.asarray(compile_render(later, width=8, height=6)(later))
     assert len(traces) == 1
@@ -80,6 +82,8 @@ def test_an_unreadable_entry_is_removed_and_the_program_compiled_and_kept_again(
     (folder / _programs.key_of("render", args)).write_bytes(b"not a program")
     program = _programs.compiled("render", _tiles._render_packed, *args)
     assert not program.loaded and (folder / _programs.key_of("render", args)).read_bytes() != b"not a program"
+    assert _programs.compiled("render", _tiles._render_packed, *args) is program  # loaded in this process
+    _programs._LIVE.clear()
     again = _programs.compiled("render", _tiles._render_packed, *args)
     assert again.loaded
     np.testing.assert_array_equal(np.asarray(again(*args)[0]), np.asarray(program(*args)[0]))

@@ -30,7 +30,8 @@ def _is_path(path_or_text) -> bool:
 @without_collections  # a parse makes almost no cycles (POV-Ray's heaviest sample scenes: ≤ 66 objects)
 def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: int | None = None,
                height: int | None = None, limits: Limits | None = None,
-               animation: Animation | None = None, fit_zero_terms: bool = True):
+               animation: Animation | None = None, fit_zero_terms: bool = True,
+               files: set[str] | None = None):
     """Parses a POV-Ray 3.7 scene (a file path or SDL text) into a :class:`raytracer.scene.Scene`.
 
     Args:
@@ -51,6 +52,9 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
             ``filter 0.000``: every object filtered shadows and passed rays on; a ``reflection 0``
             makes a tree of ``max_trace_level`` levels of a scene with no other reflection), but
             such a zero's derivative is then 0. The command line renders with False.
+        files: a set that receives the paths of the scene files read (the scene's own and every
+            ``#include``d file), also when the scene fails to load: what a re-render on change
+            (``raytracer render --watch``) watches.
 
     Raises:
         SceneError: for any scene that cannot be loaded, with ``file:line:col``.
@@ -88,6 +92,8 @@ def load_scene(path_or_text, *, include_paths=(), strict: bool = False, width: i
         raise InternalError(f"{type(e).__name__}: {e} ({where})", loc, chain) from e
     finally:
         sys.setrecursionlimit(old_limit)
+        if files is not None:
+            files.update(p.token_cache)
         p.release()
 
 
