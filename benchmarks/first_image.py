@@ -43,7 +43,7 @@ INCLUDE = Path("/usr/share/povray-3.7/include")
 SCENES = [
     "advanced/lamppost.pov", "interior/ballbox1.pov", "lights/glassthing.pov", "incdemo/screen.pov",
     "incdemo/texture1.pov", "advanced/isocacti.pov", "lights/projected_through.pov",
-    "textures/pigments/txtravg.pov", "interior/fog_ft.pov", "portfolio/o_shapes_old.pov",
+    "textures/pigments/txtravg.pov", "interior/fog_ft.pov", "objects/blob1b.pov",
     "advanced/bwstripe.pov", "textures/finishes/cluster.pov", "incdemo/glasses/samp_demo.pov",
     "objects/quartic/quarcyl.pov", "objects/superel1.pov", "advanced/drums2/drums.pov",
 ]

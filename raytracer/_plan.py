@@ -355,9 +355,9 @@ class _Flattener:
 
     @staticmethod
     def _csg_conditions(operation: str, i: int, trees: list[InsideTree]) -> tuple[Condition, ...]:
+        if operation == "union":  # (before the list of the others: a union of n children made
+            return ()             # n² of them, advanced/isocacti's 36,000: 3.5 s a plan)
         others = [t for j, t in enumerate(trees) if j != i]
-        if operation == "union":
-            return ()
         if operation == "merge":
             return tuple(Condition(t, False) for t in others)
         if operation == "intersection":
