@@ -39,7 +39,7 @@ from benchmarks._common import fmt, machine, md_table
 
 ROOT = Path("/usr/share/povray-3.7/scenes")
 INCLUDE = Path("/usr/share/povray-3.7/include")
-# the scenes issue 53 named, and ten more from a seeded random sample of the 396 that both render
+# six scenes whose first image was slowest, and ten from a seeded random sample of the 396 that both render
 SCENES = [
     "advanced/lamppost.pov", "interior/ballbox1.pov", "lights/glassthing.pov", "incdemo/screen.pov",
     "incdemo/texture1.pov", "advanced/isocacti.pov", "lights/projected_through.pov",

@@ -231,3 +231,15 @@ def test_sample_renders_subset_is_deterministic_and_summary_statistics_are_right
     md = sample_renders.markdown(records, None, None)
     assert "finished by both renderers: **5**" in md
     assert "| s1 | 10 | 2 | fog ×2: fog is not supported |" in md
+
+
+def test_first_image_reads_the_commands_stage_times(tmp_path, monkeypatch, capsys):
+    """``benchmarks/first_image.py`` splits a process's time by the stage times the command prints:
+    the line must keep the form it reads (parse, compile, render, in that order)."""
+    from benchmarks import first_image
+    from raytracer.cli import main
+
+    monkeypatch.setenv("RAYTRACER_CACHE_DIR", "off")
+    assert main(["render", str(SCENES["seed"]), "-o", str(tmp_path / "seed.png"), "-W", "8", "-H", "6"]) == 0
+    times = first_image.TIMES.search(capsys.readouterr().out)
+    assert times is not None and all(float(x) >= 0 for x in times.groups())
