@@ -20,8 +20,8 @@ float64 fixture, and the ``povray`` marker's skip.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
   workers (``$RAYTRACER_TEST_JAX_CACHE`` overrides it and is then kept), so a program that two
   workers or two tests build compiles once. A fresh clone starts with an empty cache. The
-  renderer's own kept programs (``raytracer/_programs.py``, ``$RAYTRACER_CACHE_DIR``) go to the
-  same folder, never to the user's ``~/.cache``.
+  renderer's own kept programs (``raytracer/_programs.py``, ``$RAYTRACER_CACHE_DIR``) are off, and
+  never in the user's ``~/.cache``.
 """
 
 import os
@@ -59,7 +59,9 @@ def pytest_configure(config):
             os.environ[env] = tempfile.mkdtemp(prefix=prefix)
             config._raytracer_owned.append(env)
     jax.config.update("jax_compilation_cache_dir", os.environ[_CACHE_ENV])
-    os.environ["RAYTRACER_CACHE_DIR"] = os.environ[_CACHE_ENV]  # kept programs: <folder>/programs
+    # no kept programs on disk (tests/test_programs.py gives its own folder): a program kept by one
+    # test would be loaded by another that monkeypatched what its trace reads
+    os.environ["RAYTRACER_CACHE_DIR"] = "off"
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
