@@ -26,7 +26,7 @@ test: setup
 	$(PY) -m pytest -q -n 3 --dist worksteal -p no:cacheprovider
 
 # Everything but the tests marked slow: in their files, or listed in tests/slow_tests.txt (those that
-# took 0.5 s or more in a full run; `make slow-list` measures them again). 41 s on 2 cores (795 tests).
+# took 0.5 s or more in a full run; `make slow-list` measures them again). 49 s on 2 cores (821 tests).
 test-fast: setup
 	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" -p no:cacheprovider
 
