@@ -42,12 +42,19 @@ PROGRAM_CACHE_BYTES = 2 << 30
 FORMAT = 1  # of an entry; a change of it, like one of the source, makes every older key miss
 
 
-def cache_folder() -> Path | None:
-    """The folder of kept programs, or None when the cache is off."""
+def cache_root() -> Path | None:
+    """``$RAYTRACER_CACHE_DIR`` (default ``~/.cache/raytracer/xla``): JAX's persistent cache
+    (``render.use_compilation_cache``), and the kept programs in ``programs/``; None for ``off``."""
     root = os.environ.get("RAYTRACER_CACHE_DIR", str(Path.home() / ".cache" / "raytracer" / "xla"))
     if not root or root.strip().lower() == "off":
         return None
-    return Path(root) / "programs"
+    return Path(root)
+
+
+def cache_folder() -> Path | None:
+    """The folder of kept programs, or None when the cache is off."""
+    root = cache_root()
+    return None if root is None else root / "programs"
 
 
 @functools.cache
@@ -101,7 +108,10 @@ def _abstract(x) -> tuple:
 def key_of(name: str, args: tuple) -> str | None:
     """The key of program ``name`` of ``args`` (arrays and static values), or None when a static
     value does not pickle."""
-    dynamic, static = eqx.partition(args, eqx.is_array)
+    return _key(name, *eqx.partition(args, eqx.is_array))
+
+
+def _key(name: str, dynamic, static) -> str | None:
     arrays = [_abstract(x) for x in jax.tree.leaves(dynamic)]
     buffer = io.BytesIO()
     try:
@@ -118,8 +128,8 @@ class Program:
     (the same static values; arrays of the same shapes, dtypes and placements). ``loaded`` says
     whether it came from the disk."""
 
-    def __init__(self, compiled, static, loaded: bool):
-        self._compiled, self._static, self.loaded = compiled, static, loaded
+    def __init__(self, compiled, loaded: bool):
+        self._compiled, self.loaded = compiled, loaded
 
     def __call__(self, *args):
         dynamic, _ = eqx.partition(args, eqx.is_array)
@@ -133,26 +143,24 @@ def compiled(name: str, fn, *args) -> Program:
     neither). The last ``LIVE_PROGRAMS`` stay loaded in the process: asked again, one is returned
     as it is."""
     dynamic, static = eqx.partition(args, eqx.is_array)
-    key = key_of(name, args)
-    if key is None:
-        return Program(jax.jit(lambda dyn: fn(*eqx.combine(dyn, static))).lower(dynamic).compile(),
-                       static, loaded=False)
-    live = _LIVE.pop(key, None)
+    key = _key(name, dynamic, static)
+    live = None if key is None else _LIVE.pop(key, None)
     if live is not None:  # this process has it: the most recently used again
         _LIVE[key] = live
         return live
-    folder = cache_folder()
+    folder = None if key is None else cache_folder()
     if folder is not None:
         program = _load(folder / key, dynamic)
         if program is not None:
-            return _live(key, Program(program, static, loaded=True))
+            return _live(key, Program(program, loaded=True))
     lowered = jax.jit(lambda dyn: fn(*eqx.combine(dyn, static))).lower(dynamic)
     if folder is None:
-        return _live(key, Program(lowered.compile(), static, loaded=False))
+        program = Program(lowered.compile(), loaded=False)
+        return program if key is None else _live(key, program)
     with _without_jax_cache():
         program = lowered.compile()
     _store(folder, key, program)
-    return _live(key, Program(program, static, loaded=False))
+    return _live(key, Program(program, loaded=False))
 
 
 LIVE_PROGRAMS = 8  # the programs a process keeps loaded (several scenes, frames, re-renders on change)
@@ -218,6 +226,7 @@ def _store(folder: Path, key: str, program) -> None:
         return  # a host callback, constants the format cannot hold: compiled each time
     n_devices = len(program.runtime_executable().local_devices())
     skeleton = jax.tree.unflatten(out_tree, [0] * out_tree.num_leaves)
+    tmp = None
     try:
         blob = pickle.dumps((payload, skeleton, n_devices), protocol=pickle.HIGHEST_PROTOCOL)
         folder.mkdir(parents=True, exist_ok=True)
@@ -226,8 +235,9 @@ def _store(folder: Path, key: str, program) -> None:
             f.write(blob)
         os.replace(tmp, folder / key)  # whole or not at all: a reader never sees half an entry
     except (OSError, pickle.PicklingError):
-        with contextlib.suppress(OSError, UnboundLocalError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
         return
     _trim(folder)
 

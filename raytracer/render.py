@@ -11,9 +11,7 @@ from __future__ import annotations
 import functools
 import math
 import numbers
-import os
 import warnings
-from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -64,9 +62,9 @@ def use_compilation_cache() -> None:
     warn_if_untuned()
     if jax.config.jax_compilation_cache_dir is not None:
         return  # the user's (or the test suite's) choice
-    cache = os.environ.get("RAYTRACER_CACHE_DIR", str(Path.home() / ".cache" / "raytracer" / "xla"))
-    if cache and cache.lower() != "off":
-        jax.config.update("jax_compilation_cache_dir", cache)
+    cache = _programs.cache_root()
+    if cache is not None:
+        jax.config.update("jax_compilation_cache_dir", str(cache))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
