@@ -103,3 +103,13 @@ def x64():
     """Float64 for the duration of one test (parameters created inside it are float64)."""
     with jax.enable_x64(True):
         yield
+
+
+@pytest.fixture
+def two_device_env():
+    """The environment of a subprocess with two CPU devices: this run's XLA flags kept (the fast
+    compile of ``FAST_COMPILE_XLA_FLAGS``: without them its programs compile twice as long)."""
+    flags = [f for f in os.environ.get("XLA_FLAGS", "").split()
+             if not f.startswith("--xla_force_host_platform_device_count")]
+    return {**os.environ, "XLA_FLAGS": " ".join([*flags, "--xla_force_host_platform_device_count=2"]),
+            "JAX_PLATFORMS": "cpu"}

@@ -3,7 +3,6 @@ pixels it refines, their values, its gradient, and POV-Ray's own adaptive image.
 
 import importlib
 import json
-import os
 import subprocess
 import sys
 import textwrap
@@ -122,14 +121,14 @@ json.dump({{"devices": len(jax.local_devices()), "sharded": "manual_computation"
 
 
 @pytest.mark.slow
-def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, tmp_path):
+def test_refined_pixels_are_split_over_the_devices_with_the_image_of_one(scene, tmp_path, two_device_env):
     """With two devices the refined pixels are traced on both, the image is the one-device image,
     it combines with an image sharded over both devices, and its gradient is finite differences'."""
     path = tmp_path / "aa.pov"
     path.write_text(SCENE)
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
     run = subprocess.run([sys.executable, "-c", textwrap.dedent(TWO_DEVICES.format(W=W, H=H)), str(path),
-                          str(tmp_path / "out.json")], env=env, capture_output=True, text=True, timeout=600)
+                          str(tmp_path / "out.json")], env=two_device_env, capture_output=True, text=True,
+                         timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     got = json.loads((tmp_path / "out.json").read_text())
     assert got["devices"] == 2 and got["sharded"] and got["large_devices"] == 2 and np.isfinite(got["mixed"])

@@ -4,7 +4,6 @@
 ``shard_map`` path, which the CLI takes by default on a machine with several cores)."""
 
 import json
-import os
 import socket
 import subprocess
 import sys
@@ -55,15 +54,14 @@ def _free_port() -> int:
 
 
 @pytest.mark.slow
-def test_two_processes_render_and_differentiate_like_one(tmp_path, x64):
+def test_two_processes_render_and_differentiate_like_one(tmp_path, x64, two_device_env):
     path = tmp_path / "scene.pov"
     path.write_text(SCENE)
     address = f"127.0.0.1:{_free_port()}"
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
     script = textwrap.dedent(WORKER.format(W=W, H=H, BIG=BIG))
     procs = [subprocess.Popen([sys.executable, "-c", script, address, str(i), str(path),
                                str(tmp_path / f"{i}.json")],
-                              env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                              env=two_device_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
              for i in range(2)]
     for p in procs:
         out, _ = p.communicate(timeout=600)

@@ -234,33 +234,29 @@ def _closed_curve_term(point, tangent, gradient, q_theta, width, height, samples
 
     phi = np.linspace(0.0, 2 * np.pi, samples + 1)
     key = np.stack(cell(phi), -1)
-    cuts = [0.0]
-    for i in np.flatnonzero(np.any(key[1:] != key[:-1], axis=-1)):
-        lo, hi = phi[i], phi[i + 1]
-        start = tuple(key[i])
-        for _ in range(60):  # to float64's resolution of φ
-            mid = 0.5 * (lo + hi)
-            if tuple(np.stack(cell(np.array([mid])), -1)[0]) == start:
-                lo = mid
-            else:
-                hi = mid
-        cuts.append(0.5 * (lo + hi))
-    cuts.append(2 * np.pi)
-    out = None
+    changes = np.flatnonzero(np.any(key[1:] != key[:-1], axis=-1))
+    lo, hi, start = phi[changes], phi[changes + 1], key[changes]
+    for _ in range(60):  # every cut at once, to float64's resolution of φ
+        mid = 0.5 * (lo + hi)
+        same = np.all(np.stack(cell(mid), -1) == start, axis=-1)
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    cuts = np.concatenate([[0.0], 0.5 * (lo + hi), [2 * np.pi]])
+    lo, hi = cuts[:-1], cuts[1:]
+    arcs = hi > lo
+    lo, hi = lo[arcs], hi[arcs]
+    mid_u, mid_v = cell(0.5 * (lo + hi))[:2]
     nodes, weights = _GAUSS
-    for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
-        if hi <= lo:
-            continue
-        mid_u, mid_v = cell(np.array([0.5 * (lo + hi)]))[:2]
-        phis = 0.5 * (hi - lo) * nodes + 0.5 * (hi + lo)
-        p, t = point(phis), tangent(phis)
-        speed = q_theta(p[:, 0], p[:, 1]) / np.linalg.norm(gradient(p), axis=-1)
-        dl = np.ones(len(phis)) if jump is None else np.asarray(jump(p[:, 0], p[:, 1]), np.float64)
-        value = 0.5 * (hi - lo) * np.tensordot(weights * speed * np.linalg.norm(t, axis=-1), dl, axes=(0, 0))
-        if out is None:
-            out = np.zeros((height, width, *np.shape(value)))
-        if 0 <= mid_u[0] < width and 0 <= mid_v[0] < height:
-            out[mid_v[0], mid_u[0]] += value
+    phis = (0.5 * (hi - lo))[:, None] * nodes[None, :] + (0.5 * (hi + lo))[:, None]  # (arcs, nodes)
+    flat = phis.reshape(-1)
+    p, t = point(flat), tangent(flat)
+    speed = q_theta(p[:, 0], p[:, 1]) / np.linalg.norm(gradient(p), axis=-1)
+    dl = np.ones(len(flat)) if jump is None else np.asarray(jump(p[:, 0], p[:, 1]), np.float64)
+    w = (weights[None, :] * speed.reshape(phis.shape) * np.linalg.norm(t, axis=-1).reshape(phis.shape))
+    value = 0.5 * (hi - lo)[:, None] * w  # (arcs, nodes)
+    value = np.einsum("an,an...->a...", value, dl.reshape(*phis.shape, *dl.shape[1:]))
+    out = np.zeros((height, width, *value.shape[1:]))
+    keep = (mid_u >= 0) & (mid_u < width) & (mid_v >= 0) & (mid_v < height)
+    np.add.at(out, (mid_v[keep], mid_u[keep]), value[keep])
     return out
 
 
