@@ -138,25 +138,32 @@ class Edges(NamedTuple):
 
 
 def _prim_tables(geo, n_prims: int):
-    """(group (P,), index in its group (P,), has a margin (P,)) of every primitive (static)."""
+    """(group (P,), index in its group (P,), has a margin (P,), has creases (P,)) of every
+    primitive (static)."""
     group = np.full(max(n_prims, 1), -1, np.int32)
     index = np.zeros(max(n_prims, 1), np.int32)
     for i, (g, j) in geo.where.items():
         group[i], index[i] = g, j
     margins = np.array([type(s).has_margin() for s in geo.shapes], bool)
     has = np.where(group >= 0, margins[np.maximum(group, 0)] if len(margins) else False, False)
-    return group, index, has
+    faces = np.array([type(s).faces > 1 for s in geo.shapes], bool)
+    creased = np.where(group >= 0, faces[np.maximum(group, 0)] if len(faces) else False, False)
+    return group, index, has, creased
 
 
-def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False):
+def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased: bool = False):
     """``fn(shape, object-space o, d, object_from_world)`` of the primitive ``p`` (traced index),
     over every group of a shape class with a margin (``every_shape``: of any class but meshes, whose
-    every triangle a call would cross); ``fill`` where it has none."""
-    group, index, _ = tables
+    every triangle a call would cross; ``creased``: of a class of several faces); ``fill`` where it
+    has none."""
+    group, index = tables[:2]
     out = jnp.asarray(fill, o.dtype)
     g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
     for g, (shapes, ofw) in enumerate(zip(geo.shapes, geo.object_from_world, strict=True)):
-        if not (type(shapes).has_margin() or (every_shape and shapes.kind != "mesh")):
+        if creased:
+            if type(shapes).faces <= 1:
+                continue
+        elif not (type(shapes).has_margin() or (every_shape and shapes.kind != "mesh")):
             continue
         j = jnp.clip(j_of, 0, ofw.shape[0] - 1)
         shape = jax.tree_util.tree_map(lambda x, j=j: x[j], shapes)
@@ -167,6 +174,24 @@ def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False):
 
 def _margin(geo, tables, p, o, d):
     return _per_prim(geo, tables, p, o, d, lambda s, oo, dd, _: s.silhouette_margin(oo, dd), jnp.nan)
+
+
+def _face_of(geo, tables, p, o, d, t):
+    """The face (``AbstractShape.face``) of primitive ``p`` at ``o + t d`` (0: a shape of one face)."""
+    at = jnp.where(jnp.isfinite(t), t, 0.0)
+    face = _per_prim(geo, tables, p, o, d, lambda s, oo, dd, _: s.face(oo + at * dd).astype(o.dtype), 0.0,
+                     creased=True)
+    return face.astype(jnp.int32)
+
+
+def _crease(geo, tables, p, o, d, face_a, face_b, t_ref):
+    """The crease margin between faces ``face_a`` and ``face_b`` of primitive ``p`` along the line
+    ``o + t d``: the difference of the line's crossings with their whole surfaces, nearest ``t_ref``
+    (``AbstractShape.face_distance``), zero where it meets their common edge."""
+    def gap(s, oo, dd, _):
+        return s.face_distance(oo, dd, face_a, t_ref) - s.face_distance(oo, dd, face_b, t_ref)
+
+    return _per_prim(geo, tables, p, o, d, gap, jnp.nan, creased=True)
 
 
 def _nearest_hit(geo, tables, p, o, d, t_min, t_ref=None):
@@ -238,6 +263,11 @@ def _image_ray(camera, width: int, height: int, u, v):
     return o[0], d[0]
 
 
+# a level's signature: primitive, pattern cell, branch, face, then the shadow casters' columns
+FACE, CASTERS = 3, 4
+CREASE = 4  # the margins' kind of a crease (``boundary_term.margins``)
+
+
 # crossings are located, differentiated and traced this many at a time, in chunks of the room up to
 # the last that holds one (the room's tail is not run)
 CHUNK = 256
@@ -263,7 +293,10 @@ def _transition(pa, pb, idx, j, ch, levels: int, width_: int, own: int, n_sample
     ch = ch[idx]
 
     def agree(x, y):  # x of each crossing against y of the crossings j
-        ne = (y[j] != x[idx][:, None, :]).reshape(*j.shape, levels, width_)
+        # (the faces seen are not compared: an outline goes on through the corner where the face
+        # beside it changes, and the creases that meet at a corner are one edge's turn there)
+        ne = ((y[j] != x[idx][:, None, :]).reshape(*j.shape, levels, width_)
+              & (jnp.arange(width_) != FACE)[None, None, None, :])
         path = jnp.any(ne[..., :own], axis=(-2, -1))
         if not n_samples:
             return ~path
@@ -503,6 +536,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
     mats = packed.mats
     cells = bool(_discrete(mats))
+    creases = bool(np.any(tables[3]))  # a primitive of several faces (a box, a closed cylinder)
     # lights whose shadow is one ray: the first caster on it is part of what a sample sees; and
     # area lights sampled on a fixed grid: the first caster towards each sample of it (an entry of
     # its own, and a channel of its own below, since its edges lie within a penumbra close together)
@@ -522,7 +556,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     effects = plan.effects
     bounces = min(PATH_BOUNCES, max(int(scene.settings.max_trace_level) - 1, 0))
     levels = 1 + (bounces if (effects.reflection or effects.refraction) else 0)
-    width_ = 3 + entries  # a level's entries: primitive, cell, branch, casters
+    width_ = CASTERS + entries  # a level's entries: primitive, cell, branch, face, casters
     transparent = jnp.asarray(mats.tables["transparent"], bool)
     # float32 points of discrete patterns computed at the surface, as the shading computes them
     refine = cells and dtype == jnp.float32
@@ -588,6 +622,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             found = alive & hit.found
             p = o + jnp.where(found, hit.t, 0.0) * d
             p_cell = p if hit.point is None else hit.point
+            # the face of the primitive seen (creases: a box's edges, a cylinder's rims)
+            face = _face_of(geo, tables, hit.prim, o, d, hit.t) if creases else jnp.zeros((), jnp.int32)
             cell = _cell(mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
             casts = []
 
@@ -598,7 +634,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 casts = list(shadow_entries())
             elif entries:
                 casts = list(jax.lax.cond(shadows, shadow_entries,
-                                          lambda: reference[index, 3:].astype(jnp.int32)))
+                                          lambda: reference[index, CASTERS:].astype(jnp.int32)))
             branch = jnp.asarray(STOP)
             if levels > 1:
                 prim = jnp.maximum(hit.prim, 0)
@@ -607,7 +643,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 o, d, tir = child(mats, prim, o, d, hit.t, hit.normal, branch)
                 branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
                 alive, mirror = branch != STOP, branch == REFLECT
-            row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch, *casts])
+            row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch,
+                             jnp.where(found, face, 0), *casts])
             return (o, d, alive, mirror), (row.astype(jnp.int32), jnp.where(found, hit.t, jnp.inf))
 
         def casters_at(found, hit, p, d):
@@ -672,7 +709,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                                                (jnp.arange(1, levels), rows[:-1, 0], rows[:-1, 2]))
         return out_o, out_d
 
-    own = 3 + n_points  # a level's entries of channel 0: primitive, cell, branch, point-light casters
+    own = CASTERS + n_points  # channel 0's entries of a level: primitive … face, point-light casters
     channels = 1 + n_samples
 
     def differs(s_a, s_b):
@@ -684,11 +721,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         grid = jnp.any(ne[..., own:], axis=-2) & ~path[..., None]
         return jnp.concatenate([path[..., None], grid], axis=-1)
 
-    def changed(s_a, s_b, ch):
+    def changed(s_a, s_b, ch, faces=True):
         """``(changed, level, entry)``: whether channel ``ch`` of the signatures differs, the first
         level of the path where it does, and there the shadow entry that differs (channel 0: the
-        first point light's; else its grid sample's)."""
+        first point light's; else its grid sample's). Unless ``faces`` (a traced bool), the faces
+        seen are not compared."""
         ne = (s_a != s_b).reshape(levels, width_)
+        if faces is not True:
+            ne = ne & ((jnp.arange(width_) != FACE) | faces)[None, :]
         level = jnp.argmax(jnp.any(ne[:, :own], axis=1))
         differ = jnp.any(ne[:, :own])
         if n_samples:
@@ -696,7 +736,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             grid = ne[:, column]
             level = jnp.where(ch == 0, level, jnp.argmax(grid))
             differ = jnp.where(ch == 0, differ, jnp.any(grid))
-        entry = jnp.argmax(ne[level, 3:own]) if n_points else jnp.zeros((), jnp.int32)
+        entry = jnp.argmax(ne[level, CASTERS:own]) if n_points else jnp.zeros((), jnp.int32)
         entry = jnp.where(ch == 0, entry, n_points + ch - 1)
         return differ, level, entry
 
@@ -752,7 +792,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     in_rows, ch, r, c = crossings(which)
     pa, pb_ = sig[r, c], sig[r + ~in_rows, c + in_rows]
     first_level = jax.vmap(lambda a, b, k: changed(a, b, k)[1])(pa, pb_, ch)
-    ne = (pa != pb_).reshape(room, levels, width_)[..., 3:]
+    ne = (pa != pb_).reshape(room, levels, width_)[..., CASTERS:]
     in_shadow = (ch > 0) | jnp.any(ne & (jnp.arange(levels)[None, :, None] <= first_level[:, None, None]),
                                    axis=(1, 2))
     order = jnp.argsort(jnp.where(live, 2 * first_level + in_shadow, 2 * levels + 2), stable=True)
@@ -762,16 +802,17 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     u0, v0 = (c.astype(dtype) - 0.5) * h, (r.astype(dtype) - 0.5) * h
     axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
 
-    _, _, has = tables
-    has = jnp.asarray(has)
+    has, creased = (jnp.asarray(x) for x in tables[2:])
 
     def margins(sc, pk, s_lo, s_hi, face, level, entry, t_ref, u, v):
-        """(4 or 6,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
+        """(5 or 7,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
         of, at image point (u, v) of scene ``sc`` packed as ``pk``, along the ray of their paths'
         level ``level``: the outline of ``s_lo``'s primitive there, the outline of ``s_hi``'s,
         their seam (the distances' difference), the cell face ``face`` = (normal, offset) of a
-        discrete pattern on one primitive (``normal · q − offset``, q its pattern-space point), and
-        with shadows, the outlines of shadow entry ``entry``'s caster on ``s_lo``'s side and on
+        discrete pattern on one primitive (``normal · q − offset``, q its pattern-space point), the
+        crease between two faces of one primitive (the difference of the line's crossings with the
+        two faces' whole surfaces, ``AbstractShape.face_distance``), and with shadows, the outlines
+        of shadow entry ``entry``'s caster on ``s_lo``'s side and on
         ``s_hi``'s, along the line from the point seen towards that light or grid sample. Each
         primitive's crossing is the one nearest ``t_ref`` (held), the distance seen at the
         crossing: a CSG difference's cut is seen on its subtracted operand's far side."""
@@ -785,12 +826,15 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         on_face = jnp.zeros((), o.dtype)
         if cells:  # the same ray and crossing as the outline's
             on_face = jnp.dot(face[0], point_in_pattern(pk, lo_, o, d, t_lo)) - face[1]
-        out = [_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face]
+        crease = jnp.zeros((), o.dtype)
+        if creases:  # between the faces of one primitive either side, along the same ray
+            crease = _crease(geo_, tables, lo_, o, d, a[FACE], b[FACE], t_ref)
+        out = [_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face, crease]
         if entries:
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
             l = towards_light(sc, entry, p)
             seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point (a mesh)
-            out += [_margin(geo_, tables, jnp.maximum(s[3 + entry], 0), p, l) + seen_at for s in (a, b)]
+            out += [_margin(geo_, tables, jnp.maximum(s[CASTERS + entry], 0), p, l) + seen_at for s in (a, b)]
         return jnp.stack(out)
 
     def locate(s_a, u, v, e, ch, upto, shadows):
@@ -799,8 +843,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         signature seen at hi, kind, face, level, entry, t_ref, g_u, g_v, cross)`` — ``lo``, ``hi`` in pixels
         along ``e`` from (u, v); ``kind`` the margin whose zero it is, at the paths' first level
         where the channel differs (0: the outline of ``s_a``'s primitive, 1: of the primitive
-        beyond, 2: their seam, 3: a cell face of one primitive's pattern, 4, 5: the outline of
-        shadow entry ``entry``'s caster on either side; the one nearest the crossing in pixels, -1
+        beyond, 2: their seam, 3: a cell face of one primitive's pattern, 4: a crease between two of
+        its faces, 5, 6: the outline of shadow entry ``entry``'s caster on either side; the one
+        nearest the crossing in pixels, -1
         where none is within a hundredth of the spacing), ``t_ref`` the distance seen beyond the
         crossing at that level, the margin's derivatives along the image, and the crossing itself
         (pixels along ``e``: a Newton step on that margin from the bracket's middle, within it)."""
@@ -810,18 +855,22 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # (a channel's bisection traces its own grid sample's shadow ray, not the grid's)
         sample = jnp.clip(ch - 1, 0, n_samples - 1) if n_samples else None
 
+        # a pair whose samples differ in more than the face seen looks for that difference: a crease
+        # between them (a face a sliver's width) must not hide the outline beyond it
         def step(i, state):
-            lo, hi, s_hi, t_hi = state
+            lo, hi, s_hi, t_hi, faces = state
             first = i == 0
             mid = jnp.where(first, hi, 0.5 * (lo + hi))
             s_mid, t_mid = seen(u + mid * e[0], v + mid * e[1], sample, (s_a, upto, shadows))
-            same = ~changed(s_a, s_mid, ch)[0] & ~first
+            faces = jnp.where(first, ~changed(s_a, s_mid, ch, False)[0], faces)
+            same = ~changed(s_a, s_mid, ch, faces)[0] & ~first
             return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid),
-                    jnp.where(same, s_hi, s_mid), jnp.where(same, t_hi, t_mid))
+                    jnp.where(same, s_hi, s_mid), jnp.where(same, t_hi, t_mid), faces)
 
-        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a, jnp.full(levels, jnp.inf, dtype))
-        lo, hi, s_hi, t_hi = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
-        _, level, entry = changed(s_a, s_hi, ch)
+        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a, jnp.full(levels, jnp.inf, dtype),
+                 jnp.asarray(True))
+        lo, hi, s_hi, t_hi, faces = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
+        _, level, entry = changed(s_a, s_hi, ch, faces)
         # the distance seen just beyond the crossing, at its level: each side's primitive is crossed
         # nearest it (a difference's cut is on its subtracted operand's far side)
         t_ref = jax.lax.stop_gradient(t_hi[level])
@@ -848,10 +897,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         has_lo, has_hi = (p_lo >= 0) & has[jnp.maximum(p_lo, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
         path = ch == 0
         valid = [path & has_lo & ~one, path & has_hi & ~one, path & has_lo & has_hi & ~one,
-                 path & one & has_face & (a[1] != b[1])]
+                 path & one & has_face & (a[1] != b[1]),
+                 path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE])]
         if entries:  # (channel 0's shadow entries are the point lights')
-            shadow = one & (a[3 + entry] != b[3 + entry]) & (path == (entry < n_points))
-            valid += [shadow & (c_ >= 0) & has[jnp.maximum(c_, 0)] for c_ in (a[3 + entry], b[3 + entry])]
+            shadow = one & (a[CASTERS + entry] != b[CASTERS + entry]) & (path == (entry < n_points))
+            valid += [shadow & (c_ >= 0) & has[jnp.maximum(c_, 0)]
+                      for c_ in (a[CASTERS + entry], b[CASTERS + entry])]
         valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
@@ -896,7 +947,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # n_u³ where the edge turns along the rows, so the rows' midpoint sums converge fast there
     along, other = jnp.where(in_rows, g_u, g_v), jnp.where(in_rows, g_v, g_u)
     quartic = along ** 4 + other ** 4
-    usable = ok & (quartic > 0)
+    # a crease across which the shading does not change (a flat-coloured box) is no edge: it has no
+    # term, and must not end the stretch of an outline beside it
+    usable = ok & (quartic > 0) & ~((kind == CREASE) & jnp.all(jump == 0, axis=-1))
     at, across = jnp.where(in_rows, pu, pv), jnp.where(in_rows, pv, pu)
     slope = jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0)  # d(at)/d(across)
     low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope,

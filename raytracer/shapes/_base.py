@@ -22,6 +22,9 @@ fields the static variants) that also carries, as methods and class variables:
 ``parse_sdl(keyword, args)``  reads its arguments after ``keyword {`` through :class:`ShapeArgs`
 ``from_sdl(fields)``          builds the shape from what ``parse_sdl`` returned
 ``to_mitsuba(m, camera)``     its exact Mitsuba 3 equivalent, or raises :class:`NoEquivalent`
+``silhouette_margin(o, d)``   a smooth function of a line, positive where it crosses the shape
+``faces``, ``face(p)``,       the smooth pieces of its surface and which one a point lies on; the
+``face_distance(…)``          line's crossing with one piece's whole surface (creases, edges=True)
 ============================  ========================================================================
 
 The renderer, the plan, the SDL interpreter and the Mitsuba converter ask these and the registry
@@ -39,7 +42,7 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from .._build import Record, build
 
@@ -193,6 +196,25 @@ class AbstractShape(Record):
     def has_margin(cls) -> bool:
         """Whether the class gives :meth:`silhouette_margin`."""
         return cls.silhouette_margin is not AbstractShape.silhouette_margin
+
+    # Creases: the smooth pieces of the surface between which its normal jumps (a box's six
+    # faces; a closed cylinder's or cone's side and two discs). The boundary term sees a crease as
+    # an edge where what is seen crosses from one face to another and their shading differs.
+    faces: ClassVar[int] = 1
+
+    def face(self, p: Float[Array, "3"]) -> Int[Array, ""]:
+        """Which face the object-space surface point ``p`` lies on (0 …``faces`` − 1): any answer
+        near a crease, a consistent one elsewhere. 0 for a shape of one face."""
+        return jnp.zeros((), jnp.int32)
+
+    def face_distance(self, o: Float[Array, "3"], d: Float[Array, "3"], face, t_ref) -> Float[Array, ""]:
+        """The crossing of the line ``o + t d`` (object space) with face ``face``'s whole surface,
+        extended past its edges (a box face's plane, a cylinder's unbounded side), nearest
+        ``t_ref`` (held); ``+inf`` where it misses. A smooth function of the shape and the line:
+        the difference of two faces' is zero where the line meets the crease between them, which
+        is how the boundary term finds a crease and how it moves. Shapes with ``faces`` > 1
+        define it."""
+        raise NotImplementedError(f"{self.kind} has one face")
 
     # The acceleration structure (``shading/_accel.py``) can choose among shapes that name one of
     # its native kernels. It only chooses: the hit is then computed again by ``sub_hits``.

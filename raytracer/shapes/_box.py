@@ -104,6 +104,21 @@ class Box(AbstractShape):
         best = jnp.argmax(jnp.where(meet, 2 * depth - value, -jnp.inf))
         return value[best]
 
+    faces: ClassVar[int] = 6  # face 2i (2i + 1): the plane x_i = lo_i (hi_i)
+
+    def face(self, p):
+        corner1, corner2, p = as_float_arrays(self.corner1, self.corner2, p)
+        lo, hi = jnp.minimum(corner1, corner2), jnp.maximum(corner1, corner2)
+        centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        axis = jnp.argmax(jnp.abs(p - centre) - half)  # 0 on the face p lies on, below 0 on the others
+        return (2 * axis + (p[axis] > centre[axis])).astype(jnp.int32)
+
+    def face_distance(self, o, d, face, t_ref):
+        corner1, corner2, o, d = as_float_arrays(self.corner1, self.corner2, o, d)
+        axis = face // 2
+        lo, hi = jnp.minimum(corner1, corner2), jnp.maximum(corner1, corner2)
+        return solve_linear(d[axis], o[axis] - jnp.where(face % 2 == 1, hi[axis], lo[axis]))[0]
+
     def hits(self, o, d):
         return box_hits(self.corner1, self.corner2, o, d)
 

@@ -8,6 +8,7 @@ Slots: ``[side crossing 0, side crossing 1, base cap, cap cap]``.
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
@@ -44,7 +45,11 @@ def _frame(base, cap):
     return a_hat, jnp.sqrt(jnp.where(length_sq > 0, length_sq, 1.0)), length_sq > 0
 
 
-def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
+def _frustum_surfaces(base, base_radius, cap, cap_radius, o, d):
+    """The line's crossings with the frustum's three surfaces whole (the cone or cylinder of its
+    side, unbounded; the planes of its two ends): ``(t_side (2,), t_caps (2,), ok_caps (2,), h0,
+    hd, l_perp, d_perp, a_hat, length, slope, proper)``; the side's +inf where the line misses it,
+    a cap's plane crossed where ``ok_caps``."""
     a_hat, length, proper = _frame(base, cap)
     slope = safe_div(cap_radius - base_radius, length)
     l = o - base
@@ -59,20 +64,25 @@ def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
     w = r0 * d_perp - slope * hd * l_perp
     cross = jnp.cross(d_perp, l_perp)
     t0, t1, _ = solve_quadratic(a, b, c, 4.0 * (jnp.dot(w, w) - jnp.dot(cross, cross)))
-    t_side = jnp.stack([t0, t1])
+    t_base, ok_base = solve_linear(hd, h0)
+    t_cap, ok_cap = solve_linear(hd, h0 - length)
+    t_caps, ok_caps = jnp.stack([t_base, t_cap]), jnp.stack([ok_base, ok_cap])
+    return jnp.stack([t0, t1]), t_caps, ok_caps, h0, hd, l_perp, d_perp, a_hat, length, slope, proper
+
+
+def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
+    t_side, t_caps, ok_caps, h0, hd, l_perp, d_perp, a_hat, length, slope, proper = _frustum_surfaces(
+        base, base_radius, cap, cap_radius, o, d)
     h_side = h0 + jnp.where(jnp.isfinite(t_side), t_side, 0.0) * hd
     side_ok = jnp.isfinite(t_side) & (h_side >= 0) & (h_side <= length) & proper
     p_perp = points_at(l_perp, d_perp, t_side)
     # Gradient of |p⊥|² - r(h)², halved: outward, since the solid is |p⊥| < r(h).
     n_side = safe_normalize(p_perp - ((base_radius + slope * h_side) * slope)[:, None] * a_hat[None, :])
 
-    t_base, ok_base = solve_linear(hd, h0)
-    t_cap, ok_cap = solve_linear(hd, h0 - length)
-    t_caps = jnp.stack([t_base, t_cap])
     radii = jnp.stack([base_radius, cap_radius])
     q_perp = points_at(l_perp, d_perp, t_caps)
     caps_ok = (
-        jnp.stack([ok_base, ok_cap])
+        ok_caps
         & (jnp.sum(q_perp * q_perp, axis=-1) <= radii * radii)
         & (radii > 0)
         & proper
@@ -81,6 +91,33 @@ def _frustum_hits(base, base_radius, cap, cap_radius, o, d, open_):
     n_caps = jnp.stack([-a_hat, a_hat])
     t = jnp.concatenate([t_side, t_caps])
     return masked_hits(t, jnp.concatenate([n_side, n_caps]), jnp.concatenate([side_ok, caps_ok]))
+
+
+FRUSTUM_FACES = 3  # the side, the base's disc, the cap's disc
+
+
+def _frustum_face(base, base_radius, cap, cap_radius, p, open_):
+    """Which of the frustum's faces the surface point ``p`` lies on (``AbstractShape.face``): 0 the
+    side, 1 the base's disc, 2 the cap's; the nearest surface of the three. An open frustum has its
+    side only."""
+    a_hat, length, _ = _frame(base, cap)
+    slope = safe_div(cap_radius - base_radius, length)
+    l = p - base
+    h = jnp.dot(l, a_hat)
+    r = jnp.sqrt(jnp.maximum(jnp.sum((l - h * a_hat) ** 2), 0.0))
+    side = jnp.abs(r - (base_radius + slope * h)) / jnp.sqrt(1.0 + slope * slope)
+    face = jnp.argmin(jnp.stack([side, jnp.abs(h), jnp.abs(h - length)])).astype(jnp.int32)
+    return jnp.where(jnp.asarray(open_), 0, face)
+
+
+def _frustum_face_distance(base, base_radius, cap, cap_radius, o, d, face, t_ref):
+    """The line's crossing with face ``face``'s whole surface nearest ``t_ref`` (held)
+    (``AbstractShape.face_distance``)."""
+    t_side, t_caps, ok_caps, *_ = _frustum_surfaces(base, base_radius, cap, cap_radius, o, d)
+    gap = jnp.where(jnp.isfinite(t_side), jnp.abs(t_side - t_ref), jnp.inf)
+    near = jnp.argmin(jax.lax.stop_gradient(gap))
+    t_caps = jnp.where(ok_caps, t_caps, jnp.inf)
+    return jnp.where(face == 0, t_side[near], t_caps[jnp.clip(face - 1, 0, 1)])
 
 
 def _frustum_margin(base, base_radius, cap, cap_radius, o, d, open_):
@@ -248,6 +285,14 @@ class Cylinder(AbstractShape):
         base, cap, radius, o, d = as_float_arrays(self.base, self.cap, self.radius, o, d)
         return _frustum_margin(base, radius, cap, radius, o, d, self.open)
 
+    faces: ClassVar[int] = FRUSTUM_FACES
+
+    def face(self, p):
+        return _frustum_face(self.base, self.radius, self.cap, self.radius, p, self.open)
+
+    def face_distance(self, o, d, face, t_ref):
+        return _frustum_face_distance(self.base, self.radius, self.cap, self.radius, o, d, face, t_ref)
+
     def kernel_form(self):
         open_ = jnp.full(jnp.shape(self.radius), self.open)
         return frustum_form_hits, (self.base, self.radius, self.cap, self.radius, open_)
@@ -304,6 +349,15 @@ class Cone(AbstractShape):
         base, r0, cap, r1, o, d = as_float_arrays(self.base, self.base_radius, self.cap, self.cap_radius,
                                                   o, d)
         return _frustum_margin(base, r0, cap, r1, o, d, self.open)
+
+    faces: ClassVar[int] = FRUSTUM_FACES
+
+    def face(self, p):
+        return _frustum_face(self.base, self.base_radius, self.cap, self.cap_radius, p, self.open)
+
+    def face_distance(self, o, d, face, t_ref):
+        return _frustum_face_distance(self.base, self.base_radius, self.cap, self.cap_radius, o, d, face,
+                                      t_ref)
 
     def kernel_form(self):
         return frustum_form_hits, (self.base, self.base_radius, self.cap, self.cap_radius,

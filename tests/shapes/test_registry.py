@@ -93,6 +93,37 @@ def test_renderer_groups_shapes_by_static_variant_and_vmaps_their_own_kernels():
 WITHOUT_MARGIN = {"mesh", "poly"}
 
 
+_CREASED = [i for i, c in enumerate(CASES) if type(c.make(*c.params)).faces > 1]
+
+
+def test_box_cylinder_and_cone_have_faces():
+    """The shapes whose normal jumps across an edge of their surface declare its faces (creases,
+    ``edges=True``): the box's six, the cylinder's and the cone's side and two discs."""
+    assert {CASES[i].kind for i in _CREASED} == {"box", "cylinder", "cone"}
+
+
+@pytest.mark.parametrize("index", _CREASED, ids=[CASES[i].name for i in _CREASED])
+def test_a_crossings_face_surface_holds_the_crossing(index, x64):
+    """At every crossing of random lines, the face the point lies on (``face``) has its whole
+    surface crossed there (``face_distance`` near the crossing gives it back to 1e-9), and the
+    crossings together reach several faces (one: an open variant's side)."""
+    case = CASES[index]
+    shape = case.make(*(jnp.asarray(p, jnp.float64) for p in case.params))
+    o, d = random_rays(case, 5, 512)
+    o, d = jnp.asarray(o, jnp.float64), jnp.asarray(d, jnp.float64)
+    t, _ = jax.jit(jax.vmap(shape.hits))(o, d)
+    hit = np.isfinite(np.asarray(t))
+    at = jnp.where(hit, t, 0.0)
+    faces = jax.vmap(jax.vmap(shape.face))(o[:, None, :] + at[..., None] * d[:, None, :])
+    again = jax.vmap(jax.vmap(shape.face_distance, in_axes=(None, None, 0, 0)))(o, d, faces, at)
+    np.testing.assert_allclose(np.asarray(again)[hit], np.asarray(t)[hit], rtol=1e-9, atol=1e-9 * case.size)
+    seen = set(np.asarray(faces)[hit].tolist())
+    if getattr(shape, "open", False):
+        assert seen == {0}, case.name
+    else:
+        assert len(seen) > 1 and seen <= set(range(type(shape).faces)), case.name
+
+
 def test_every_shape_gives_its_outline_margin_or_is_listed_without_one():
     for case in CASES:
         assert type(case.make(*case.params)).has_margin() == (case.kind not in WITHOUT_MARGIN), case.name
