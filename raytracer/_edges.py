@@ -8,9 +8,12 @@ parameter θ moves, the derivative of the pixel has a second term besides the me
     dI/dθ = ∫_P ∂θL dA + ∫_{Γ∩P} (L⁻ − L⁺) v_n ds,
 
 v_n the normal speed of Γ. Here Γ is where what a camera ray sees changes: its primitive — an
-outline over what lies behind it (``AbstractShape.silhouette_margin``), or a seam where two
+outline over what lies behind it (``AbstractShape.silhouette_margin``; a mesh's, the edge of the
+triangle seen last before it, ``item_margin``), or a seam where two
 surfaces cross or a CSG difference's cut meets the surface it cuts (the difference of their
-distances along the ray, each primitive crossed nearest the distance seen) — the cell of its primitive's
+distances along the ray, each primitive crossed nearest the distance seen) — the face of its
+primitive (a crease: a box's edge, a closed cylinder's rim; ``AbstractShape.face``, the margin the
+difference of the two faces' ``face_distance``) — the cell of its primitive's
 discrete pattern (``Pattern.cell``, ``Pattern.face``), or the first shadow caster between the point
 it sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
 line from that point to the light) or one sample of an area light's fixed grid (each sample's hard
@@ -22,7 +25,8 @@ deterministic, differentiable function of the image point and the scene. The ter
 deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
 1. Each lattice sample's signature (at each level of its path: the primitive, its pattern cell, the
-   branch taken there, each such light's or grid sample's caster); a pair of neighbouring samples
+   branch taken there, its face, the item seen — a mesh's triangle, carried for its margin, not
+   compared — and each such light's or grid sample's caster); a pair of neighbouring samples
    (across the whole image and a ring of samples half a spacing outside it, in rows and in
    columns) with different ones holds a crossing of Γ — in
    channel 0 where the path, its cells or a point light's caster differ, else one crossing for each
@@ -33,7 +37,8 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
    tracing only the levels and shadow rays the pair differs in, then a Newton step on the margin),
    and at the first level of the path where the two sides differ, the margin ``g`` whose zero it
    is chosen: the nearer primitive's outline along that level's ray, the farther one's, their
-   seam, the pattern's cell face, or a shadow caster's outline — the one nearest the crossing.
+   seam, the pattern's cell face, a crease, or a shadow caster's outline — the one nearest the
+   crossing. A pair that differs in more than the face it sees is bisected for that difference.
 3. There, by forward-mode derivatives: ``g_u, g_v`` along the image and ``g_θ`` along the
    parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; rows and columns share the edge
    integral by the weights ``g_u⁴/(g_u⁴ + g_v⁴)`` and ``g_v⁴/(…)`` (they add up to ∫ ds, and neither
@@ -60,9 +65,10 @@ nor the corners of features a few lattice steps across (first order there, as a 
 two edges between neighbouring samples count as one, and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
 tube over its far one: one primitive on both sides, the signature does not change); a shape
-without a margin (polynomials, meshes, open cylinders and cones), a turbulent discrete pattern
+without a margin (polynomials, open cylinders and cones), a turbulent discrete pattern
 and ``clipped_by`` get no term (``Edges.unresolved``
-counts those crossings), nor does a shadow on a mesh or a path through one; neither does the
+counts those crossings), nor do a mesh's shadow outline and the creases between its triangles;
+neither does the
 onset of total internal reflection (a change of branch alone). Not in this term: the shadows of
 area lights whose samples adaptive sampling chooses (a warning says so), a shadow's edge inside
 another caster's shadow (the first caster along the shadow ray is
@@ -104,6 +110,7 @@ from .shading._model import (
 )
 from .shading.camera import camera_rays
 from .shading.whitted import trace
+from .shapes import AbstractShape
 
 # bisection steps from a lattice spacing to the crossing: 2⁻¹⁰ of it (2.4e-4 px at 4×4 samples a pixel),
 # then a Newton step on the margin chosen there, so that the crossing is placed to second order
@@ -138,24 +145,29 @@ class Edges(NamedTuple):
 
 
 def _prim_tables(geo, n_prims: int):
-    """(group (P,), index in its group (P,), has a margin (P,), has creases (P,)) of every
-    primitive (static)."""
+    """(group (P,), index in its group (P,), has a margin (P,), has creases (P,), has a margin as a
+    shadow caster (P,)) of every primitive (static)."""
     group = np.full(max(n_prims, 1), -1, np.int32)
     index = np.zeros(max(n_prims, 1), np.int32)
     for i, (g, j) in geo.where.items():
         group[i], index[i] = g, j
     margins = np.array([type(s).has_margin() for s in geo.shapes], bool)
     has = np.where(group >= 0, margins[np.maximum(group, 0)] if len(margins) else False, False)
+    # a shadow caster's item is not known (the lattice keeps its primitive): a mesh casts no term
+    whole = np.array([type(s).silhouette_margin is not AbstractShape.silhouette_margin for s in geo.shapes],
+                     bool)
+    casts = np.where(group >= 0, whole[np.maximum(group, 0)] if len(whole) else False, False)
     faces = np.array([type(s).faces > 1 for s in geo.shapes], bool)
     creased = np.where(group >= 0, faces[np.maximum(group, 0)] if len(faces) else False, False)
-    return group, index, has, creased
+    return group, index, has, creased, casts
 
 
-def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased: bool = False):
+def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased: bool = False,
+              meshes: bool = False):
     """``fn(shape, object-space o, d, object_from_world)`` of the primitive ``p`` (traced index),
     over every group of a shape class with a margin (``every_shape``: of any class but meshes, whose
-    every triangle a call would cross; ``creased``: of a class of several faces); ``fill`` where it
-    has none."""
+    every triangle a call would cross, unless ``meshes``: ``fn`` then asks one; ``creased``: of a
+    class of several faces); ``fill`` where it has none."""
     group, index = tables[:2]
     out = jnp.asarray(fill, o.dtype)
     g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
@@ -163,7 +175,7 @@ def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased
         if creased:
             if type(shapes).faces <= 1:
                 continue
-        elif not (type(shapes).has_margin() or (every_shape and shapes.kind != "mesh")):
+        elif not (type(shapes).has_margin() or (every_shape and (meshes or shapes.kind != "mesh"))):
             continue
         j = jnp.clip(j_of, 0, ofw.shape[0] - 1)
         shape = jax.tree_util.tree_map(lambda x, j=j: x[j], shapes)
@@ -172,8 +184,9 @@ def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased
     return out
 
 
-def _margin(geo, tables, p, o, d):
-    return _per_prim(geo, tables, p, o, d, lambda s, oo, dd, _: s.silhouette_margin(oo, dd), jnp.nan)
+def _margin(geo, tables, p, o, d, sub=0):
+    """The outline margin of primitive ``p`` (of its item ``sub``: a mesh's triangle) along the line."""
+    return _per_prim(geo, tables, p, o, d, lambda s, oo, dd, _: s.item_margin(oo, dd, sub), jnp.nan)
 
 
 def _face_of(geo, tables, p, o, d, t):
@@ -194,26 +207,27 @@ def _crease(geo, tables, p, o, d, face_a, face_b, t_ref):
     return _per_prim(geo, tables, p, o, d, gap, jnp.nan, creased=True)
 
 
-def _nearest_hit(geo, tables, p, o, d, t_min, t_ref=None):
+def _nearest_hit(geo, tables, p, o, d, t_min, t_ref=None, sub=None):
     """``(t, n)``: the first crossing beyond ``t_min`` of the line ``o + t d`` with primitive ``p``
-    (any shape but a mesh; ``inf`` where none) and its unit world normal; with a finite ``t_ref``
+    (with ``sub``, of its item ``sub`` alone, ``AbstractShape.sub_hits``: a mesh's triangle; any
+    shape but a mesh without; ``inf`` where none) and its unit world normal; with a finite ``t_ref``
     (held), the crossing beyond ``t_min`` nearest it — the one seen where a CSG operand's far side
     is (a difference's cut) or where a surface is seen through another (the choice is held: its
     value and derivatives are that crossing's)."""
     def nearest(s, oo, dd, m):
-        t, n = s.hits(oo, dd)
+        t, n = s.hits(oo, dd) if sub is None else s.sub_hits(oo, dd, sub)
         t = jnp.where(t > t_min, t, jnp.inf)
         key = t if t_ref is None else jnp.where(jnp.isfinite(t_ref), jnp.abs(t - t_ref), t)
         i = jnp.argmin(jax.lax.stop_gradient(key))
         return jnp.concatenate([t[i][None], world_normal(n[i], m)])
 
     fill = jnp.concatenate([jnp.full(1, jnp.inf, o.dtype), jnp.zeros(3, o.dtype)])
-    out = _per_prim(geo, tables, p, o, d, nearest, fill, every_shape=True)
+    out = _per_prim(geo, tables, p, o, d, nearest, fill, every_shape=True, meshes=sub is not None)
     return out[0], out[1:]
 
 
-def _nearest_t(geo, tables, p, o, d, t_min, t_ref=None):
-    return _nearest_hit(geo, tables, p, o, d, t_min, t_ref)[0]
+def _nearest_t(geo, tables, p, o, d, t_min, t_ref=None, sub=None):
+    return _nearest_hit(geo, tables, p, o, d, t_min, t_ref, sub)[0]
 
 
 def _discrete(mats):
@@ -263,8 +277,10 @@ def _image_ray(camera, width: int, height: int, u, v):
     return o[0], d[0]
 
 
-# a level's signature: primitive, pattern cell, branch, face, then the shadow casters' columns
-FACE, CASTERS = 3, 4
+# a level's signature: primitive, pattern cell, branch, face, item, then the shadow casters' columns;
+# the item (``Hit.sub``: a mesh's triangle) is carried, not compared: it names the triangle whose
+# edge a mesh's outline is
+FACE, ITEM, CASTERS = 3, 4, 5
 CREASE = 4  # the margins' kind of a crease (``boundary_term.margins``)
 
 
@@ -296,7 +312,7 @@ def _transition(pa, pb, idx, j, ch, levels: int, width_: int, own: int, n_sample
         # (the faces seen are not compared: an outline goes on through the corner where the face
         # beside it changes, and the creases that meet at a corner are one edge's turn there)
         ne = ((y[j] != x[idx][:, None, :]).reshape(*j.shape, levels, width_)
-              & (jnp.arange(width_) != FACE)[None, None, None, :])
+              & ((jnp.arange(width_) != FACE) & (jnp.arange(width_) != ITEM))[None, None, None, :])
         path = jnp.any(ne[..., :own], axis=(-2, -1))
         if not n_samples:
             return ~path
@@ -503,6 +519,9 @@ def _left_out(plan, mats, ctx) -> list[str]:
     if shapes:
         out.append("the outlines of " + ", ".join(("open " if name in ("cylinder", "cone") else "") + name
                                                   for name in shapes))
+    lit = bool(hard_shadow_lights(ctx) or grid_shadow_lights(ctx) or adaptive_shadow_lights(ctx))
+    if lit and any(prim.rendered and prim.obj.shape.kind == "mesh" for prim in plan.prims):
+        out.append("the creases between a mesh's triangles, and the outline of a mesh's shadow")
     if any(not prim.rendered for prim in plan.prims):
         out.append("the cuts of clipped_by")
     cells = sorted(mats.pattern_names[k] for k, face in _discrete(mats) if face is None or mats.turbulent[k])
@@ -556,7 +575,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     effects = plan.effects
     bounces = min(PATH_BOUNCES, max(int(scene.settings.max_trace_level) - 1, 0))
     levels = 1 + (bounces if (effects.reflection or effects.refraction) else 0)
-    width_ = CASTERS + entries  # a level's entries: primitive, cell, branch, face, casters
+    width_ = CASTERS + entries  # a level's entries: primitive, cell, branch, face, item, casters
     transparent = jnp.asarray(mats.tables["transparent"], bool)
     # float32 points of discrete patterns computed at the surface, as the shading computes them
     refine = cells and dtype == jnp.float32
@@ -644,7 +663,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
                 alive, mirror = branch != STOP, branch == REFLECT
             row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch,
-                             jnp.where(found, face, 0), *casts])
+                             jnp.where(found, face, 0), jnp.where(found, hit.sub, 0), *casts])
             return (o, d, alive, mirror), (row.astype(jnp.int32), jnp.where(found, hit.t, jnp.inf))
 
         def casters_at(found, hit, p, d):
@@ -698,15 +717,16 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
         def bounce(carry, x):
             o, d, out_o, out_d = carry
-            index, prim, branch = x
+            index, prim, branch, item = x
             prim = jnp.maximum(prim, 0)
-            t, n = _nearest_hit(pk.geo, tables, prim, o, d, guard(o))
+            t, n = _nearest_hit(pk.geo, tables, prim, o, d, guard(o), sub=item)
             o, d, _ = child(pk.mats, prim, o, d, t, n, branch)
             out_o, out_d = jnp.where(level == index, o, out_o), jnp.where(level == index, d, out_d)
             return (o, d, out_o, out_d), None
 
         (_, _, out_o, out_d), _ = jax.lax.scan(bounce, (o, d, o, d),
-                                               (jnp.arange(1, levels), rows[:-1, 0], rows[:-1, 2]))
+                                               (jnp.arange(1, levels), rows[:-1, 0], rows[:-1, 2],
+                                                rows[:-1, ITEM]))
         return out_o, out_d
 
     own = CASTERS + n_points  # channel 0's entries of a level: primitive … face, point-light casters
@@ -717,6 +737,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         branch or point-light caster; 1 + s: the caster towards grid sample s at some level, where
         channel 0 agrees (an edge of the path itself counts once, in channel 0)."""
         ne = (s_a != s_b).reshape(*s_a.shape[:-1], levels, width_)
+        ne = ne & jnp.expand_dims(jnp.arange(width_) != ITEM, tuple(range(ne.ndim - 1)))
         path = jnp.any(ne[..., :own], axis=(-2, -1))
         grid = jnp.any(ne[..., own:], axis=-2) & ~path[..., None]
         return jnp.concatenate([path[..., None], grid], axis=-1)
@@ -726,7 +747,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         level of the path where it does, and there the shadow entry that differs (channel 0: the
         first point light's; else its grid sample's). Unless ``faces`` (a traced bool), the faces
         seen are not compared."""
-        ne = (s_a != s_b).reshape(levels, width_)
+        ne = (s_a != s_b).reshape(levels, width_) & (jnp.arange(width_) != ITEM)[None, :]
         if faces is not True:
             ne = ne & ((jnp.arange(width_) != FACE) | faces)[None, :]
         level = jnp.argmax(jnp.any(ne[:, :own], axis=1))
@@ -757,7 +778,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         """The pattern-space point of ``prim``'s top layer where the ray at ``level`` of the path
         through (u, v) crosses it (nearest ``t_ref``)."""
         o, d = path_ray(sc, pk, sig, level, u, v)
-        return point_in_pattern(pk, prim, o, d, _nearest_t(pk.geo, tables, prim, o, d, guard(o), t_ref))
+        item = sig.reshape(levels, width_)[level, ITEM]
+        return point_in_pattern(pk, prim, o, d, _nearest_t(pk.geo, tables, prim, o, d, guard(o), t_ref, item))
 
     def point_in_pattern(pk, prim, o, d, t):
         """The pattern-space point of ``prim``'s top layer at ``o + t d`` (``o`` where t is inf)."""
@@ -802,7 +824,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     u0, v0 = (c.astype(dtype) - 0.5) * h, (r.astype(dtype) - 0.5) * h
     axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
 
-    has, creased = (jnp.asarray(x) for x in tables[2:])
+    has, creased, casts_term = (jnp.asarray(x) for x in tables[2:])
 
     def margins(sc, pk, s_lo, s_hi, face, level, entry, t_ref, u, v):
         """(5 or 7,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
@@ -821,26 +843,28 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         o, d = path_ray(sc, pk, s_lo, level, u, v)
         lo_, hi_ = jnp.maximum(a[0], 0), jnp.maximum(b[0], 0)
         scale = guard(o)
-        t_lo = _nearest_t(geo_, tables, lo_, o, d, scale, t_ref)
-        seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale, t_ref)
+        t_lo = _nearest_t(geo_, tables, lo_, o, d, scale, t_ref, a[ITEM])
+        seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale, t_ref, b[ITEM])
         on_face = jnp.zeros((), o.dtype)
         if cells:  # the same ray and crossing as the outline's
             on_face = jnp.dot(face[0], point_in_pattern(pk, lo_, o, d, t_lo)) - face[1]
         crease = jnp.zeros((), o.dtype)
         if creases:  # between the faces of one primitive either side, along the same ray
             crease = _crease(geo_, tables, lo_, o, d, a[FACE], b[FACE], t_ref)
-        out = [_margin(geo_, tables, lo_, o, d), _margin(geo_, tables, hi_, o, d), seam, on_face, crease]
+        out = [_margin(geo_, tables, lo_, o, d, a[ITEM]), _margin(geo_, tables, hi_, o, d, b[ITEM]), seam,
+               on_face, crease]
         if entries:
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
             l = towards_light(sc, entry, p)
-            seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point (a mesh)
+            seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point
             out += [_margin(geo_, tables, jnp.maximum(s[CASTERS + entry], 0), p, l) + seen_at for s in (a, b)]
         return jnp.stack(out)
 
     def locate(s_a, u, v, e, ch, upto, shadows):
         """The first change of channel ``ch`` of what is seen along the pair's segment from its
         first sample, by bisection of the signature seen (a fixed number of steps): ``(lo, hi,
-        signature seen at hi, kind, face, level, entry, t_ref, g_u, g_v, cross)`` — ``lo``, ``hi`` in pixels
+        signature seen at hi, kind, face, level, entry, t_ref, g_u, g_v, cross, signature seen at lo)``
+        — ``lo``, ``hi`` in pixels
         along ``e`` from (u, v); ``kind`` the margin whose zero it is, at the paths' first level
         where the channel differs (0: the outline of ``s_a``'s primitive, 1: of the primitive
         beyond, 2: their seam, 3: a cell face of one primitive's pattern, 4: a crease between two of
@@ -857,39 +881,41 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
         # a pair whose samples differ in more than the face seen looks for that difference: a crease
         # between them (a face a sliver's width) must not hide the outline beyond it
+        # (the signature at ``lo`` is carried too: a mesh's outline is the edge of the triangle seen
+        # there, not of the one the pair's first sample sees)
         def step(i, state):
-            lo, hi, s_hi, t_hi, faces = state
+            lo, hi, s_lo, s_hi, t_hi, faces = state
             first = i == 0
             mid = jnp.where(first, hi, 0.5 * (lo + hi))
             s_mid, t_mid = seen(u + mid * e[0], v + mid * e[1], sample, (s_a, upto, shadows))
             faces = jnp.where(first, ~changed(s_a, s_mid, ch, False)[0], faces)
             same = ~changed(s_a, s_mid, ch, faces)[0] & ~first
-            return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid),
+            return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid), jnp.where(same, s_mid, s_lo),
                     jnp.where(same, s_hi, s_mid), jnp.where(same, t_hi, t_mid), faces)
 
-        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a, jnp.full(levels, jnp.inf, dtype),
+        start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a, s_a, jnp.full(levels, jnp.inf, dtype),
                  jnp.asarray(True))
-        lo, hi, s_hi, t_hi, faces = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
+        lo, hi, s_lo, s_hi, t_hi, faces = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
         _, level, entry = changed(s_a, s_hi, ch, faces)
         # the distance seen just beyond the crossing, at its level: each side's primitive is crossed
         # nearest it (a difference's cut is on its subtracted operand's far side)
         t_ref = jax.lax.stop_gradient(t_hi[level])
-        a, b = s_a.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
+        a, b = s_lo.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
         p_lo, p_hi = a[0], b[0]
         one = (p_lo == p_hi) & (p_lo >= 0)
         face = (jnp.zeros(3, dtype), jnp.zeros((), dtype))
         has_face = jnp.zeros((), bool)
         if cells:  # the face between the cells just before and just after the crossing
             prim = jnp.maximum(p_lo, 0)
-            q_a, q_b = (pattern_point(scene, packed, s_a, level, prim, t_ref, u + s * e[0], v + s * e[1])
-                        for s in (lo - SIDE_OFFSET, hi + SIDE_OFFSET))
+            q_a, q_b = (pattern_point(scene, packed, sig_, level, prim, t_ref, u + s * e[0], v + s * e[1])
+                        for sig_, s in ((s_lo, lo - SIDE_OFFSET), (s_hi, hi + SIDE_OFFSET)))
             normal, offset, has_face = _face(mats, prim, q_a, q_b)
             face = (normal, offset)
         mid = 0.5 * (lo + hi)
         # every margin and its derivatives along the image at the crossing: one jvp, two tangents
         point = jnp.stack([u + mid * e[0], v + mid * e[1]])
         def at(uv):
-            return margins(scene, packed, s_a, s_hi, face, level, entry, t_ref, uv[0], uv[1])
+            return margins(scene, packed, s_lo, s_hi, face, level, entry, t_ref, uv[0], uv[1])
 
         g, (g_u, g_v) = jax.vmap(lambda t: jax.jvp(at, (point,), (t,)), out_axes=(None, 0))(
             jnp.eye(2, dtype=dtype))
@@ -901,7 +927,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                  path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE])]
         if entries:  # (channel 0's shadow entries are the point lights')
             shadow = one & (a[CASTERS + entry] != b[CASTERS + entry]) & (path == (entry < n_points))
-            valid += [shadow & (c_ >= 0) & has[jnp.maximum(c_, 0)]
+            valid += [shadow & (c_ >= 0) & casts_term[jnp.maximum(c_, 0)]
                       for c_ in (a[CASTERS + entry], b[CASTERS + entry])]
         valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
@@ -911,7 +937,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # (its place second order in the bracket's width)
         cross = jnp.clip(mid - g[kind] / jnp.where(g_s[kind] != 0, g_s[kind], 1.0), lo, hi)
         return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, level, entry, t_ref,
-                g_u[kind], g_v[kind], cross)
+                g_u[kind], g_v[kind], cross, s_lo)
 
     # 2.–4. a loop over the chunks of the room that hold crossings (the rest costs nothing): each
     # crossing located, and the two camera rays just before and just after it along its axis traced
@@ -936,7 +962,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         return (*res, colours[:CHUNK] - colours[CHUNK:], lost)
 
     found_ = map_in_place(locate_chunk, (pa, u0, v0, axis, ch, live, first_level, in_shadow), live, CHUNK)
-    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, jump, lost = jax.tree.map(sg, found_)
+    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, p_lo, jump, lost = jax.tree.map(sg, found_)
     dropped = jnp.sum(lost)
     ok = live & (kind >= 0)
     g_u, g_v = jnp.where(ok, g_u, 0.0), jnp.where(ok, g_v, 0.0)
@@ -972,7 +998,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
     pk_floats, pk_dot = jax.jvp(packed_floats, (dynamic,), (tangent,))
     flat_dot, unravel = ravel_pytree((tangent, pk_dot))
-    per_margin = (kind, pa, pb, face, level, entry, t_ref, pu, pv)
+    per_margin = (kind, p_lo, pb, face, level, entry, t_ref, pu, pv)
     per_spread = (scale, in_rows, at, across, low, high, slope, span)
 
     def chosen(point, i, per):

@@ -461,14 +461,16 @@ def _kernel_hits(kernel, arrays, o, d, sub):
 
 def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | jax.Array):
     """The closest item hit beyond ``t_min`` by rays whose visibility bit is ``want``, computed
-    again by its primitive's kernel: ``(found, t, prim, unit world normal)`` (``inverse`` not
-    applied); ``t`` is +inf where nothing is found. A member of a CSG object answers with its
+    again by its primitive's kernel: ``(found, t, prim, unit world normal, sub)`` (``inverse`` not
+    applied; ``sub`` the item's index within its primitive: a mesh's triangle, else 0); ``t`` is
+    +inf where nothing is found. A member of a CSG object answers with its
     crossing nearest the one the query counted (its others may lie where the object is not)."""
     sg = jax.lax.stop_gradient
     want = jnp.asarray(want, jnp.int32)
     item, t_chosen = _hierarchy()[1](accel.tables, sg(o), sg(d), sg(t_min), jnp.asarray(T_MAX, o.dtype), want)
     chosen = jnp.maximum(item, 0)
     best_t, best_n = jnp.asarray(jnp.inf, o.dtype), jnp.zeros(3, o.dtype).at[2].set(1.0)
+    best_sub = jnp.zeros((), jnp.int32)
     for kernel, alike in _alike(accel, shapes, range(len(accel.groups))):
         mine, csg, arrays, m, sub = _chosen_members(accel, alike, shapes, object_from_world, item)
         o_obj, d_obj = matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d)  # the same t
@@ -485,7 +487,8 @@ def closest(accel: Accel, shapes, object_from_world, o, d, t_min, want: int | ja
         closer = tt[c] < best_t
         best_t = jnp.where(closer, tt[c], best_t)
         best_n = jnp.where(closer, world_normal(n[c], m), best_n)
-    return jnp.isfinite(best_t), best_t, accel.item_prim[chosen], best_n
+        best_sub = jnp.where(closer, sub, best_sub).astype(jnp.int32)
+    return jnp.isfinite(best_t), best_t, accel.item_prim[chosen], best_n, best_sub
 
 
 def blocked(accel: Accel, o, d, t_min, t_max):

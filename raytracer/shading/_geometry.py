@@ -825,6 +825,9 @@ class Hit:
     normal: jax.Array  # (3,) unit outward world normal with ``inverse`` applied
     # (3,) the hit point computed near the surface (``closest_hit(…, refine=True)``), or None: ``o + t d``
     point: jax.Array | None = None
+    # int32: the item hit within its primitive (a mesh's triangle; for a shape of one item, the
+    # crossing slot or 0: ``AbstractShape.sub_hits`` and ``item_margin`` do not read it)
+    sub: jax.Array | None = None
 
 
 # crossings within this many machine epsilons of the nearest (relative) are one surface: float32
@@ -868,7 +871,7 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     has a discrete pattern (``Prim.discrete``), at one more evaluation of its kernel per group that
     has one. Values and derivatives are those of ``o + t d`` (the start's ``t`` is held fixed: the
     kernel's crossing from there is the same function of the scene)."""
-    ts, ns, prims = [], [], []
+    ts, ns, prims, subs = [], [], [], []
     if geo.n_candidates:
         # the object's normals: the closest slot's alone is made a world normal, below
         t, n, slot_ofw = all_crossings(geo, o, d, world=False)
@@ -878,19 +881,21 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
         ts.append(jnp.where(ok, t, jnp.inf))
         ns.append(n)
         prims.append(jnp.asarray(geo.cand_prim))
+        subs.append(jnp.asarray(_slot_in_prim(geo.cand_prim)))
     if geo.accel is not None:
-        found, t, prim, n = _accel.closest(geo.accel, geo.shapes, geo.object_from_world, o, d, t_min,
-                                           _accel.MASK_CAMERA if want is None else want)
+        found, t, prim, n, sub = _accel.closest(geo.accel, geo.shapes, geo.object_from_world, o, d, t_min,
+                                                _accel.MASK_CAMERA if want is None else want)
         ts.append(jnp.where(found, t, jnp.inf)[None])
         ns.append(n[None])
         prims.append(jnp.asarray(prim, jnp.int32)[None])
+        subs.append(sub[None])
     if not ts:  # nothing to hit
         ts, ns = [jnp.full(1, jnp.inf, o.dtype)], [jnp.zeros((1, 3), o.dtype)]
-        prims = [jnp.zeros(1, jnp.int32)]
+        prims, subs = [jnp.zeros(1, jnp.int32)], [jnp.zeros(1, jnp.int32)]
     join = (lambda xs: xs[0]) if len(ts) == 1 else jnp.concatenate
-    tt, nn, pp = join(ts), join(ns), join(prims)
+    tt, nn, pp, ss = join(ts), join(ns), join(prims), join(subs)
     c = _closest(geo, tt, pp, o, d)
-    best_t, best_n, best_prim = tt[c], nn[c], pp[c]
+    best_t, best_n, best_prim, best_sub = tt[c], nn[c], pp[c], ss[c]
     if geo.n_candidates:
         slots = slot_ofw.shape[0]
         own = world_normal(nn[jnp.minimum(c, slots - 1)], slot_ofw[jnp.minimum(c, slots - 1)])
@@ -899,7 +904,18 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     normal = best_n * jnp.asarray(geo.prim_table["sign"], best_n.dtype)[best_prim]
     best_t = jnp.where(found, best_t, 0.0)
     point = _refined_point(geo, plan, o, d, best_t, best_prim) if refine else None
-    return Hit(found, best_t, best_prim, normal, point)
+    return Hit(found, best_t, best_prim, normal, point, best_sub)
+
+
+def _slot_in_prim(cand_prim: np.ndarray) -> np.ndarray:
+    """(C,) each candidate slot's place among its primitive's slots (a mesh's slot k is its
+    triangle k: one crossing slot per triangle)."""
+    cand_prim = np.asarray(cand_prim)
+    if cand_prim.size == 0:
+        return np.zeros(0, np.int32)
+    start = np.r_[True, cand_prim[1:] != cand_prim[:-1]]
+    first = np.maximum.accumulate(np.where(start, np.arange(cand_prim.size), 0))
+    return (np.arange(cand_prim.size) - first).astype(np.int32)
 
 
 def _refined_point(geo: PackedGeometry, plan: Plan, o, d, t, prim):

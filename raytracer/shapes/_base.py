@@ -192,10 +192,16 @@ class AbstractShape(Record):
         A shape without one (the default) gets no boundary term at its outline (``has_margin``)."""
         raise NotImplementedError(f"{self.kind} has no silhouette margin")
 
+    def item_margin(self, o: Float[Array, "3"], d: Float[Array, "3"], sub) -> Float[Array, ""]:
+        """:meth:`silhouette_margin` of native item ``sub`` alone (a mesh's triangle: the boundary
+        term knows which one a ray sees, ``Hit.sub``); by default the shape's own."""
+        return self.silhouette_margin(o, d)
+
     @classmethod
     def has_margin(cls) -> bool:
-        """Whether the class gives :meth:`silhouette_margin`."""
-        return cls.silhouette_margin is not AbstractShape.silhouette_margin
+        """Whether the class gives :meth:`silhouette_margin` (or, per item, :meth:`item_margin`)."""
+        return (cls.silhouette_margin is not AbstractShape.silhouette_margin
+                or cls.item_margin is not AbstractShape.item_margin)
 
     # Creases: the smooth pieces of the surface between which its normal jumps (a box's six
     # faces; a closed cylinder's or cone's side and two discs). The boundary term sees a crease as

@@ -18,7 +18,7 @@ from jaxtyping import Array, Float
 from .._build import build
 from .._dtype import as_float
 from ._base import NATIVE_TRIANGLE, AbstractShape, MitsubaShape, mesh_entry, read_arguments
-from ._triangle import smooth_triangle_hits, triangle_hits
+from ._triangle import _triangle_margin, smooth_triangle_hits, triangle_hits
 
 _MESH2_SECTIONS = ("vertex_vectors", "normal_vectors", "uv_vectors", "texture_list", "face_indices",
                    "normal_indices", "uv_indices")
@@ -53,6 +53,12 @@ class Mesh(AbstractShape):
             t, n = jax.vmap(lambda tri, nn: smooth_triangle_hits(tri[0], tri[1], tri[2], nn[0], nn[1], nn[2],
                                                                  o, d))(self.triangles, self.normals)
         return t[:, 0], n[:, 0]
+
+    def item_margin(self, o, d, sub):
+        # the triangle's own: a mesh's outline is where the line leaves the triangle it crosses
+        # last before it, which is the triangle the boundary term's ray saw there
+        tri = self.triangles[sub]
+        return _triangle_margin(tri[0], tri[1], tri[2], o, d)
 
     def bounds(self):
         v = self.triangles.reshape(-1, 3)

@@ -90,7 +90,7 @@ def test_renderer_groups_shapes_by_static_variant_and_vmaps_their_own_kernels():
 # shapes whose outline has no margin yet: no boundary term where their outline moves
 # (``raytracer/_edges.py`` counts those crossings as unresolved). A new shape brings its margin, or
 # joins this list and the list in docs/gradients.md.
-WITHOUT_MARGIN = {"mesh", "poly"}
+WITHOUT_MARGIN = {"poly"}
 
 
 _CREASED = [i for i, c in enumerate(CASES) if type(c.make(*c.params)).faces > 1]
@@ -137,13 +137,16 @@ _MARGINS = [i for i, c in enumerate(CASES) if c.kind not in WITHOUT_MARGIN and n
 def test_a_margin_is_positive_where_the_line_crosses_the_shape_and_crosses_zero_smoothly(index, x64):
     """The sign of ``silhouette_margin`` is the kernel's hit or miss of the line (float64; a plane's
     crossing counts ahead of the origin only), and its derivative along the line's offset is its
-    central difference where it is small (the outline, where the boundary term reads it)."""
+    central difference where it is small (the outline, where the boundary term reads it). A mesh's
+    margin is its triangles' (``item_margin``, against ``sub_hits``): here its first one's."""
     case = CASES[index]
     shape = case.make(*(jnp.asarray(p, jnp.float64) for p in case.params))
     o, d = random_rays(case, 11, 512)
     o, d = jnp.asarray(o, jnp.float64), jnp.asarray(d, jnp.float64)
-    margin = np.asarray(jax.jit(jax.vmap(shape.silhouette_margin))(o, d))
-    t, _ = jax.jit(jax.vmap(shape.hits))(o, d)
+    item = 0
+    margin_of = lambda oo, dd: shape.item_margin(oo, dd, item)  # noqa: E731
+    margin = np.asarray(jax.jit(jax.vmap(margin_of))(o, d))
+    t, _ = jax.jit(jax.vmap(lambda oo, dd: shape.sub_hits(oo, dd, item)))(o, d)
     t = np.asarray(t)
     crosses = np.any(np.isfinite(t) & ((t > 0) if case.kind == "plane" else True), axis=1)
     clear = np.abs(margin) > 1e-9 * case.size ** 2
@@ -151,11 +154,11 @@ def test_a_margin_is_positive_where_the_line_crosses_the_shape_and_crosses_zero_
     assert crosses.any() and not crosses.all(), case.name
     # along an offset of the origin: forward-mode derivative against central differences
     offset = jnp.asarray(np.random.default_rng(3).normal(size=3))
-    slope = jax.vmap(lambda oo, dd: jax.jvp(lambda s: shape.silhouette_margin(oo + s * offset, dd),
+    slope = jax.vmap(lambda oo, dd: jax.jvp(lambda s: margin_of(oo + s * offset, dd),
                                             (0.0,), (1.0,))[1])(o, d)
     step = 1e-6 * case.size
-    central = (jax.vmap(shape.silhouette_margin)(o + step * offset[None, :], d)
-               - jax.vmap(shape.silhouette_margin)(o - step * offset[None, :], d)) / (2 * step)
+    central = (jax.vmap(margin_of)(o + step * offset[None, :], d)
+               - jax.vmap(margin_of)(o - step * offset[None, :], d)) / (2 * step)
     near = np.argsort(np.abs(margin))[:64]
     np.testing.assert_allclose(np.asarray(slope)[near], np.asarray(central)[near], rtol=1e-5,
                                atol=1e-7 * float(np.max(np.abs(central))))
