@@ -19,9 +19,8 @@ demo: setup
 
 # The full suite, slow tests included (this is what CI runs). worksteal: an idle worker takes tests
 # from a busy one, so no file's long tests pin the run to one core; tests/conftest.py gives the run
-# one JAX compilation cache that the workers share. Three workers on two cores: with two, the
-# cores were busy 88 % of the run (tests wait on POV-Ray, Mitsuba and their own subprocesses);
-# measured, one run each: 2 workers 5.7 min, 3 workers 5.0, 4 workers 5.4.
+# one JAX compilation cache that the workers share. Three workers on two cores: tests wait on
+# POV-Ray, Mitsuba and their own subprocesses. 13.6 min on 2 cores at 1b47a01 (docs/test-suite.md).
 test: setup
 	$(PY) -m pytest -q -n 3 --dist worksteal -p no:cacheprovider
 
