@@ -20,7 +20,7 @@ demo: setup
 # The full suite, slow tests included (this is what CI runs). worksteal: an idle worker takes tests
 # from a busy one, so no file's long tests pin the run to one core; tests/conftest.py gives the run
 # one JAX compilation cache that the workers share. Three workers on two cores: tests wait on
-# POV-Ray, Mitsuba and their own subprocesses. 13.6 min on 2 cores at 1b47a01 (docs/test-suite.md).
+# POV-Ray, Mitsuba and their own subprocesses. 12.1 min on 2 cores at f4c68ac (docs/test-suite.md).
 test: setup
 	$(PY) -m pytest -q -n 3 --dist worksteal -p no:cacheprovider
 
