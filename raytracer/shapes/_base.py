@@ -23,6 +23,7 @@ fields the static variants) that also carries, as methods and class variables:
 ``from_sdl(fields)``          builds the shape from what ``parse_sdl`` returned
 ``to_mitsuba(m, camera)``     its exact Mitsuba 3 equivalent, or raises :class:`NoEquivalent`
 ``silhouette_margin(o, d)``   a smooth function of a line, positive where it crosses the shape
+``item_margin(o, d, sub)``    the same for one native item (a mesh's triangle ``sub``)
 ``faces``, ``face(p)``,       the smooth pieces of its surface and which one a point lies on; the
 ``face_distance(…)``          line's crossing with one piece's whole surface (creases, edges=True)
 ============================  ========================================================================
