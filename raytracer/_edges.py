@@ -151,15 +151,20 @@ def _prim_tables(geo, n_prims: int):
     index = np.zeros(max(n_prims, 1), np.int32)
     for i, (g, j) in geo.where.items():
         group[i], index[i] = g, j
-    margins = np.array([type(s).has_margin() for s in geo.shapes], bool)
-    has = np.where(group >= 0, margins[np.maximum(group, 0)] if len(margins) else False, False)
-    # a shadow caster's item is not known (the lattice keeps its primitive): a mesh casts no term
-    whole = np.array([type(s).silhouette_margin is not AbstractShape.silhouette_margin for s in geo.shapes],
-                     bool)
-    casts = np.where(group >= 0, whole[np.maximum(group, 0)] if len(whole) else False, False)
-    faces = np.array([type(s).faces > 1 for s in geo.shapes], bool)
-    creased = np.where(group >= 0, faces[np.maximum(group, 0)] if len(faces) else False, False)
-    return group, index, has, creased, casts
+
+    def of_class(test):  # (P,): ``test`` of each primitive's shape class
+        per_group = np.array([test(type(s)) for s in geo.shapes], bool)
+        return np.where(group >= 0, per_group[np.maximum(group, 0)] if len(per_group) else False, False)
+
+    # a shadow caster's item is not known (the lattice keeps its primitive): a shape whose margin
+    # is its items' (a mesh) casts no term
+    return (group, index, of_class(lambda c: c.has_margin()), of_class(lambda c: c.faces > 1),
+            of_class(_whole_margin))
+
+
+def _whole_margin(cls) -> bool:
+    """Whether shape class ``cls`` has a margin of the whole shape, not only of each item's."""
+    return cls.silhouette_margin is not AbstractShape.silhouette_margin
 
 
 def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased: bool = False,
@@ -520,8 +525,10 @@ def _left_out(plan, mats, ctx) -> list[str]:
         out.append("the outlines of " + ", ".join(("open " if name in ("cylinder", "cone") else "") + name
                                                   for name in shapes))
     lit = bool(hard_shadow_lights(ctx) or grid_shadow_lights(ctx) or adaptive_shadow_lights(ctx))
-    if lit and any(prim.rendered and prim.obj.shape.kind == "mesh" for prim in plan.prims):
-        out.append("the creases between a mesh's triangles, and the outline of a mesh's shadow")
+    per_item = sorted({prim.obj.shape.kind for prim in plan.prims if prim.rendered
+                       and type(prim.obj.shape).has_margin() and not _whole_margin(type(prim.obj.shape))})
+    if lit and per_item:
+        out.append("the creases between the triangles, and the shadow's outline, of " + ", ".join(per_item))
     if any(not prim.rendered for prim in plan.prims):
         out.append("the cuts of clipped_by")
     cells = sorted(mats.pattern_names[k] for k, face in _discrete(mats) if face is None or mats.turbulent[k])
