@@ -80,8 +80,9 @@ class AccelUnavailable(RuntimeError):
 
 @functools.cache
 def _library() -> str | None:
-    """Loads the native library and registers its FFI targets (the hierarchy's, and POV-Ray's
-    anti-aliasing rule, ``_adaptive._scan_flags``); the reason it failed otherwise."""
+    """Loads the native library and registers its FFI targets (the hierarchy's, POV-Ray's
+    anti-aliasing rule, ``_adaptive._scan_flags``, and compaction, ``_chunks.nonzero``); the reason
+    it failed otherwise."""
     folder = Path(__file__).resolve().parent.parent / "_native"
     found = sorted(folder.glob("_bvh*.so"))
     if not found:
@@ -94,6 +95,9 @@ def _library() -> str | None:
         for suffix in ("F32", "F64"):
             capsule = jax.ffi.pycapsule(getattr(lib, name + suffix))
             jax.ffi.register_ffi_target(f"raytracer_{name}{suffix}", capsule, platform="cpu")
+    for name in ("Compact", "StableOrder"):  # (``_chunks.nonzero``, ``_chunks.stable_order``)
+        capsule = jax.ffi.pycapsule(getattr(lib, name))
+        jax.ffi.register_ffi_target(f"raytracer_{name}", capsule, platform="cpu")
     return None
 
 

@@ -30,6 +30,38 @@ def partition(alive):
     return order, pos
 
 
+def _native() -> bool:
+    """Whether the native compaction (``_native/compact.cc``) serves this process: the CPU backend
+    with the library built."""
+    from . import _accel
+
+    return jax.default_backend() == "cpu" and _accel.unavailable_reason() is None
+
+
+def nonzero(mask, size: int):
+    """``(index, count)``: the flat positions (``size``,) int32 of the first ``size`` true entries of
+    ``mask`` in order (then zeros), and how many there are (may exceed ``size``). On the CPU the
+    plain loop (``_native/compact.cc``): XLA's ``jnp.nonzero`` is a cumulative sum and a scatter
+    over the whole mask (17.5 ms for 1.7M entries on a 2-core Xeon, where the loop takes ~1 ms)."""
+    flat = mask.reshape(-1)
+    if _native():
+        shapes = (jax.ShapeDtypeStruct((size,), jnp.int32), jax.ShapeDtypeStruct((), jnp.int32))
+        return jax.ffi.ffi_call("raytracer_Compact", shapes, vmap_method="sequential")(flat)
+    count = jnp.sum(flat, dtype=jnp.int32)
+    return jnp.nonzero(flat, size=size, fill_value=0)[0].astype(jnp.int32), count
+
+
+def stable_order(key, bound: int):
+    """The permutation (n,) int32 that sorts ``key`` (n,) of integers in [0, ``bound``), ties in
+    index order. On the CPU a counting sort (``_native/compact.cc``; XLA's stable argsort of 43k
+    keys takes 5.4 ms); elsewhere ``jnp.argsort``."""
+    key = jnp.clip(key.astype(jnp.int32), 0, bound - 1)
+    if _native():
+        return jax.ffi.ffi_call("raytracer_StableOrder", jax.ShapeDtypeStruct(key.shape, jnp.int32),
+                                vmap_method="sequential")(key)
+    return jnp.argsort(key, stable=True).astype(jnp.int32)
+
+
 def divisor_near(n: int, target: int) -> int:
     """The divisor of ``n`` closest to ``target`` (at least 1)."""
     divisors = [k for k in range(1, n + 1) if n % k == 0]
