@@ -31,8 +31,9 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
    columns) with different ones holds a crossing of Γ — in
    channel 0 where the path, its cells or a point light's caster differ, else one crossing for each
    grid sample whose caster differs (a penumbra's sample outlines lie closer together than the
-   lattice's spacing, and each is an edge). The (pair, channel)s are compacted (``jnp.nonzero``
-   with a static room), so the work follows the edges' length.
+   lattice's spacing, and each is an edge). The (pair, channel)s are compacted
+   (``_chunks.nonzero``: a native loop on the CPU) into a static room, so the work follows the
+   edges' length. The lattice's rows are split over the local devices, as the render's tiles are.
 2. On each pair, the first change of its channel is bisected (a fixed number of steps, values only,
    tracing only the levels and shadow rays the pair differs in, then a Newton step on the margin),
    and at the first level of the path where the two sides differ, the margin ``g`` whose zero it
@@ -54,8 +55,9 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 The term is linear in the tangent (only ``g_θ`` carries it), so reverse mode is its transpose:
 ``render(…, edges=True)`` wraps the render in a ``jax.custom_jvp`` whose tangent is the render's
 own plus this one. Every step after the compaction runs over the room's chunks that hold crossings
-and no others (a loop whose length the program computes); the linear map and its transpose are two
-such loops (``_linear.linear_call``), so forward and reverse mode both cost what the edges' length
+and no others (a loop whose length the program computes; the bisections' chunks dealt to the local
+devices in turn); the linear map and its transpose are two such loops (``_linear.linear_call``),
+so forward and reverse mode both cost what the edges' length
 asks, not what the room holds.
 
 Discretised, and where it fails: the row and column sums are a quadrature of the edge integral with
@@ -93,11 +95,12 @@ from . import patterns
 from ._linear import linear_call
 from ._packed import pack
 from ._plan import make_plan
+from ._tiles import _mesh, _replicated
 from .kernels import world_normal
 from .scene import Scene, environment_of
 from .shading import _accel, lighting
-from .shading._chunks import map_in_place
-from .shading._geometry import _to_object, closest_hit, prim_bits
+from .shading._chunks import closure, map_in_place, nonzero, stable_order
+from .shading._geometry import _to_object, all_crossings, bound_mask, closest_hit, csg_mask, prim_bits
 from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
 from .shading._model import (
     adaptive_shadow_lights,
@@ -124,6 +127,8 @@ EDGE_LATTICE = 4
 # wide operations, few of them, and memory bounded (the 64×48 lattice at 4×4 samples a pixel, three
 # rays a sample, is two blocks)
 LATTICE_BLOCK = 131072
+# the lattice is split over the local devices where each gets at least this many rays to trace
+LATTICE_SHARD_RAYS = 16384
 # the two rays that see either side of a crossing are this far (pixels) beyond the bisection's
 # last interval
 SIDE_OFFSET = 1e-3
@@ -276,6 +281,22 @@ def _face(mats, prim, q_a, q_b):
     return normal, offset, has
 
 
+def _first_caster(geo, plan, o, d, t_min, t_max, visible, want):
+    """The primitive of the nearest crossing of the ray with ``t_min < t < t_max`` among the shadow
+    casters (candidates where ``visible`` holds, accelerated primitives with bits ``want``), -1
+    where none: ``closest_hit`` without what a caster's identity does not need (normals, POV-Ray's
+    order among exactly tied crossings: the first candidate of a tie is the caster)."""
+    if geo.accel is not None or not geo.n_candidates:
+        caster = closest_hit(geo, plan, o, d, t_min, visible, want)
+        return jnp.where(caster.found & (caster.t < t_max), caster.prim, -1)
+    t = all_crossings(geo, o, d, world=False)[0]
+    ok = visible & (t > t_min) & (t < jnp.minimum(t_max, _accel.T_MAX)) & jnp.isfinite(t)
+    ok = ok & csg_mask(geo, geo.conditions, o, d, t) & bound_mask(geo, geo.bounds, o, d, t_min, t.shape[0])
+    t = jnp.where(ok, t, jnp.inf)
+    c = jnp.argmin(t)
+    return jnp.where(jnp.isfinite(t[c]), jnp.asarray(geo.cand_prim)[c], -1)
+
+
 def _image_ray(camera, width: int, height: int, u, v):
     """The camera ray through image point (u, v) in pixels (u right, v down from the top left)."""
     o, d = camera_rays(camera, jnp.asarray(u / width - 0.5)[None], jnp.asarray(0.5 - v / height)[None])
@@ -300,6 +321,43 @@ def _room(width: int, height: int, k: int) -> int:
     ``CHUNK``."""
     pairs = 2 * (width * k) * (height * k)
     return -(-min(pairs, 32 * k * (width + height)) // CHUNK) * CHUNK
+
+
+def _sharded_rows(fn, blocks, n_dev: int):
+    """``fn(blocks)`` with the leading axis of ``blocks`` (a multiple of ``n_dev``) split over
+    ``n_dev`` local devices, the result whole on each (what follows the lattice reads any row)."""
+    if n_dev == 1:
+        return fn(blocks)
+    spec = jax.sharding.PartitionSpec("tiles")
+    out = jax.shard_map(fn, mesh=_mesh(n_dev), in_specs=spec, out_specs=spec, check_vma=False)(blocks)
+    return _replicated(out, n_dev)
+
+
+def _dealt_map(fn, items, live, n_dev: int):
+    """``map_in_place(fn, items, live, CHUNK)`` with the room's chunks dealt to ``n_dev`` local
+    devices in turn (the live ones are the first: each device gets a like share), each running its
+    own loop up to its last live chunk; the result whole on each device. The room is a multiple of
+    ``CHUNK × n_dev``."""
+    if n_dev == 1:
+        return map_in_place(fn, items, live, CHUNK)
+    room = live.shape[0]
+    n_chunks = room // CHUNK
+    dealt = np.arange(n_chunks).reshape(-1, n_dev).T.reshape(-1)  # device d: chunks d, d + n_dev, …
+    back = np.argsort(dealt)
+
+    def permuted(x, order):
+        return x.reshape(n_chunks, CHUNK, *x.shape[1:])[order].reshape(x.shape)
+
+    # (``fn`` traced here, outside the devices' program, and what it closes over passed in whole)
+    body, consts, _ = closure(fn, items, CHUNK)
+    spec, whole = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
+    def run(it, lv, cs):
+        return map_in_place(lambda x: body(x, *cs), it, lv, CHUNK)
+
+    out = jax.shard_map(run, mesh=_mesh(n_dev), in_specs=(spec, spec, whole), out_specs=spec,
+                        check_vma=False)(
+        *jax.tree.map(lambda x: permuted(x, dealt), (items, live)), consts)
+    return _replicated(jax.tree.map(lambda x: permuted(x, back), out), n_dev)
 
 
 def _take(x, i):
@@ -589,7 +647,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # each grid sample's shadow outline is an edge of its own: room for four image perimeters of it
     if room is None:
         room = _room(width, height, k) + n_samples * 4 * k * (width + height)
-    room = -(-room // CHUNK) * CHUNK
+    # the local devices the lattice's rows and the crossings' chunks are split over (as the
+    # render's tiles are), where each gets at least LATTICE_SHARD_RAYS of the lattice's rays
+    n_dev = len(jax.local_devices())
+    lattice_rays = (height * k + 2) * (width * k + 2) * levels * (1 + entries)
+    n_dev = n_dev if lattice_rays >= n_dev * LATTICE_SHARD_RAYS else 1
+    room = -(-room // (CHUNK * n_dev)) * CHUNK * n_dev
 
     def guard(x):
         """The model's rounding guard at point ``x`` (a start offset along a ray, a spawn offset),
@@ -682,10 +745,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 start = guard(p_out)
                 for i in shadow_lights:
                     l, _, shadow_len = light_geometry(ctx, scene.lights[i], p)
-                    caster = closest_hit(geo, plan, p_out, l, start, vis_shadow, casters)
-                    on = (found & caster.found & (caster.t < shadow_len - start)
-                          & (jnp.dot(n, l) > lighting.NL_EPSILON))
-                    casts.append(jnp.where(on, caster.prim, -1))
+                    caster = _first_caster(geo, plan, p_out, l, start, shadow_len - start, vis_shadow,
+                                           casters)
+                    casts.append(jnp.where(found & (jnp.dot(n, l) > lighting.NL_EPSILON), caster, -1))
             if grid_lights:  # towards each sample, as the model's shadow rays go
                 towards = []  # (position, lit) of every sample
                 for i, n_i in grid_lights:
@@ -698,8 +760,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 def caster_towards(q, lit, start=start, p_out=p_out):
                     to = q - p_out
                     dist = jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30))
-                    caster = closest_hit(geo, plan, p_out, to / dist, start, vis_shadow, casters)
-                    return jnp.where(lit & caster.found & (caster.t < dist - start), caster.prim, -1)
+                    return jnp.where(lit, _first_caster(geo, plan, p_out, to / dist, start, dist - start,
+                                                        vis_shadow, casters), -1)
 
                 if sample is None:
                     casts.extend(jax.vmap(caster_towards)(targets, lit))
@@ -793,19 +855,31 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         return _pattern_point(pk.mats, prim * pk.mats.n_layers, o + jnp.where(jnp.isfinite(t), t, 0.0) * d)
 
     centres = (jnp.arange(max(rows, cols), dtype=dtype) - 0.5) * h
-    per_block = max(1, min(rows, LATTICE_BLOCK // (levels * (1 + entries) * cols)))
-    blocks = -(-rows // per_block)
+    rays = levels * (1 + entries)  # a sample's rays: one a level, and one to each light or sample there
+    # the lattice's rows split over the devices (each block of rows independent), each device's
+    # share in blocks of whole rows
+    per_block = max(1, min(-(-rows // n_dev), LATTICE_BLOCK // (rays * cols)))
+    blocks = -(-rows // (per_block * n_dev)) * n_dev
     v_rows = jnp.concatenate([centres[:rows], jnp.full(blocks * per_block - rows, centres[0])])
-    sig = jax.lax.map(lambda vs: jax.vmap(lambda v: jax.vmap(lambda u: seen(u, v)[0])(centres[:cols]))(vs),
-                      v_rows.reshape(blocks, per_block))
-    sig = sig.reshape(blocks * per_block, cols, -1)[:rows]
+
+    def lattice(v_blocks):  # (blocks, per_block) rows' v → their signatures
+        def row(v):
+            return jax.vmap(lambda u: seen(u, v)[0])(centres[:cols])
+
+        return jax.lax.map(jax.vmap(row), v_blocks)
+
+    # (the rows dealt to the devices in turn: each gets a like share of the sky, the floor, the
+    # shadow)
+    dealt = jnp.arange(blocks * per_block).reshape(-1, n_dev).T.reshape(-1)
+    sig = _sharded_rows(lattice, v_rows[dealt].reshape(blocks, per_block), n_dev)
+    sig = jnp.zeros_like(sig.reshape(blocks * per_block, cols, -1)).at[dealt].set(
+        sig.reshape(blocks * per_block, cols, -1))[:rows]
 
     # pairs that differ, by channel: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
     across = differs(sig[:, :-1], sig[:, 1:]).reshape(-1)
     down = differs(sig[:-1, :], sig[1:, :]).reshape(-1)
     found = jnp.concatenate([across, down])
-    count = jnp.sum(found)
-    which = jnp.nonzero(found, size=room, fill_value=0)[0]
+    which, count = nonzero(found, room)
     live = jnp.arange(room) < count
 
     def crossings(which):
@@ -824,7 +898,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     ne = (pa != pb_).reshape(room, levels, width_)[..., CASTERS:]
     in_shadow = (ch > 0) | jnp.any(ne & (jnp.arange(levels)[None, :, None] <= first_level[:, None, None]),
                                    axis=(1, 2))
-    order = jnp.argsort(jnp.where(live, 2 * first_level + in_shadow, 2 * levels + 2), stable=True)
+    order = stable_order(jnp.where(live, 2 * first_level + in_shadow, 2 * levels + 2), 2 * levels + 3)
     which, first_level, in_shadow = which[order], first_level[order], in_shadow[order]
     in_rows, ch, r, c = crossings(which)
     pa = sig[r, c]
@@ -968,7 +1042,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         lost = jnp.zeros(CHUNK, jnp.int32).at[0].set(jnp.sum(dropped).astype(jnp.int32))
         return (*res, colours[:CHUNK] - colours[CHUNK:], lost)
 
-    found_ = map_in_place(locate_chunk, (pa, u0, v0, axis, ch, live, first_level, in_shadow), live, CHUNK)
+    found_ = _dealt_map(locate_chunk, (pa, u0, v0, axis, ch, live, first_level, in_shadow), live, n_dev)
     lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, p_lo, jump, lost = jax.tree.map(sg, found_)
     dropped = jnp.sum(lost)
     ok = live & (kind >= 0)

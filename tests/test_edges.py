@@ -3,6 +3,10 @@ against outlines integrated per pixel in closed form (``validation/edges.py``, f
 converged finite differences where two objects occlude and cross each other, and as a linear map
 (reverse mode is the transpose of forward mode)."""
 
+import json
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -548,3 +552,49 @@ def test_a_torus_and_a_quadric_outline_as_their_closed_forms(x64):
     assert int(edges.unresolved) > 0 and int(edges.overflow) == 0 and int(edges.dropped) == 0
     with pytest.raises(ValueError, match="adaptive"):
         rt.render(scene, width=width, height=height, adaptive=(0.3, 2), edges=True)
+
+
+TWO_DEVICES = """
+import json, sys
+import equinox as eqx, jax, jax.numpy as jnp, numpy as np
+import raytracer as rt
+from raytracer._edges import boundary_term
+scene = rt.load_scene(open(sys.argv[1]).read())
+tangent = {"objects[1].shape.center": jnp.array([0.7, -0.3, 0.5]),
+           "camera.location": jnp.array([0.2, 0.3, -0.4])}
+dynamic, static = eqx.partition(scene, eqx.is_inexact_array)
+zero = jax.tree.map(lambda x: jnp.zeros_like(x) if eqx.is_inexact_array(x) else x, scene)
+along = eqx.partition(rt.params.replace(zero, tangent), eqx.is_inexact_array)[0]
+term = jax.jit(lambda d, a: boundary_term(d, a, static, 24, 18, 4))
+program = term.lower(dynamic, along).as_text()
+edges = term(dynamic, along)
+json.dump({"devices": len(jax.local_devices()), "split": program.count("manual_computation"),
+           "image": np.asarray(edges.tangent).tolist(), "crossings": int(edges.crossings)},
+          open(sys.argv[2], "w"))
+"""
+
+
+def test_the_term_split_over_two_devices_is_the_term_of_one(tmp_path, x64, two_device_env):
+    """With two devices the lattice's rows and the crossings' chunks are split over both (a program
+    of two manual computations) and the term is the one-device term (a penumbra: each area-light
+    sample's shadow outline a channel of its own)."""
+    text = (HEAD + "camera { location <0, 3, -3.5> look_at <0.2, -0.4, 0.4> angle 50 }\n"
+            "light_source { <-1, 5, -1> color rgb 1 area_light <2.4, 0, 0>, <0, 0, 1.6>, 3, 2 }\n"
+            "plane { y, -0.5 pigment { rgb 0.8 } finish { ambient 0.1 diffuse 0.9 } }\n"
+            "sphere { <0.1, 0.4, 0.3>, 0.45 pigment { rgb 1 } }")
+    path = tmp_path / "penumbra.pov"
+    path.write_text(text)
+    env = {**two_device_env, "JAX_ENABLE_X64": "1"}
+    run = subprocess.run([sys.executable, "-c", TWO_DEVICES, str(path), str(tmp_path / "out.json")], env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    got = json.loads((tmp_path / "out.json").read_text())
+    assert got["devices"] == 2 and got["split"] >= 2
+    scene = rt.load_scene(text)
+    tangent = {"objects[1].shape.center": jnp.array([0.7, -0.3, 0.5]),
+               "camera.location": jnp.array([0.2, 0.3, -0.4])}
+    want = _term(scene, tangent, 24, 18, 4)
+    assert got["crossings"] == int(want.crossings) > 0
+    image = np.asarray(want.tangent)
+    assert np.abs(image).max() > 0
+    np.testing.assert_allclose(np.asarray(got["image"]), image, rtol=1e-9, atol=1e-12 * np.abs(image).max())
