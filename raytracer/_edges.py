@@ -81,6 +81,7 @@ the surface's interior or back (POV-Ray's list of nested interiors is not follow
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 from typing import NamedTuple
 
@@ -99,7 +100,7 @@ from ._tiles import _mesh, _replicated
 from .kernels import world_normal
 from .scene import Scene, environment_of
 from .shading import _accel, lighting
-from .shading._chunks import closure, map_in_place, nonzero, stable_order
+from .shading._chunks import map_in_place, nonzero, stable_order
 from .shading._geometry import _to_object, all_crossings, bound_mask, closest_hit, csg_mask, prim_bits
 from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
 from .shading._model import (
@@ -323,21 +324,49 @@ def _room(width: int, height: int, k: int) -> int:
     return -(-min(pairs, 32 * k * (width + height)) // CHUNK) * CHUNK
 
 
-def _sharded_rows(fn, blocks, n_dev: int):
+class _Model:
+    """What the scene's arrays make and the lattice and the bisections read (``boundary_term``):
+    the scene, packed, its trace context and the media a camera ray starts in."""
+
+    def __init__(self, scene: Scene, packed, ctx):
+        self.scene, self.packed, self.geo, self.mats, self.ctx = scene, packed, packed.geo, packed.mats, ctx
+        self.media = initial_media(ctx, scene.camera.frame()[0])
+
+    @contextlib.contextmanager
+    def swapped(self, other: _Model):
+        """``other``'s values in this one's place for the duration."""
+        kept = dict(vars(self))
+        vars(self).update(vars(other))
+        try:
+            yield
+        finally:
+            vars(self).clear()
+            vars(self).update(kept)
+
+
+def _sharded_rows(fn, blocks, n_dev: int, dynamic, on_devices):
     """``fn(blocks)`` with the leading axis of ``blocks`` (a multiple of ``n_dev``) split over
-    ``n_dev`` local devices, the result whole on each (what follows the lattice reads any row)."""
+    ``n_dev`` local devices, the result whole on each (what follows the lattice reads any row).
+    ``dynamic`` goes into the devices' program as an argument, and ``fn`` is traced there within
+    ``on_devices(its copy)``: what it reads of the scene is built from that copy."""
     if n_dev == 1:
         return fn(blocks)
-    spec = jax.sharding.PartitionSpec("tiles")
-    out = jax.shard_map(fn, mesh=_mesh(n_dev), in_specs=spec, out_specs=spec, check_vma=False)(blocks)
+
+    def run(b, dyn):
+        with on_devices(dyn):
+            return fn(b)
+
+    spec, whole = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
+    out = jax.shard_map(run, mesh=_mesh(n_dev), in_specs=(spec, whole), out_specs=spec,
+                        check_vma=False)(blocks, dynamic)
     return _replicated(out, n_dev)
 
 
-def _dealt_map(fn, items, live, n_dev: int):
+def _dealt_map(fn, items, live, n_dev: int, dynamic, on_devices):
     """``map_in_place(fn, items, live, CHUNK)`` with the room's chunks dealt to ``n_dev`` local
     devices in turn (the live ones are the first: each device gets a like share), each running its
     own loop up to its last live chunk; the result whole on each device. The room is a multiple of
-    ``CHUNK × n_dev``."""
+    ``CHUNK × n_dev``; ``dynamic``, ``on_devices``: as ``_sharded_rows``."""
     if n_dev == 1:
         return map_in_place(fn, items, live, CHUNK)
     room = live.shape[0]
@@ -348,15 +377,13 @@ def _dealt_map(fn, items, live, n_dev: int):
     def permuted(x, order):
         return x.reshape(n_chunks, CHUNK, *x.shape[1:])[order].reshape(x.shape)
 
-    # (``fn`` traced here, outside the devices' program, and what it closes over passed in whole)
-    body, consts, _ = closure(fn, items, CHUNK)
-    spec, whole = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-    def run(it, lv, cs):
-        return map_in_place(lambda x: body(x, *cs), it, lv, CHUNK)
+    def run(it, lv, dyn):
+        with on_devices(dyn):
+            return map_in_place(fn, it, lv, CHUNK)
 
+    spec, whole = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
     out = jax.shard_map(run, mesh=_mesh(n_dev), in_specs=(spec, spec, whole), out_specs=spec,
-                        check_vma=False)(
-        *jax.tree.map(lambda x: permuted(x, dealt), (items, live)), consts)
+                        check_vma=False)(*jax.tree.map(lambda x: permuted(x, dealt), (items, live)), dynamic)
     return _replicated(jax.tree.map(lambda x: permuted(x, back), out), n_dev)
 
 
@@ -607,11 +634,24 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     scene: Scene = eqx.combine(dynamic, static)
     dtype = scene.camera.location.dtype
     plan = make_plan(scene)
-    packed = pack(scene, plan)
-    geo = packed.geo
+
+    def model_of(dyn) -> _Model:
+        sc = eqx.combine(dyn, static)
+        pk = pack(sc, plan)
+        return _Model(sc, pk, make_context(plan, pk.geo, pk.mats, sc.lights, sc.settings, sc.background,
+                                           dtype, environment_of(sc)))
+
+    # what the scene's arrays make, read through ``M`` by the lattice and the bisections: in a
+    # program split over the devices it is built again from the program's own copy of ``dynamic``
+    # (an array closed over from outside cannot be read there once the caller's values carry a
+    # sharding over the devices: a fit's parameters after its first step)
+    M = model_of(dynamic)
+    packed, geo, ctx = M.packed, M.geo, M.ctx
     tables = _prim_tables(geo, len(plan.prims))
-    ctx = make_context(plan, geo, packed.mats, scene.lights, scene.settings, scene.background, dtype,
-                       environment_of(scene))
+
+    def on_devices(dyn):  # M, while the devices' program is traced, built from its ``dyn``
+        return M.swapped(model_of(dyn))
+
     h = 1.0 / k
     # the lattice: k×k samples a pixel, and a ring of samples half a spacing outside the image, so
     # that an edge running along the image's border within half a spacing of it is crossed too
@@ -658,12 +698,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         """The model's rounding guard at point ``x`` (a start offset along a ray, a spawn offset),
         held constant: the derivative of max |x| needs its argmax found again, which a rounding of
         ``x`` recomputed differently can miss (0/0)."""
-        return jax.lax.stop_gradient(ctx.eps * (1.0 + jnp.max(jnp.abs(x))))
+        return jax.lax.stop_gradient(M.ctx.eps * (1.0 + jnp.max(jnp.abs(x))))
 
     def reflects(prim):
-        rows = prim * mats.n_layers + jnp.arange(mats.n_layers)
-        return jnp.any((jnp.asarray(mats.finish.refl_max)[rows] != 0)
-                       | (jnp.asarray(mats.finish.refl_min)[rows] != 0))
+        rows = prim * M.mats.n_layers + jnp.arange(M.mats.n_layers)
+        return jnp.any((jnp.asarray(M.mats.finish.refl_max)[rows] != 0)
+                       | (jnp.asarray(M.mats.finish.refl_min)[rows] != 0))
 
     def child(mats_, prim, o, d, t, n, branch):
         """The ray that leaves the crossing ``o + t d`` of ``prim`` (world normal ``n``) along
@@ -705,15 +745,15 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         def traced_level(carry, index, shadows):
             o, d, alive, mirror = carry
             scale = guard(o)
-            vis = jnp.where(mirror, jnp.asarray(ctx.vis_reflect), jnp.asarray(ctx.vis_camera))
+            vis = jnp.where(mirror, jnp.asarray(M.ctx.vis_reflect), jnp.asarray(M.ctx.vis_camera))
             want = jnp.where(mirror, _accel.MASK_REFLECT, _accel.MASK_CAMERA)
-            hit = closest_hit(geo, plan, o, d, scale, vis, want, refine=refine)
+            hit = closest_hit(M.geo, plan, o, d, scale, vis, want, refine=refine)
             found = alive & hit.found
             p = o + jnp.where(found, hit.t, 0.0) * d
             p_cell = p if hit.point is None else hit.point
             # the face of the primitive seen (creases: a box's edges, a cylinder's rims)
-            face = _face_of(geo, tables, hit.prim, o, d, hit.t) if creases else jnp.zeros((), jnp.int32)
-            cell = _cell(mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
+            face = _face_of(M.geo, tables, hit.prim, o, d, hit.t) if creases else jnp.zeros((), jnp.int32)
+            cell = _cell(M.mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
             casts = []
 
             def shadow_entries():
@@ -729,7 +769,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 prim = jnp.maximum(hit.prim, 0)
                 branch = jnp.where(transparent[prim], REFRACT, jnp.where(reflects(prim), REFLECT, STOP))
                 branch = jnp.where(found & (index + 1 < levels), branch, STOP)
-                o, d, tir = child(mats, prim, o, d, hit.t, hit.normal, branch)
+                o, d, tir = child(M.mats, prim, o, d, hit.t, hit.normal, branch)
                 branch = jnp.where((branch == REFRACT) & tir, TIR, branch)
                 alive, mirror = branch != STOP, branch == REFLECT
             row = jnp.stack([jnp.where(found, hit.prim, -1), jnp.where(found, cell, 0), branch,
@@ -744,23 +784,23 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 p_out = p + guard(p) * n
                 start = guard(p_out)
                 for i in shadow_lights:
-                    l, _, shadow_len = light_geometry(ctx, scene.lights[i], p)
-                    caster = _first_caster(geo, plan, p_out, l, start, shadow_len - start, vis_shadow,
+                    l, _, shadow_len = light_geometry(M.ctx, M.scene.lights[i], p)
+                    caster = _first_caster(M.geo, plan, p_out, l, start, shadow_len - start, vis_shadow,
                                            casters)
                     casts.append(jnp.where(found & (jnp.dot(n, l) > lighting.NL_EPSILON), caster, -1))
             if grid_lights:  # towards each sample, as the model's shadow rays go
                 towards = []  # (position, lit) of every sample
                 for i, n_i in grid_lights:
-                    l_i = light_geometry(ctx, scene.lights[i], p)[0]
+                    l_i = light_geometry(M.ctx, M.scene.lights[i], p)[0]
                     lit = found & (jnp.dot(n, l_i) > lighting.NL_EPSILON)
-                    towards.append((shadow_sample_points(ctx, scene.lights[i])[0],
+                    towards.append((shadow_sample_points(M.ctx, M.scene.lights[i])[0],
                                     jnp.broadcast_to(lit, (n_i,))))
                 targets, lit = (jnp.concatenate(x) for x in zip(*towards, strict=True))
 
                 def caster_towards(q, lit, start=start, p_out=p_out):
                     to = q - p_out
                     dist = jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30))
-                    return jnp.where(lit, _first_caster(geo, plan, p_out, to / dist, start, dist - start,
+                    return jnp.where(lit, _first_caster(M.geo, plan, p_out, to / dist, start, dist - start,
                                                         vis_shadow, casters), -1)
 
                 if sample is None:
@@ -770,7 +810,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                     casts.extend(jnp.where(jnp.arange(n_samples) == sample, one, -1))
             return casts
 
-        o, d = _image_ray(scene.camera, width, height, u, v)
+        o, d = _image_ray(M.scene.camera, width, height, u, v)
         _, (rows_, ts) = jax.lax.scan(level_of, (o, d, jnp.asarray(True), jnp.asarray(False)),
                                       jnp.arange(levels))
         return rows_.reshape(-1), ts
@@ -834,10 +874,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         """The unit direction from ``p`` to the light or grid sample of shadow entry ``entry``."""
         l = jnp.zeros(3, p.dtype)
         for k_, i in enumerate(shadow_lights):
-            l = jnp.where(entry == k_, light_geometry(ctx, sc.lights[i], p)[0], l)
+            l = jnp.where(entry == k_, light_geometry(M.ctx, sc.lights[i], p)[0], l)
         start = n_points
         for i, n in grid_lights:
-            to = shadow_sample_points(ctx, sc.lights[i])[0][jnp.clip(entry - start, 0, n - 1)] - p
+            to = shadow_sample_points(M.ctx, sc.lights[i])[0][jnp.clip(entry - start, 0, n - 1)] - p
             l = jnp.where((entry >= start) & (entry < start + n),
                           to / jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30)), l)
             start += n
@@ -871,7 +911,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # (the rows dealt to the devices in turn: each gets a like share of the sky, the floor, the
     # shadow)
     dealt = jnp.arange(blocks * per_block).reshape(-1, n_dev).T.reshape(-1)
-    sig = _sharded_rows(lattice, v_rows[dealt].reshape(blocks, per_block), n_dev)
+    sig = _sharded_rows(lattice, v_rows[dealt].reshape(blocks, per_block), n_dev, dynamic, on_devices)
     sig = jnp.zeros_like(sig.reshape(blocks * per_block, cols, -1)).at[dealt].set(
         sig.reshape(blocks * per_block, cols, -1))[:rows]
 
@@ -988,15 +1028,15 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         has_face = jnp.zeros((), bool)
         if cells:  # the face between the cells just before and just after the crossing
             prim = jnp.maximum(p_lo, 0)
-            q_a, q_b = (pattern_point(scene, packed, sig_, level, prim, t_ref, u + s * e[0], v + s * e[1])
+            q_a, q_b = (pattern_point(M.scene, M.packed, sig_, level, prim, t_ref, u + s * e[0], v + s * e[1])
                         for sig_, s in ((s_lo, lo - SIDE_OFFSET), (s_hi, hi + SIDE_OFFSET)))
-            normal, offset, has_face = _face(mats, prim, q_a, q_b)
+            normal, offset, has_face = _face(M.mats, prim, q_a, q_b)
             face = (normal, offset)
         mid = 0.5 * (lo + hi)
         # every margin and its derivatives along the image at the crossing: one jvp, two tangents
         point = jnp.stack([u + mid * e[0], v + mid * e[1]])
         def at(uv):
-            return margins(scene, packed, s_lo, s_hi, face, level, entry, t_ref, uv[0], uv[1])
+            return margins(M.scene, M.packed, s_lo, s_hi, face, level, entry, t_ref, uv[0], uv[1])
 
         g, (g_u, g_v) = jax.vmap(lambda t: jax.jvp(at, (point,), (t,)), out_axes=(None, 0))(
             jnp.eye(2, dtype=dtype))
@@ -1024,7 +1064,6 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # crossing located, and the two camera rays just before and just after it along its axis traced
     # through the model (3.: the chosen margin's derivatives along the image come with it: g_u, g_v)
     # (``_chunks.map_in_place``: a while loop up to the last chunk with a live crossing)
-    media = initial_media(ctx, scene.camera.frame()[0])
 
     def locate_chunk(x):
         pa_, u_, v_, e_, ch_, alive, first_, shadow_ = x
@@ -1036,13 +1075,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         ok_ = alive & (kind_ >= 0)
         points = jnp.concatenate([jnp.stack([u_ + s_ * e_[:, 0], v_ + s_ * e_[:, 1]], -1)
                                   for s_ in (lo_ - SIDE_OFFSET, hi_ + SIDE_OFFSET)])
-        o, d = camera_rays(scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
-        colours, dropped = trace(ctx, o, d, chunk=CHUNK, capacity=capacity, media=media,
+        o, d = camera_rays(M.scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
+        colours, dropped = trace(M.ctx, o, d, chunk=CHUNK, capacity=capacity, media=M.media,
                                  alive=jnp.concatenate([ok_, ok_]))
         lost = jnp.zeros(CHUNK, jnp.int32).at[0].set(jnp.sum(dropped).astype(jnp.int32))
         return (*res, colours[:CHUNK] - colours[CHUNK:], lost)
 
-    found_ = _dealt_map(locate_chunk, (pa, u0, v0, axis, ch, live, first_level, in_shadow), live, n_dev)
+    found_ = _dealt_map(locate_chunk, (pa, u0, v0, axis, ch, live, first_level, in_shadow), live, n_dev,
+                        dynamic, on_devices)
     lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, p_lo, jump, lost = jax.tree.map(sg, found_)
     dropped = jnp.sum(lost)
     ok = live & (kind >= 0)

@@ -568,16 +568,22 @@ along = eqx.partition(rt.params.replace(zero, tangent), eqx.is_inexact_array)[0]
 term = jax.jit(lambda d, a: boundary_term(d, a, static, 24, 18, 4))
 program = term.lower(dynamic, along).as_text()
 edges = term(dynamic, along)
+# the scene's values on both devices, as a fit's are after its first step (outputs of a program
+# split over them): the program reads them as arguments, not as values closed over
+mesh = jax.make_mesh((2,), ("tiles",), axis_types=(jax.sharding.AxisType.Auto,))
+placed = jax.device_put(dynamic, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec()))
+again = term(placed, along)
 json.dump({"devices": len(jax.local_devices()), "split": program.count("manual_computation"),
-           "image": np.asarray(edges.tangent).tolist(), "crossings": int(edges.crossings)},
-          open(sys.argv[2], "w"))
+           "image": np.asarray(edges.tangent).tolist(), "crossings": int(edges.crossings),
+           "placed": np.asarray(again.tangent).tolist()}, open(sys.argv[2], "w"))
 """
 
 
 def test_the_term_split_over_two_devices_is_the_term_of_one(tmp_path, x64, two_device_env):
     """With two devices the lattice's rows and the crossings' chunks are split over both (a program
     of two manual computations) and the term is the one-device term (a penumbra: each area-light
-    sample's shadow outline a channel of its own)."""
+    sample's shadow outline a channel of its own), also for a scene whose values are already
+    placed on both devices."""
     text = (HEAD + "camera { location <0, 3, -3.5> look_at <0.2, -0.4, 0.4> angle 50 }\n"
             "light_source { <-1, 5, -1> color rgb 1 area_light <2.4, 0, 0>, <0, 0, 1.6>, 3, 2 }\n"
             "plane { y, -0.5 pigment { rgb 0.8 } finish { ambient 0.1 diffuse 0.9 } }\n"
@@ -598,3 +604,4 @@ def test_the_term_split_over_two_devices_is_the_term_of_one(tmp_path, x64, two_d
     image = np.asarray(want.tangent)
     assert np.abs(image).max() > 0
     np.testing.assert_allclose(np.asarray(got["image"]), image, rtol=1e-9, atol=1e-12 * np.abs(image).max())
+    np.testing.assert_allclose(np.asarray(got["placed"]), image, rtol=1e-9, atol=1e-12 * np.abs(image).max())
