@@ -7,7 +7,12 @@ outline's motion is the whole of the signal — a flat-lit sphere's interior bar
 the fit needs the boundary term (``render(…, edges=True)``); it runs once with it and once
 without, and prints the parameters and errors of both.
 
-    python examples/fit_shape.py [--steps 60]
+    python examples/fit_shape.py [--steps 60] [--target mitsuba]
+
+With ``--target mitsuba`` the targets are Mitsuba 3's renders of the same sphere (``validation/
+mitsuba.py``'s converted scene, box-filtered film, 1,024 samples a pixel): the sphere is then a flat
+emitter over black (``ambient 1``, no light: Mitsuba's point lights fall off with distance, POV-Ray's
+do not), and the fit recovers it from another renderer's image, its Monte Carlo noise included.
 
 The last line printed is ``error with edges: X (start S)``.
 """
@@ -28,18 +33,31 @@ VIEWS = ("camera { location <0, 0.6, -4> look_at <0, 0, 0> angle 40 }",
          "camera { location <4, 0.6, 0> look_at <0, 0, 0> angle 40 }")
 BODY = ("light_source { <-3, 5, -6> rgb 1 } light_source { <6, 4, 2> rgb 0.6 }\n"
         "sphere { <0.2, 0.1, 0.3>, 0.8 pigment { rgb <1, 0.6, 0.3> } }")
+# for a Mitsuba target: the same sphere as a flat emitter, square pixels (the converter's condition)
+FLAT_BODY = "sphere { <0.2, 0.1, 0.3>, 0.8 pigment { rgb <1, 0.6, 0.3> } finish { ambient 1 diffuse 0 } }"
+MITSUBA_SPP = 1024
 NAMES = ("objects[0].shape.center", "objects[0].shape.radius")
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=60)
+    ap.add_argument("--target", choices=("ours", "mitsuba"), default="ours",
+                    help="who renders the target images (default: ours)")
     args = ap.parse_args(argv)
-    scenes = [rt.load_scene(f"#version 3.7; global_settings {{ assumed_gamma 1.0 }}\n{v}\n{BODY}",
-                            width=WIDTH, height=HEIGHT) for v in VIEWS]
+    mitsuba = args.target == "mitsuba"
+    views = [v.replace("angle 40", f"angle 40 right x*{WIDTH}/{HEIGHT}") for v in VIEWS] if mitsuba else VIEWS
+    body = FLAT_BODY if mitsuba else BODY
+    scenes = [rt.load_scene(f"#version 3.7; global_settings {{ assumed_gamma 1.0 }}\n{v}\n{body}",
+                            width=WIDTH, height=HEIGHT) for v in views]
     full = [rt.params.parameters(s) for s in scenes]
     truth = {n: jnp.asarray(full[0][n]) for n in NAMES}
-    targets = [rt.render(s, width=WIDTH, height=HEIGHT, spp=SPP) for s in scenes]
+    if mitsuba:
+        from validation.mitsuba import render_mitsuba_film
+
+        targets = [jnp.asarray(render_mitsuba_film(s, WIDTH, HEIGHT, spp=MITSUBA_SPP)) for s in scenes]
+    else:
+        targets = [rt.render(s, width=WIDTH, height=HEIGHT, spp=SPP) for s in scenes]
     start = {NAMES[0]: truth[NAMES[0]] + 0.24, NAMES[1]: truth[NAMES[1]] * 1.3}
 
     def error(p):
