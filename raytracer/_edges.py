@@ -429,8 +429,8 @@ STEEP = 1.5
 WINDOW = 2
 
 
-def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, rows: int, cols: int,
-             channels: int, h: float):
+def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, pa, pb, transition, rows: int,
+             cols: int, channels: int, h: float, n_dev: int = 1):
     """``(low, high)``: the stretch ``[across + low, across + high]`` of the across axis (v for a
     row's crossing, u for a column's) whose edge integral each crossing stands for.
 
@@ -442,8 +442,10 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
     vertex, exactly); where the edge ends there at another (its own turn onto the other pass's
     lines, a cell corner, an outline over it), up to where its tangent line meets that edge's, found
     among the other pass's crossings nearby; elsewhere (a smooth edge, a steep crossing) ±h/2.
-    Computed for the chunks of the room up to the last usable crossing (``same(idx, j)``: whether
-    crossings ``j`` separate the same signatures as crossings ``idx``, in the same order)."""
+    Computed for the chunks of the room up to the last usable crossing, dealt to ``n_dev`` local
+    devices (``transition(pa, pb, idx, j, ch)``: whether crossings ``j`` separate the same
+    signatures as crossings ``idx``, in the same order, ``pa``, ``pb`` the signatures either side
+    of each crossing)."""
     room = r.shape[0]
     first, second = jnp.where(in_rows, r, c), jnp.where(in_rows, c, r)  # across, along lattice index
     sizes = {True: (rows, max(cols - 1, 1)), False: (cols, max(rows - 1, 1))}
@@ -455,92 +457,136 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
     deltas = jnp.arange(-WINDOW, WINDOW + 1)
     lanes_ = jnp.arange(CHUNK)
 
-    def boundary(idx, step):
-        """For the crossings ``idx``: whether the next line (``step``) holds a crossing of the same
-        transition near where its tangent line meets that line, bending by more than ``TURN``
-        (a vertex) or not (a smooth edge); that crossing, where the two tangent lines meet, and
-        the bend."""
-        in_rows_i, ch_i, at_i, across_i = in_rows[idx], ch[idx], at[idx], across[idx]
-        along_i, other_i, slope_i = along[idx], other[idx], slope[idx]
-        line = first[idx] + step
-        predicted = at_i + step * h * slope_i
-        # (lattice point i lies at (i − ½) h: the pair b spans [(b − ½) h, (b + ½) h])
-        lanes = jnp.floor(predicted / h + 0.5).astype(jnp.int32)[:, None] + deltas[None, :]
-        cand, inside = [], []
-        for rows_pass, (n_a, n_b) in sizes.items():
-            cand.append(grids[rows_pass][jnp.clip(line, 0, n_a - 1)[:, None], jnp.clip(lanes, 0, n_b - 1),
-                                         ch_i[:, None]])
-            inside.append(((line >= 0) & (line < n_a))[:, None] & (lanes >= 0) & (lanes < n_b))
-        cand = jnp.where(in_rows_i[:, None], cand[0], cand[1])
-        inside = jnp.where(in_rows_i[:, None], inside[0], inside[1])
-        j = jnp.maximum(cand, 0)
-        valid = inside & (cand >= 0) & usable[idx][:, None] & same(idx, j)[0]
-        distance = jnp.where(valid, jnp.abs(at[j] - predicted[:, None]), jnp.inf)
-        k = jnp.argmin(distance, axis=1)
-        found = jnp.isfinite(distance[lanes_, k])
-        n = j[lanes_, k]
-        # where the two tangent lines meet, in the across coordinate (Cramer's rule)
-        rhs_i, rhs_n = along_i * at_i + other_i * across_i, along[n] * at[n] + other[n] * across[n]
-        det = along_i * other[n] - other_i * along[n]
-        scale = jnp.sqrt((along_i ** 2 + other_i ** 2) * (along[n] ** 2 + other[n] ** 2))
-        meet = (along_i * rhs_n - along[n] * rhs_i) / jnp.where(det != 0, det, 1.0)
-        shallow = found & (jnp.abs(slope_i) <= STEEP) & (jnp.abs(slope[n]) <= STEEP)
-        bend = jnp.where(shallow, jnp.abs(det) / jnp.where(scale > 0, scale, 1.0), jnp.inf)
-        vertex = bend > TURN
-        meet = jnp.clip(meet, jnp.minimum(across_i, across[n]), jnp.maximum(across_i, across[n]))
-        return vertex & shallow, shallow & ~vertex, n, meet, bend
-
     # in the image plane: each crossing's point and its margin's gradient
     pu, pv = jnp.where(in_rows, at, across), jnp.where(in_rows, across, at)
     gu, gv = jnp.where(in_rows, along, other), jnp.where(in_rows, other, along)
 
-    def turn(idx, step):
-        """Where the edge of the crossings ``idx`` ends between their line and the next (``step``)
-        at another edge — its own turning onto the other pass's lines at a vertex, or another edge
-        that crosses it (a cell corner, an outline over it): the meeting of the crossing's tangent
-        line with that of a crossing of the other pass nearby, within two lattice steps of both."""
-        in_rows_i, pu_i, pv_i, gu_i, gv_i, across_i = (x[idx] for x in (in_rows, pu, pv, gu, gv, across))
-        # the other pass's lattice pairs between the two lines, and the next ones beyond (the other
-        # edge may cross the other pass's lines only beyond the vertex), on its lines about this one
-        bands = (first[idx] + (step - 1) // 2)[:, None] + jnp.array([0, step])[None, :]
-        lanes = second[idx][:, None] + jnp.arange(-1, 3)[None, :]
-        bands, lanes = (jnp.broadcast_to(x, (CHUNK, 2, 4)).reshape(CHUNK, 8)
-                        for x in (bands[:, :, None], lanes[:, None, :]))
-        cand, inside = [], []
-        for rows_pass in (True, False):
-            n_a, n_b = sizes[not rows_pass]
-            cand.append(grids[not rows_pass][jnp.clip(lanes, 0, n_a - 1), jnp.clip(bands, 0, n_b - 1),
-                                             ch[idx][:, None]])
-            inside.append((lanes >= 0) & (lanes < n_a) & (bands >= 0) & (bands < n_b))
-        cand = jnp.where(in_rows_i[:, None], cand[0], cand[1])
-        inside = jnp.where(in_rows_i[:, None], inside[0], inside[1])
-        j = jnp.maximum(cand, 0)
-        rhs_i = (gu_i * pu_i + gv_i * pv_i)[:, None]
-        rhs_j = gu[j] * pu[j] + gv[j] * pv[j]
-        det = gu_i[:, None] * gv[j] - gv_i[:, None] * gu[j]
-        scale = jnp.sqrt((gu_i ** 2 + gv_i ** 2)[:, None] * (gu[j] ** 2 + gv[j] ** 2))
-        safe = jnp.where(det != 0, det, 1.0)
-        mu = (rhs_i * gv[j] - gv_i[:, None] * rhs_j) / safe
-        mv = (gu_i[:, None] * rhs_j - gu[j] * rhs_i) / safe
-        meet = jnp.where(in_rows_i[:, None], mv, mu)  # in the across coordinate
-        reach = jnp.maximum(jnp.hypot(mu - pu_i[:, None], mv - pv_i[:, None]),
-                            jnp.hypot(mu - pu[j], mv - pv[j]))
-        offset = step * (meet - across_i[:, None])
-        valid = (inside & (cand >= 0) & usable[idx][:, None] & (jnp.abs(det) > TURN * scale)
-                 & (jnp.abs(slope[idx]) <= STEEP)[:, None] & (jnp.abs(slope[j]) <= STEEP)
-                 & (offset >= 0) & (offset <= h) & (reach <= 2 * h))
-        distance = jnp.where(valid, reach, jnp.inf)
-        k = jnp.argmin(distance, axis=1)
-        return jnp.isfinite(distance[lanes_, k]), meet[lanes_, k]
+    # (the searches read these through their arguments: in a program split over the devices, its own
+    # copies, passed in whole)
+    arrays = dict(usable=usable, in_rows=in_rows, ch=ch, at=at, across=across, along=along, other=other,
+                  slope=slope, first=first, second=second, grids=grids, pu=pu, pv=pv, gu=gu, gv=gv,
+                  pa=pa, pb=pb)
 
-    def chunks(fn):
-        """``fn(idx)`` for each chunk's crossings ``idx`` up to the last usable one, in room order."""
-        return map_in_place(fn, jnp.arange(room, dtype=jnp.int32), usable, CHUNK)
+    def searches(usable, in_rows, ch, at, across, along, other, slope, first, second, grids, pu, pv, gu, gv,
+                 pa, pb, searched=None, seen=None):
+        """(both, ends): the searches of a chunk's crossings ``idx``, of ``arrays`` as given."""
+        def same(idx, j):
+            return transition(pa, pb, idx, j, ch)
 
-    def both(idx):
-        return boundary(idx, -1), boundary(idx, 1)
+        def boundary(idx, step):
+            """For the crossings ``idx``: whether the next line (``step``) holds a crossing of the same
+            transition near where its tangent line meets that line, bending by more than ``TURN``
+            (a vertex) or not (a smooth edge); that crossing, where the two tangent lines meet, and
+            the bend."""
+            in_rows_i, ch_i, at_i, across_i = in_rows[idx], ch[idx], at[idx], across[idx]
+            along_i, other_i, slope_i = along[idx], other[idx], slope[idx]
+            line = first[idx] + step
+            predicted = at_i + step * h * slope_i
+            # (lattice point i lies at (i − ½) h: the pair b spans [(b − ½) h, (b + ½) h])
+            lanes = jnp.floor(predicted / h + 0.5).astype(jnp.int32)[:, None] + deltas[None, :]
+            cand, inside = [], []
+            for rows_pass, (n_a, n_b) in sizes.items():
+                cand.append(grids[rows_pass][jnp.clip(line, 0, n_a - 1)[:, None], jnp.clip(lanes, 0, n_b - 1),
+                                             ch_i[:, None]])
+                inside.append(((line >= 0) & (line < n_a))[:, None] & (lanes >= 0) & (lanes < n_b))
+            cand = jnp.where(in_rows_i[:, None], cand[0], cand[1])
+            inside = jnp.where(in_rows_i[:, None], inside[0], inside[1])
+            j = jnp.maximum(cand, 0)
+            valid = inside & (cand >= 0) & usable[idx][:, None] & same(idx, j)[0]
+            distance = jnp.where(valid, jnp.abs(at[j] - predicted[:, None]), jnp.inf)
+            k = jnp.argmin(distance, axis=1)
+            found = jnp.isfinite(distance[lanes_, k])
+            n = j[lanes_, k]
+            # where the two tangent lines meet, in the across coordinate (Cramer's rule)
+            rhs_i, rhs_n = along_i * at_i + other_i * across_i, along[n] * at[n] + other[n] * across[n]
+            det = along_i * other[n] - other_i * along[n]
+            scale = jnp.sqrt((along_i ** 2 + other_i ** 2) * (along[n] ** 2 + other[n] ** 2))
+            meet = (along_i * rhs_n - along[n] * rhs_i) / jnp.where(det != 0, det, 1.0)
+            shallow = found & (jnp.abs(slope_i) <= STEEP) & (jnp.abs(slope[n]) <= STEEP)
+            bend = jnp.where(shallow, jnp.abs(det) / jnp.where(scale > 0, scale, 1.0), jnp.inf)
+            vertex = bend > TURN
+            meet = jnp.clip(meet, jnp.minimum(across_i, across[n]), jnp.maximum(across_i, across[n]))
+            return vertex & shallow, shallow & ~vertex, n, meet, bend
 
-    searched = dict(zip((-1, 1), chunks(both), strict=True))
+        def turn(idx, step):
+            """Where the edge of the crossings ``idx`` ends between their line and the next (``step``)
+            at another edge — its own turning onto the other pass's lines at a vertex, or another edge
+            that crosses it (a cell corner, an outline over it): the meeting of the crossing's tangent
+            line with that of a crossing of the other pass nearby, within two lattice steps of both."""
+            in_rows_i, pu_i, pv_i, gu_i, gv_i, across_i = (x[idx] for x in (in_rows, pu, pv, gu, gv, across))
+            # the other pass's lattice pairs between the two lines, and the next ones beyond (the other
+            # edge may cross the other pass's lines only beyond the vertex), on its lines about this one
+            bands = (first[idx] + (step - 1) // 2)[:, None] + jnp.array([0, step])[None, :]
+            lanes = second[idx][:, None] + jnp.arange(-1, 3)[None, :]
+            bands, lanes = (jnp.broadcast_to(x, (CHUNK, 2, 4)).reshape(CHUNK, 8)
+                            for x in (bands[:, :, None], lanes[:, None, :]))
+            cand, inside = [], []
+            for rows_pass in (True, False):
+                n_a, n_b = sizes[not rows_pass]
+                cand.append(grids[not rows_pass][jnp.clip(lanes, 0, n_a - 1), jnp.clip(bands, 0, n_b - 1),
+                                                 ch[idx][:, None]])
+                inside.append((lanes >= 0) & (lanes < n_a) & (bands >= 0) & (bands < n_b))
+            cand = jnp.where(in_rows_i[:, None], cand[0], cand[1])
+            inside = jnp.where(in_rows_i[:, None], inside[0], inside[1])
+            j = jnp.maximum(cand, 0)
+            rhs_i = (gu_i * pu_i + gv_i * pv_i)[:, None]
+            rhs_j = gu[j] * pu[j] + gv[j] * pv[j]
+            det = gu_i[:, None] * gv[j] - gv_i[:, None] * gu[j]
+            scale = jnp.sqrt((gu_i ** 2 + gv_i ** 2)[:, None] * (gu[j] ** 2 + gv[j] ** 2))
+            safe = jnp.where(det != 0, det, 1.0)
+            mu = (rhs_i * gv[j] - gv_i[:, None] * rhs_j) / safe
+            mv = (gu_i[:, None] * rhs_j - gu[j] * rhs_i) / safe
+            meet = jnp.where(in_rows_i[:, None], mv, mu)  # in the across coordinate
+            reach = jnp.maximum(jnp.hypot(mu - pu_i[:, None], mv - pv_i[:, None]),
+                                jnp.hypot(mu - pu[j], mv - pv[j]))
+            offset = step * (meet - across_i[:, None])
+            valid = (inside & (cand >= 0) & usable[idx][:, None] & (jnp.abs(det) > TURN * scale)
+                     & (jnp.abs(slope[idx]) <= STEEP)[:, None] & (jnp.abs(slope[j]) <= STEEP)
+                     & (offset >= 0) & (offset <= h) & (reach <= 2 * h))
+            distance = jnp.where(valid, reach, jnp.inf)
+            k = jnp.argmin(distance, axis=1)
+            return jnp.isfinite(distance[lanes_, k]), meet[lanes_, k]
+
+        def both(idx):
+            return boundary(idx, -1), boundary(idx, 1)
+
+        def ends(idx):
+            out = []
+            for step in (-1, 1):
+                vertex, smooth, _, meet, _ = (x[idx] for x in searched[step])
+                bend_back = searched[-step][4][idx]
+                seen_back, meet_seen = (x[idx] for x in seen[step])
+                turned, meet_turn = turn(idx, step)
+                # (only from a straight edge: the other side's neighbour in line; a small curve's
+                # crossings bend by more than that between lattice lines, and meet the other pass's)
+                turned = turned & (bend_back <= TURN / 4)
+                across_i = across[idx]
+                middle = across_i + 0.5 * step * h
+                end = jnp.where(vertex, meet, jnp.where(seen_back, meet_seen, jnp.where(
+                    smooth, middle, jnp.where(turned, meet_turn, middle))))
+                out.append(end - across_i)
+            return tuple(out)
+
+        return both, ends
+
+    held = [arrays]
+
+    @contextlib.contextmanager
+    def on_devices(copy):
+        kept, held[0] = held[0], copy
+        try:
+            yield
+        finally:
+            held[0] = kept
+
+    def chunks(which: int, given: dict):
+        """``searches(**given)[which](idx)`` for each chunk's crossings ``idx`` up to the last usable
+        one, in room order."""
+        held[0] = given
+        return _dealt_map(lambda idx: searches(**held[0])[which](idx), jnp.arange(room, dtype=jnp.int32),
+                          usable, n_dev, given, on_devices)
+
+    searched = dict(zip((-1, 1), chunks(0, arrays), strict=True))
 
     # a vertex with this side's neighbour, else with a crossing of that line that found this one
     # looking back (a steep edge's crossing may not see a shallow one beyond a vertex that sees it);
@@ -553,24 +599,7 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, same, r
         seen[step] = (jnp.zeros(room, bool).at[target].set(True, mode="drop"),
                       jnp.zeros(room, meet_back.dtype).at[target].set(meet_back, mode="drop"))
 
-    def ends(idx):
-        out = []
-        for step in (-1, 1):
-            vertex, smooth, _, meet, _ = (x[idx] for x in searched[step])
-            bend_back = searched[-step][4][idx]
-            seen_back, meet_seen = (x[idx] for x in seen[step])
-            turned, meet_turn = turn(idx, step)
-            # (only from a straight edge: the other side's neighbour in line; a small curve's
-            # crossings bend by more than that between lattice lines, and meet the other pass's)
-            turned = turned & (bend_back <= TURN / 4)
-            across_i = across[idx]
-            middle = across_i + 0.5 * step * h
-            end = jnp.where(vertex, meet, jnp.where(seen_back, meet_seen, jnp.where(
-                smooth, middle, jnp.where(turned, meet_turn, middle))))
-            out.append(end - across_i)
-        return tuple(out)
-
-    low, high = chunks(ends)
+    low, high = chunks(1, {**arrays, "searched": searched, "seen": seen})
     return jax.lax.stop_gradient(low), jax.lax.stop_gradient(high)
 
 
@@ -1103,9 +1132,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     usable = ok & (quartic > 0) & ~((kind == CREASE) & jnp.all(jump == 0, axis=-1))
     at, across = jnp.where(in_rows, pu, pv), jnp.where(in_rows, pv, pu)
     slope = jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0)  # d(at)/d(across)
-    low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope,
-                         lambda idx, j: _transition(pa, pb, idx, j, ch, levels, width_, own, n_samples),
-                         rows, cols, channels, h)
+    low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, pa, pb,
+                         lambda pa_, pb_, idx, j, ch_: _transition(pa_, pb_, idx, j, ch_, levels, width_, own,
+                                                                  n_samples),
+                         rows, cols, channels, h, n_dev)
     span = high - low
     weight = jnp.where(usable, -span * along ** 3 / jnp.where(usable, quartic, 1.0), 0.0)
     scale = jnp.where(usable[:, None], weight[:, None] * jump, 0.0)  # (room, 3): the jump L⁻ − L⁺ per g_θ
