@@ -56,9 +56,9 @@ The term is linear in the tangent (only ``g_θ`` carries it), so reverse mode is
 ``render(…, edges=True)`` wraps the render in a ``jax.custom_jvp`` whose tangent is the render's
 own plus this one. Every step after the compaction runs over the room's chunks that hold crossings
 and no others (a loop whose length the program computes; the bisections' and the edge's stretches'
-chunks dealt to the local devices in turn); the linear map and its transpose are two such loops (``_linear.linear_call``),
-so forward and reverse mode both cost what the edges' length
-asks, not what the room holds.
+chunks dealt to the local devices in turn); the linear map and its transpose are two such loops
+(``_linear.linear_call``), so forward and reverse mode both cost what the edges' length asks, not
+what the room holds.
 
 Discretised, and where it fails: the row and column sums are a quadrature of the edge integral with
 spacing ``h`` — second order on smooth edges; a vertex between straight edges is located (exact for
