@@ -91,11 +91,14 @@ def _library() -> str | None:
         lib = ctypes.cdll.LoadLibrary(str(found[0]))
     except OSError as e:
         return f"the native BVH library does not load: {e}"
-    for name in ("BvhBuild", "BvhClosest", "BvhAny", "BvhAll", "AaFlags"):
-        for suffix in ("F32", "F64"):
-            capsule = jax.ffi.pycapsule(getattr(lib, name + suffix))
-            jax.ffi.register_ffi_target(f"raytracer_{name}{suffix}", capsule, platform="cpu")
-    for name in ("Compact", "StableOrder"):  # (``_chunks.nonzero``, ``_chunks.stable_order``)
+    names = [name + suffix for name in ("BvhBuild", "BvhClosest", "BvhAny", "BvhAll", "AaFlags")
+             for suffix in ("F32", "F64")]
+    names += ["Compact", "StableOrder"]  # (``_chunks.nonzero``, ``_chunks.stable_order``)
+    missing = [name for name in names if not hasattr(lib, name)]
+    if missing:  # a library built from older sources (an editable install not rebuilt)
+        return (f"the native library {found[0].name} lacks {', '.join(missing)}: it was built from older "
+                "sources (reinstall: pip install -e .)")
+    for name in names:
         capsule = jax.ffi.pycapsule(getattr(lib, name))
         jax.ffi.register_ffi_target(f"raytracer_{name}", capsule, platform="cpu")
     return None

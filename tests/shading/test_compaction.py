@@ -34,3 +34,20 @@ def test_compaction_and_stable_order_are_numpys(native, monkeypatch):
     key = rng.integers(0, 5, 1000)
     order = jax.jit(lambda k: _chunks.stable_order(k, 5))(jnp.asarray(key, jnp.int32))
     np.testing.assert_array_equal(np.asarray(order), np.argsort(key, kind="stable"))
+
+
+def test_a_library_built_from_older_sources_is_a_reason_not_a_crash(monkeypatch):
+    """An editable install whose native library predates ``compact.cc``: the library is reported
+    unavailable, naming what it lacks (the renderer then takes the JAX paths), not an AttributeError."""
+    import ctypes
+    import types
+
+    if _accel.unavailable_reason() is not None:
+        pytest.skip(_accel.unavailable_reason())
+    real = ctypes.cdll.LoadLibrary
+    monkeypatch.setattr(ctypes.cdll, "LoadLibrary", lambda path: types.SimpleNamespace(
+        **{n: getattr(real(path), n) for n in ("BvhBuildF32", "BvhBuildF64", "BvhClosestF32", "BvhClosestF64",
+                                                "BvhAnyF32", "BvhAnyF64", "BvhAllF32", "BvhAllF64",
+                                                "AaFlagsF32", "AaFlagsF64")}))
+    reason = _accel._library.__wrapped__()
+    assert reason is not None and "Compact" in reason and "StableOrder" in reason
