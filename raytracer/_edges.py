@@ -102,7 +102,7 @@ from .kernels import world_normal
 from .scene import Scene, environment_of
 from .shading import _accel, lighting
 from .shading._chunks import map_in_place, nonzero, stable_order
-from .shading._geometry import _to_object, all_crossings, bound_mask, closest_hit, csg_mask, prim_bits
+from .shading._geometry import _to_object, candidate_crossings, closest_hit, prim_bits
 from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
 from .shading._model import (
     adaptive_shadow_lights,
@@ -294,12 +294,9 @@ def _first_caster(geo, plan, o, d, t_min, t_max, visible, want):
     if geo.accel is not None or not geo.n_candidates:
         caster = closest_hit(geo, plan, o, d, t_min, visible, want)
         return jnp.where(caster.found & (caster.t < t_max), caster.prim, -1)
-    t = all_crossings(geo, o, d, world=False)[0]
-    ok = visible & (t > t_min) & (t < jnp.minimum(t_max, _accel.T_MAX)) & jnp.isfinite(t)
-    ok = ok & csg_mask(geo, geo.conditions, o, d, t) & bound_mask(geo, geo.bounds, o, d, t_min, t.shape[0])
-    t = jnp.where(ok, t, jnp.inf)
+    t = candidate_crossings(geo, o, d, t_min, visible)[0]
     c = jnp.argmin(t)
-    return jnp.where(jnp.isfinite(t[c]), jnp.asarray(geo.cand_prim)[c], -1)
+    return jnp.where(t[c] < t_max, jnp.asarray(geo.cand_prim)[c], -1)
 
 
 def _image_ray(camera, width: int, height: int, u, v):
@@ -328,19 +325,19 @@ def _room(width: int, height: int, k: int) -> int:
     return -(-min(pairs, 32 * k * (width + height)) // CHUNK) * CHUNK
 
 
-class _Model:
-    """What the scene's arrays make and the lattice and the bisections read (``boundary_term``):
-    the scene, packed, its trace context and the media a camera ray starts in."""
+class _Held:
+    """Values that functions traced inside a devices' program read by name: there they are swapped
+    for the program's own copies, passed in as arguments (JAX refuses an array closed over from
+    outside once the caller's values carry a sharding over the devices)."""
 
-    def __init__(self, scene: Scene, packed, ctx):
-        self.scene, self.packed, self.geo, self.mats, self.ctx = scene, packed, packed.geo, packed.mats, ctx
-        self.media = initial_media(ctx, scene.camera.frame()[0])
+    def __init__(self, **values):
+        vars(self).update(values)
 
     @contextlib.contextmanager
-    def swapped(self, other: _Model):
-        """``other``'s values in this one's place for the duration."""
+    def swapped(self, values: dict):
+        """``values`` in place of this one's for the duration."""
         kept = dict(vars(self))
-        vars(self).update(vars(other))
+        vars(self).update(values)
         try:
             yield
         finally:
@@ -348,47 +345,48 @@ class _Model:
             vars(self).update(kept)
 
 
-def _sharded_rows(fn, blocks, n_dev: int, dynamic, on_devices):
-    """``fn(blocks)`` with the leading axis of ``blocks`` (a multiple of ``n_dev``) split over
-    ``n_dev`` local devices, the result whole on each (what follows the lattice reads any row).
-    ``dynamic`` goes into the devices' program as an argument, and ``fn`` is traced there within
-    ``on_devices(its copy)``: what it reads of the scene is built from that copy."""
+def _model(scene: Scene, packed, ctx) -> _Held:
+    """What the lattice and the bisections read (``boundary_term``): the scene, packed, its trace
+    context and the media a camera ray starts in."""
+    return _Held(scene=scene, packed=packed, geo=packed.geo, mats=packed.mats, ctx=ctx,
+                 media=initial_media(ctx, scene.camera.frame()[0]))
+
+
+def _split(fn, items, n_dev: int, whole, on_devices):
+    """``fn(items)`` with the leading axis of ``items`` (a multiple of ``n_dev``) dealt to ``n_dev``
+    local devices in turn (device d: entries d, d + n_dev, …, so that each gets a like share of
+    the image or of the live chunks), the result in the items' order and whole on each device.
+    ``whole`` goes into the devices' program as an argument, and ``fn`` is traced there within
+    ``on_devices(its copy)``."""
     if n_dev == 1:
-        return fn(blocks)
+        return fn(items)
+    n = jax.tree.leaves(items)[0].shape[0]
+    order = np.arange(n).reshape(-1, n_dev).T.reshape(-1)
 
-    def run(b, dyn):
-        with on_devices(dyn):
-            return fn(b)
+    def run(it, copy):
+        with on_devices(copy):
+            return fn(it)
 
-    spec, whole = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-    out = jax.shard_map(run, mesh=_mesh(n_dev), in_specs=(spec, whole), out_specs=spec,
-                        check_vma=False)(blocks, dynamic)
-    return _replicated(out, n_dev)
+    spec = jax.sharding.PartitionSpec("tiles")
+    out = jax.shard_map(run, mesh=_mesh(n_dev), in_specs=(spec, jax.sharding.PartitionSpec()), out_specs=spec,
+                        check_vma=False)(jax.tree.map(lambda x: x[order], items), whole)
+    return _replicated(jax.tree.map(lambda x: x[np.argsort(order)], out), n_dev)
 
 
-def _dealt_map(fn, items, live, n_dev: int, dynamic, on_devices):
-    """``map_in_place(fn, items, live, CHUNK)`` with the room's chunks dealt to ``n_dev`` local
-    devices in turn (the live ones are the first: each device gets a like share), each running its
-    own loop up to its last live chunk; the result whole on each device. The room is a multiple of
-    ``CHUNK × n_dev``; ``dynamic``, ``on_devices``: as ``_sharded_rows``."""
-    if n_dev == 1:
-        return map_in_place(fn, items, live, CHUNK)
-    room = live.shape[0]
-    n_chunks = room // CHUNK
-    dealt = np.arange(n_chunks).reshape(-1, n_dev).T.reshape(-1)  # device d: chunks d, d + n_dev, …
-    back = np.argsort(dealt)
+def _dealt_map(fn, items, live, n_dev: int, whole, on_devices):
+    """``map_in_place(fn, items, live, CHUNK)`` with the room's chunks dealt to the devices
+    (``_split``): each device loops up to its own last live chunk."""
+    def chunked(x):
+        return x.reshape(-1, CHUNK, *x.shape[1:])
 
-    def permuted(x, order):
-        return x.reshape(n_chunks, CHUNK, *x.shape[1:])[order].reshape(x.shape)
+    def flat(x):
+        return x.reshape(-1, *x.shape[2:])
 
-    def run(it, lv, dyn):
-        with on_devices(dyn):
-            return map_in_place(fn, it, lv, CHUNK)
+    def run(chunks_):
+        it, lv = jax.tree.map(flat, chunks_)
+        return jax.tree.map(chunked, map_in_place(fn, it, lv, CHUNK))
 
-    spec, whole = jax.sharding.PartitionSpec("tiles"), jax.sharding.PartitionSpec()
-    out = jax.shard_map(run, mesh=_mesh(n_dev), in_specs=(spec, spec, whole), out_specs=spec,
-                        check_vma=False)(*jax.tree.map(lambda x: permuted(x, dealt), (items, live)), dynamic)
-    return _replicated(jax.tree.map(lambda x: permuted(x, back), out), n_dev)
+    return jax.tree.map(flat, _split(run, jax.tree.map(chunked, (items, live)), n_dev, whole, on_devices))
 
 
 def _take(x, i):
@@ -569,22 +567,12 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, pa, pb,
 
         return both, ends
 
-    held = [arrays]
-
-    @contextlib.contextmanager
-    def on_devices(copy):
-        kept, held[0] = held[0], copy
-        try:
-            yield
-        finally:
-            held[0] = kept
-
     def chunks(which: int, given: dict):
         """``searches(**given)[which](idx)`` for each chunk's crossings ``idx`` up to the last usable
         one, in room order."""
-        held[0] = given
-        return _dealt_map(lambda idx: searches(**held[0])[which](idx), jnp.arange(room, dtype=jnp.int32),
-                          usable, n_dev, given, on_devices)
+        held = _Held(**given)
+        return _dealt_map(lambda idx: searches(**vars(held))[which](idx), jnp.arange(room, dtype=jnp.int32),
+                          usable, n_dev, given, held.swapped)
 
     searched = dict(zip((-1, 1), chunks(0, arrays), strict=True))
 
@@ -668,10 +656,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     dtype = scene.camera.location.dtype
     plan = make_plan(scene)
 
-    def model_of(dyn) -> _Model:
+    def model_of(dyn) -> _Held:
         sc = eqx.combine(dyn, static)
         pk = pack(sc, plan)
-        return _Model(sc, pk, make_context(plan, pk.geo, pk.mats, sc.lights, sc.settings, sc.background,
+        return _model(sc, pk, make_context(plan, pk.geo, pk.mats, sc.lights, sc.settings, sc.background,
                                            dtype, environment_of(sc)))
 
     # what the scene's arrays make, read through ``M`` by the lattice and the bisections: in a
@@ -683,7 +671,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     tables = _prim_tables(geo, len(plan.prims))
 
     def on_devices(dyn):  # M, while the devices' program is traced, built from its ``dyn``
-        return M.swapped(model_of(dyn))
+        return M.swapped(vars(model_of(dyn)))
 
     h = 1.0 / k
     # the lattice: k×k samples a pixel, and a ring of samples half a spacing outside the image, so
@@ -941,12 +929,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
         return jax.lax.map(jax.vmap(row), v_blocks)
 
-    # (the rows dealt to the devices in turn: each gets a like share of the sky, the floor, the
-    # shadow)
-    dealt = jnp.arange(blocks * per_block).reshape(-1, n_dev).T.reshape(-1)
-    sig = _sharded_rows(lattice, v_rows[dealt].reshape(blocks, per_block), n_dev, dynamic, on_devices)
-    sig = jnp.zeros_like(sig.reshape(blocks * per_block, cols, -1)).at[dealt].set(
-        sig.reshape(blocks * per_block, cols, -1))[:rows]
+    sig = _split(lambda v: lattice(v.reshape(-1, per_block)).reshape(v.shape[0], cols, -1), v_rows, n_dev,
+                 dynamic, on_devices)[:rows]
 
     # pairs that differ, by channel: rows' (r, c)–(r, c+1), then columns' (r, c)–(r+1, c), compacted
     across = differs(sig[:, :-1], sig[:, 1:]).reshape(-1)

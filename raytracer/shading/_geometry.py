@@ -857,6 +857,17 @@ def _closest(geo: PackedGeometry, tt, prim, o, d):
     return jnp.where((u2 < last) & (e2 < e1), c2, c1)
 
 
+def candidate_crossings(geo: PackedGeometry, o, d, t_min, visible: jax.Array):
+    """``all_crossings(…, world=False)`` of the candidates, ``t`` set to inf where a crossing does
+    not count: not beyond ``t_min``, past ``T_MAX``, of a slot not ``visible``, outside its CSG or
+    clipping conditions or its bounds."""
+    t, n, slot_ofw = all_crossings(geo, o, d, world=False)
+    ok = visible & (t > t_min) & jnp.isfinite(t) & (t < _accel.T_MAX)
+    ok = ok & csg_mask(geo, geo.conditions, o, d, t)
+    ok = ok & bound_mask(geo, geo.bounds, o, d, t_min, t.shape[0])
+    return jnp.where(ok, t, jnp.inf), n, slot_ofw
+
+
 def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array, want=None,
                 refine: bool = False) -> Hit:
     """Closest crossing with ``t > t_min`` among candidates where ``visible`` (C,) holds and
@@ -874,11 +885,8 @@ def closest_hit(geo: PackedGeometry, plan: Plan, o, d, t_min, visible: jax.Array
     ts, ns, prims, subs = [], [], [], []
     if geo.n_candidates:
         # the object's normals: the closest slot's alone is made a world normal, below
-        t, n, slot_ofw = all_crossings(geo, o, d, world=False)
-        ok = visible & (t > t_min) & jnp.isfinite(t) & (t < _accel.T_MAX)
-        ok = ok & csg_mask(geo, geo.conditions, o, d, t)
-        ok = ok & bound_mask(geo, geo.bounds, o, d, t_min, t.shape[0])
-        ts.append(jnp.where(ok, t, jnp.inf))
+        t, n, slot_ofw = candidate_crossings(geo, o, d, t_min, visible)
+        ts.append(t)
         ns.append(n)
         prims.append(jnp.asarray(geo.cand_prim))
         subs.append(jnp.asarray(_slot_in_prim(geo.cand_prim)))
