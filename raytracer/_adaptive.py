@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _programs
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
 from ._packing import is_traced
 from ._plan import Plan
@@ -210,8 +211,11 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
 
     def run(room):
         n_dev = _adaptive_devices(scene_plan, width, height, n, batch, room)
-        return _adaptive_program(_placed(values, n_dev), width, height, n, batch, n_dev, room, threshold,
-                                 gamma)
+        args = (_placed(values, n_dev), width, height, n, batch, n_dev, room, threshold, gamma)
+        if _programs.cache_folder() is None:
+            return _adaptive_program(*args)
+        # the values known: the program kept on disk by what its trace reads (render's ``_image``)
+        return _programs.run("adaptive", _adaptive_program, *args)
 
     image, flag = _with_room(run, capacity, key and key + ("adaptive", n))
     if values is packed:

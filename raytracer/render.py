@@ -23,6 +23,7 @@ from ._edges import EDGE_LATTICE, boundary_term
 from ._gc import paused, without_collections
 from ._limits import check_render_memory
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
+from ._packing import is_traced
 from ._plan import Plan, make_plan
 from ._tiles import (
     FIRST_CAPACITY,
@@ -154,9 +155,17 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
 def _image(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, capacity, linear: bool = False):
     """The image of a scene with something rendered (``linear``: before the output transfer)."""
     packed = pack(scene, scene_plan)
-    return _with_room(lambda room: _render_packed(_image_placed(packed, scene_plan, width * height, k, room),
-                                                  width, height, k, room, linear),
-                      capacity, _room_key(packed, width, height, k, linear))
+
+    def run(room):
+        args = (_image_placed(packed, scene_plan, width * height, k, room), width, height, k, room)
+        args += (True,) if linear else ()  # (as ``compile_render`` asks: the two share kept programs)
+        if is_traced(args[0]) or _programs.cache_folder() is None:
+            return _render_packed(*args)  # under jit, vmap, grad, jvp: part of the caller's program
+        # with values: the program kept on disk by what its trace reads, loaded where a process
+        # compiled this structure before (``raytracer/_programs.py``), as the command line's is
+        return _programs.run("render", _render_packed, *args)
+
+    return _with_room(run, capacity, _room_key(packed, width, height, k, linear))
 
 
 def _warn_edges_left_out(overflow, dropped, tree_room: int) -> None:

@@ -7,11 +7,13 @@ import subprocess
 import sys
 import textwrap
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import raytracer as rt
-from raytracer import _programs, _tiles
+from raytracer import _adaptive, _programs, _tiles
 from raytracer._packed import pack
 from raytracer._plan import make_plan
 from raytracer.render import compile_render
@@ -38,6 +40,7 @@ def key(s, width=8, height=6):
 def folder(tmp_path, monkeypatch):
     monkeypatch.setenv("RAYTRACER_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(_programs, "_LIVE", {})  # the process's loaded programs: none yet
+    monkeypatch.setattr(_programs, "_FAST", {})
     return tmp_path / "programs"
 
 
@@ -55,6 +58,36 @@ def test_a_kept_program_renders_a_later_scene_of_its_structure_without_a_trace(f
     loaded = np.asarray(compile_render(later, width=8, height=6)(later))
     assert len(traces) == 1
     np.testing.assert_array_equal(loaded, np.asarray(first(later)))
+
+
+def test_render_with_values_loads_kept_programs_and_under_jvp_keeps_none(folder, monkeypatch):
+    """``rt.render`` of a scene with values, plain and adaptive, keeps its program as the command
+    line's are kept: a later process (the loaded programs and JAX's in-memory caches cleared)
+    renders a scene of the same structure without tracing the render again, to the same image. A
+    render under ``jax.jvp`` is part of the caller's program: it keeps nothing."""
+    traces = []
+    body = _tiles._render_tiles
+    counting = lambda *a, **k: traces.append(1) or body(*a, **k)  # noqa: E731
+    monkeypatch.setattr(_tiles, "_render_tiles", counting)
+    monkeypatch.setattr(_adaptive, "_render_tiles", counting)
+    s = scene()
+    jax.jvp(lambda r: rt.render(rt.params.replace(s, {"objects[0].shape.radius": r}), width=8, height=6),
+            (jnp.asarray(1.0),), (jnp.asarray(1.0),))
+    assert not folder.exists()
+    for options in ({}, {"adaptive": (0.1, 2)}):
+        rt.render(s, width=8, height=6, **options)
+        kept, count = set(folder.iterdir()) if folder.exists() else set(), len(traces)
+        assert kept, options
+        _programs._LIVE.clear()
+        _programs._FAST.clear()
+        jax.clear_caches()  # as a new process
+        later = scene(radius=0.8)
+        image = np.asarray(rt.render(later, width=8, height=6, **options))
+        assert len(traces) == count and set(folder.iterdir()) == kept, options
+        monkeypatch.setenv("RAYTRACER_CACHE_DIR", "off")  # compiled here, as before kept programs
+        np.testing.assert_array_equal(image, np.asarray(rt.render(later, width=8, height=6, **options)))
+        assert len(traces) > count
+        monkeypatch.setenv("RAYTRACER_CACHE_DIR", str(folder.parent))
 
 
 def test_keys_are_the_same_in_every_process_and_follow_the_structure_not_the_values(folder):
