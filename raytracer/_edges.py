@@ -137,6 +137,14 @@ LATTICE_SHARD_RAYS = 16384
 # ~5 px wide: ~50 outlines a pixel), and with 1e-3 px and 2⁻¹⁰ of a spacing the jumps took in
 # their neighbours', the term 12 % over central differences (8×8: 2.5 %); here 1.2 % (0.1 %)
 SIDE_OFFSET = 1e-4
+# ... unless what is seen there is not what the bisection saw on that side: a float32 shadow that
+# grazes the surface seen (an area light's sample beyond its horizon) flickers over ~5e-4 px (the
+# shading point's rounding against the 4e-5 spawn offset), and rays 2e-4 px apart then saw the same
+# side for ~40 % of such crossings (no jump). A crossing whose bisection traced shadows checks its
+# side points at each of these offsets (pixels) in turn, with the sample's own shadow ray, and takes
+# the first that sees its side; SIDE_FALLBACK where none does
+SIDE_CHECKS = (1e-4, 1e-3)
+SIDE_FALLBACK = 5e-3
 # a camera ray's path is followed through this many mirror or refracted rays (each a level of a
 # lattice sample's signature; at most the scene's max_trace_level − 1)
 PATH_BOUNCES = 3
@@ -309,6 +317,12 @@ def _image_ray(camera, width: int, height: int, u, v):
 # the item (``Hit.sub``: a mesh's triangle) is carried, not compared: it names the triangle whose
 # edge a mesh's outline is
 FACE, ITEM, CASTERS = 3, 4, 5
+# a grid sample's entry where the light's centre does not light the point seen (POV-Ray shades an
+# area light by its centre's direction): whatever its sample's shadow, the light adds nothing there,
+# so a change to or from it is no edge (a sphere's terminator, where its own shadow towards the
+# samples beyond its horizon ends: such changes were half the crossings of a lit sphere and none
+# had a term)
+UNLIT = -2
 CREASE = 4  # the margins' kind of a crease (``boundary_term.margins``)
 
 
@@ -822,7 +836,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                     to = q - p_out
                     dist = jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30))
                     return jnp.where(lit, _first_caster(M.geo, plan, p_out, to / dist, start, dist - start,
-                                                        vis_shadow, casters), -1)
+                                                        vis_shadow, casters), jnp.where(found, UNLIT, -1))
 
                 if sample is None:
                     casts.extend(jax.vmap(caster_towards)(targets, lit))
@@ -866,7 +880,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         """(..., channels): the channels in which signatures differ — 0: a level's primitive, cell,
         branch or point-light caster; 1 + s: the caster towards grid sample s at some level, where
         channel 0 agrees (an edge of the path itself counts once, in channel 0)."""
-        ne = (s_a != s_b).reshape(*s_a.shape[:-1], levels, width_)
+        ne = ((s_a != s_b) & (s_a != UNLIT) & (s_b != UNLIT)).reshape(*s_a.shape[:-1], levels, width_)
         ne = ne & jnp.expand_dims(jnp.arange(width_) != ITEM, tuple(range(ne.ndim - 1)))
         path = jnp.any(ne[..., :own], axis=(-2, -1))
         grid = jnp.any(ne[..., own:], axis=-2) & ~path[..., None]
@@ -877,7 +891,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         level of the path where it does, and there the shadow entry that differs (channel 0: the
         first point light's; else its grid sample's). Unless ``faces`` (a traced bool), the faces
         seen are not compared."""
-        ne = (s_a != s_b).reshape(levels, width_) & (jnp.arange(width_) != ITEM)[None, :]
+        ne = ((s_a != s_b) & (s_a != UNLIT) & (s_b != UNLIT)).reshape(levels, width_)
+        ne = ne & (jnp.arange(width_) != ITEM)[None, :]
         if faces is not True:
             ne = ne & ((jnp.arange(width_) != FACE) | faces)[None, :]
         level = jnp.argmax(jnp.any(ne[:, :own], axis=1))
@@ -981,7 +996,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         o, d = path_ray(sc, pk, s_lo, level, u, v)
         lo_, hi_ = jnp.maximum(a[0], 0), jnp.maximum(b[0], 0)
         scale = guard(o)
-        t_lo = _nearest_t(geo_, tables, lo_, o, d, scale, t_ref, a[ITEM])
+        t_lo, n_lo = _nearest_hit(geo_, tables, lo_, o, d, scale, t_ref, a[ITEM])
         seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale, t_ref, b[ITEM])
         on_face = jnp.zeros((), o.dtype)
         if cells:  # the same ray and crossing as the outline's
@@ -995,7 +1010,13 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
             l = towards_light(sc, entry, p)
             seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point
-            out += [_margin(geo_, tables, jnp.maximum(s[CASTERS + entry], 0), p, l) + seen_at for s in (a, b)]
+            # along the shadow ray as the model spawns it (``casters_at``): from just off the
+            # surface, so that where the caster is the surface seen (an area light's sample beyond
+            # its horizon while the light's centre, which shades it, is not) its outline margin has
+            # a simple zero where the ray grazes it, not the double zero of the line through p
+            p_out = p + guard(p) * jnp.where(jnp.dot(n_lo, d) < 0, n_lo, -n_lo)
+            out += [_margin(geo_, tables, jnp.maximum(s[CASTERS + entry], 0), p_out, l) + seen_at
+                    for s in (a, b)]
         return jnp.stack(out)
 
     def locate(s_a, u, v, e, ch, upto, shadows):
@@ -1021,19 +1042,34 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # between them (a face a sliver's width) must not hide the outline beyond it
         # (the signature at ``lo`` is carried too: a mesh's outline is the edge of the triangle seen
         # there, not of the one the pair's first sample sees)
+        checks = jnp.asarray(SIDE_CHECKS, dtype)
+
         def step(i, state):
-            lo, hi, s_lo, s_hi, t_hi, faces = state
+            lo, hi, s_lo, s_hi, t_hi, faces, sides, settled = state
             first = i == 0
-            mid = jnp.where(first, hi, 0.5 * (lo + hi))
+            # past the bisection: the side points, lo's then hi's at each offset of SIDE_CHECKS
+            j = i - (BISECTIONS + 1)
+            bisecting, side = j < 0, jnp.clip(j, 0) % 2
+            offset = checks[jnp.clip(j, 0) // 2]
+            mid = jnp.where(first, hi, jnp.where(bisecting, 0.5 * (lo + hi),
+                                                 jnp.where(side == 0, lo - offset, hi + offset)))
             s_mid, t_mid = seen(u + mid * e[0], v + mid * e[1], sample, (s_a, upto, shadows))
             faces = jnp.where(first, ~changed(s_a, s_mid, ch, False)[0], faces)
-            same = ~changed(s_a, s_mid, ch, faces)[0] & ~first
-            return (jnp.where(same, mid, lo), jnp.where(same | first, hi, mid), jnp.where(same, s_mid, s_lo),
-                    jnp.where(same, s_hi, s_mid), jnp.where(same, t_hi, t_mid), faces)
+            same = ~changed(s_a, s_mid, ch, faces)[0] & ~first & bisecting
+            as_side = ~changed(jnp.where(side == 0, s_lo, s_hi), s_mid, ch, faces)[0]
+            take = ~bisecting & as_side & ~settled[side]
+            sides = sides.at[side].set(jnp.where(take, offset, sides[side]))
+            settled = settled.at[side].set(settled[side] | (~bisecting & as_side))
+            return (jnp.where(same, mid, lo), jnp.where(same | first | ~bisecting, hi, mid),
+                    jnp.where(same, s_mid, s_lo), jnp.where(same | ~bisecting, s_hi, s_mid),
+                    jnp.where(same | ~bisecting, t_hi, t_mid), faces, sides, settled)
 
         start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a, s_a, jnp.full(levels, jnp.inf, dtype),
-                 jnp.asarray(True))
-        lo, hi, s_lo, s_hi, t_hi, faces = jax.lax.fori_loop(0, BISECTIONS + 1, step, start)
+                 jnp.asarray(True), jnp.full(2, SIDE_FALLBACK, dtype), jnp.zeros(2, bool))
+        # (a chunk without shadows keeps SIDE_OFFSET: its edges are outlines, seams, cells, creases)
+        steps = BISECTIONS + 1 + jnp.where(shadows, 2 * len(SIDE_CHECKS), 0)
+        lo, hi, s_lo, s_hi, t_hi, faces, sides, _ = jax.lax.fori_loop(0, steps, step, start)
+        sides = jnp.where(shadows, sides, SIDE_OFFSET)
         _, level, entry = changed(s_a, s_hi, ch, faces)
         # the distance seen just beyond the crossing, at its level: each side's primitive is crossed
         # nearest it (a difference's cut is on its subtracted operand's far side)
@@ -1075,7 +1111,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         # (its place second order in the bracket's width)
         cross = jnp.clip(mid - g[kind] / jnp.where(g_s[kind] != 0, g_s[kind], 1.0), lo, hi)
         return (lo, hi, s_hi, jnp.where(distance[kind] <= 0.01 * h, kind, -1), face, level, entry, t_ref,
-                g_u[kind], g_v[kind], cross, s_lo)
+                g_u[kind], g_v[kind], cross, s_lo, sides)
 
     # 2.–4. a loop over the chunks of the room that hold crossings (the rest costs nothing): each
     # crossing located, and the two camera rays just before and just after it along its axis traced
@@ -1088,10 +1124,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         upto = jnp.max(jnp.where(alive, first_, 0)).astype(jnp.int32)
         res = jax.vmap(locate, in_axes=(0, 0, 0, 0, 0, None, None))(pa_, u_, v_, e_, ch_, upto,
                                                                    jnp.any(alive & shadow_))
-        lo_, hi_, kind_ = res[0], res[1], res[3]
+        lo_, hi_, kind_, sides_ = res[0], res[1], res[3], res[12]
         ok_ = alive & (kind_ >= 0)
         points = jnp.concatenate([jnp.stack([u_ + s_ * e_[:, 0], v_ + s_ * e_[:, 1]], -1)
-                                  for s_ in (lo_ - SIDE_OFFSET, hi_ + SIDE_OFFSET)])
+                                  for s_ in (lo_ - sides_[:, 0], hi_ + sides_[:, 1])])
         o, d = camera_rays(M.scene.camera, points[:, 0] / width - 0.5, 0.5 - points[:, 1] / height)
         colours, dropped = trace(M.ctx, o, d, chunk=CHUNK, capacity=capacity, media=M.media,
                                  alive=jnp.concatenate([ok_, ok_]))
@@ -1100,7 +1136,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
     found_ = _dealt_map(locate_chunk, (pa, u0, v0, axis, ch, live, first_level, in_shadow), live, n_dev,
                         dynamic, on_devices)
-    lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, p_lo, jump, lost = jax.tree.map(sg, found_)
+    (lo, hi, pb, kind, face, level, entry, t_ref, g_u, g_v, cross, p_lo, _, jump,
+     lost) = jax.tree.map(sg, found_)
     dropped = jnp.sum(lost)
     ok = live & (kind >= 0)
     g_u, g_v = jnp.where(ok, g_u, 0.0), jnp.where(ok, g_v, 0.0)
