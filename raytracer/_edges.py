@@ -71,8 +71,8 @@ tube over its far one: one primitive on both sides, the signature does not chang
 without a margin (polynomials, open cylinders and cones), a turbulent discrete pattern
 and ``clipped_by`` get no term (``Edges.unresolved``
 counts those crossings), nor do a mesh's shadow outline and the creases between its triangles;
-neither does the
-onset of total internal reflection (a change of branch alone). Not in this term: the shadows of
+the onset of total internal reflection is the zero of refraction's discriminant there. Not in
+this term: the shadows of
 area lights whose samples adaptive sampling chooses (a warning says so), a shadow's edge inside
 another caster's shadow (the first caster along the shadow ray is
 the one seen), what the mirror ray of a transparent surface shows (the path follows its refracted
@@ -980,13 +980,16 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     has, creased, casts_term = (jnp.asarray(x) for x in tables[2:])
 
     def margins(sc, pk, s_lo, s_hi, face, level, entry, t_ref, u, v):
-        """(5 or 7,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
+        """(6 or 8,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
         of, at image point (u, v) of scene ``sc`` packed as ``pk``, along the ray of their paths'
         level ``level``: the outline of ``s_lo``'s primitive there, the outline of ``s_hi``'s,
         their seam (the distances' difference), the cell face ``face`` = (normal, offset) of a
         discrete pattern on one primitive (``normal · q − offset``, q its pattern-space point), the
         crease between two faces of one primitive (the difference of the line's crossings with the
-        two faces' whole surfaces, ``AbstractShape.face_distance``), and with shadows, the outlines
+        two faces' whole surfaces, ``AbstractShape.face_distance``), the onset of total internal
+        reflection where the path refracts (``lighting.refract``'s discriminant, 1 + η²(c² − 1),
+        at ``s_lo``'s crossing of the level: refraction on one side, its mirror ray on the
+        other), and with shadows, the outlines
         of shadow entry ``entry``'s caster on ``s_lo``'s side and on
         ``s_hi``'s, along the line from the point seen towards that light or grid sample. Each
         primitive's crossing is the one nearest ``t_ref`` (held), the distance seen at the
@@ -1004,8 +1007,15 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         crease = jnp.zeros((), o.dtype)
         if creases:  # between the faces of one primitive either side, along the same ray
             crease = _crease(geo_, tables, lo_, o, d, a[FACE], b[FACE], t_ref)
+        onset = jnp.zeros((), o.dtype)
+        if levels > 1:  # total internal reflection: refraction's discriminant there (``child``)
+            entering = jnp.dot(n_lo, d) < 0
+            ior = jnp.asarray(pk.mats.ior)[lo_]
+            eta = jnp.where(entering, 1.0 / ior, ior)
+            c = jnp.abs(jnp.dot(n_lo, d)) / jnp.sqrt(jnp.dot(d, d))
+            onset = 1.0 + eta * eta * (c * c - 1.0)
         out = [_margin(geo_, tables, lo_, o, d, a[ITEM]), _margin(geo_, tables, hi_, o, d, b[ITEM]), seam,
-               on_face, crease]
+               on_face, crease, onset]
         if entries:
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
             l = towards_light(sc, entry, p)
@@ -1027,7 +1037,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         along ``e`` from (u, v); ``kind`` the margin whose zero it is, at the paths' first level
         where the channel differs (0: the outline of ``s_a``'s primitive, 1: of the primitive
         beyond, 2: their seam, 3: a cell face of one primitive's pattern, 4: a crease between two of
-        its faces, 5, 6: the outline of shadow entry ``entry``'s caster on either side; the one
+        its faces, 5: the onset of total internal reflection, 6, 7: the outline of shadow entry
+        ``entry``'s caster on either side; the one
         nearest the crossing in pixels, -1
         where none is within a hundredth of the spacing), ``t_ref`` the distance seen beyond the
         crossing at that level, the margin's derivatives along the image, and the crossing itself
@@ -1098,7 +1109,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         path = ch == 0
         valid = [path & has_lo & ~one, path & has_hi & ~one, path & has_lo & has_hi & ~one,
                  path & one & has_face & (a[1] != b[1]),
-                 path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE])]
+                 path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE]),
+                 path & one & (jnp.minimum(a[2], b[2]) == REFRACT) & (jnp.maximum(a[2], b[2]) == TIR)]
         if entries:  # (channel 0's shadow entries are the point lights')
             shadow = one & (a[CASTERS + entry] != b[CASTERS + entry]) & (path == (entry < n_points))
             valid += [shadow & (c_ >= 0) & casts_term[jnp.maximum(c_, 0)]

@@ -601,6 +601,37 @@ def test_a_spheres_own_shadow_in_an_area_light_moves_as_central_differences_say(
     assert int(edges.unresolved) == 0 and int(edges.crossings) > 0
 
 
+def test_the_onset_of_total_internal_reflection_moves_as_central_differences_say():
+    """Snell's window: a camera inside a glass box (ior 1.33) looking up at its top face sees the
+    sky through a disc of the face and, past the critical angle, the face's total internal
+    reflection: an edge of the path's branch alone (one primitive, one face, refracted on one
+    side and mirrored on the other), whose margin is refraction's discriminant 1 + η²(c² − 1) at
+    the crossing. Flat colours: the term is the whole derivative. Along the ior, within 8 % of
+    central differences of 16×16-sample renders (measured 5.5 %; all 122 crossings unresolved and
+    the derivative 0 without this margin), its sum within 1 % (0.14 %)."""
+    width, height = 24, 18
+    scene = rt.load_scene(HEAD.replace("assumed_gamma 1.0", "assumed_gamma 1.0 max_trace_level 4")
+                          + "camera { location <0, 0, 0> look_at <0, 1, 1> angle 60 }\n"
+                          "background { rgb <0.2, 0.4, 1> }\n"
+                          "box { <-20, -5, -20>, <20, 1, 20> pigment { rgbf 1 } "
+                          "finish { ambient 0 diffuse 0 } interior { ior 1.33 } }\n"
+                          f"plane {{ y, -6 pigment {{ rgb <1, 0.5, 0.2> }} {FLAT} }}")
+    params = rt.params.parameters(scene)
+    name, step = "objects[0].interior.ior", 0.005
+    x = float(params[name])
+
+    def image(ior):
+        moved = rt.params.replace(scene, {**params, name: jnp.asarray(ior, jnp.float32)})
+        return np.asarray(rt.render(moved, width=width, height=height, spp=256), np.float64)
+
+    central = (image(x + step) - image(x - step)) / (2 * step)
+    edges = _term(scene, {name: jnp.asarray(1.0, jnp.float32)}, width, height, 4)
+    term = np.asarray(edges.tangent)
+    assert int(edges.unresolved) == 0 and int(edges.crossings) > 0
+    assert np.linalg.norm(term - central) < 0.08 * np.linalg.norm(central)
+    assert term.sum() == pytest.approx(central.sum(), rel=0.01)
+
+
 TWO_DEVICES = """
 import json, sys
 import equinox as eqx, jax, jax.numpy as jnp, numpy as np
