@@ -65,7 +65,8 @@ spacing ``h`` — second order on smooth edges; a vertex between straight edges 
 a polygon's), but not one whose edges both run steeply across the lattice lines of both passes,
 nor the corners of features a few lattice steps across (first order there, as a curve's tip is);
 two edges between neighbouring samples count as one, a crossing's jump takes in any other edge
-within ``2 SIDE_OFFSET`` of it (a dense area light's penumbra: 1.2 % at 16×16 samples), and
+within ``2 SIDE_OFFSET`` of it (a dense area light's penumbra: 1.2 % at 16×16 samples; farther,
+``SIDE_CHECKS``, where a float32 shadow flickers), and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
 tube over its far one: one primitive on both sides, the signature does not change); a shape
 without a margin (polynomials, open cylinders and cones), a turbulent discrete pattern
