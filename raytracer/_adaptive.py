@@ -211,11 +211,9 @@ def _render_adaptive(scene: Scene, width: int, height: int, aa: Adaptive, capaci
 
     def run(room):
         n_dev = _adaptive_devices(scene_plan, width, height, n, batch, room)
-        args = (_placed(values, n_dev), width, height, n, batch, n_dev, room, threshold, gamma)
-        if _programs.cache_folder() is None:
-            return _adaptive_program(*args)
-        # the values known: the program kept on disk by what its trace reads (render's ``_image``)
-        return _programs.run("adaptive", _adaptive_program, *args)
+        # (the values known: the program kept on disk by what its trace reads, as render's)
+        return _programs.run("adaptive", _adaptive_program, _placed(values, n_dev), width, height, n, batch,
+                             n_dev, room, threshold, gamma)
 
     image, flag = _with_room(run, capacity, key and key + ("adaptive", n))
     if values is packed:

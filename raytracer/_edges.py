@@ -1008,13 +1008,13 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         crease = jnp.zeros((), o.dtype)
         if creases:  # between the faces of one primitive either side, along the same ray
             crease = _crease(geo_, tables, lo_, o, d, a[FACE], b[FACE], t_ref)
+        entering = jnp.dot(n_lo, d) < 0
+        n_facing = jnp.where(entering, n_lo, -n_lo)  # towards the ray, as ``child`` and the model turn it
         onset = jnp.zeros((), o.dtype)
         if levels > 1:  # total internal reflection: refraction's discriminant there (``child``)
-            entering = jnp.dot(n_lo, d) < 0
             ior = jnp.asarray(pk.mats.ior)[lo_]
-            eta = jnp.where(entering, 1.0 / ior, ior)
-            c = jnp.abs(jnp.dot(n_lo, d)) / jnp.sqrt(jnp.dot(d, d))
-            onset = 1.0 + eta * eta * (c * c - 1.0)
+            onset = lighting.refraction_discriminant(d / jnp.sqrt(jnp.dot(d, d)), n_facing,
+                                                     jnp.where(entering, 1.0 / ior, ior))
         out = [_margin(geo_, tables, lo_, o, d, a[ITEM]), _margin(geo_, tables, hi_, o, d, b[ITEM]), seam,
                on_face, crease, onset]
         if entries:
@@ -1025,7 +1025,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             # surface, so that where the caster is the surface seen (an area light's sample beyond
             # its horizon while the light's centre, which shades it, is not) its outline margin has
             # a simple zero where the ray grazes it, not the double zero of the line through p
-            p_out = p + guard(p) * jnp.where(jnp.dot(n_lo, d) < 0, n_lo, -n_lo)
+            p_out = p + guard(p) * n_facing
             out += [_margin(geo_, tables, jnp.maximum(s[CASTERS + entry], 0), p_out, l) + seen_at
                     for s in (a, b)]
         return jnp.stack(out)
@@ -1057,7 +1057,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         checks = jnp.asarray(SIDE_CHECKS, dtype)
 
         def step(i, state):
-            lo, hi, s_lo, s_hi, t_hi, faces, sides, settled = state
+            lo, hi, s_lo, s_hi, t_hi, faces, sides = state
             first = i == 0
             # past the bisection: the side points, lo's then hi's at each offset of SIDE_CHECKS
             j = i - (BISECTIONS + 1)
@@ -1069,18 +1069,17 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             faces = jnp.where(first, ~changed(s_a, s_mid, ch, False)[0], faces)
             same = ~changed(s_a, s_mid, ch, faces)[0] & ~first & bisecting
             as_side = ~changed(jnp.where(side == 0, s_lo, s_hi), s_mid, ch, faces)[0]
-            take = ~bisecting & as_side & ~settled[side]
+            take = ~bisecting & as_side & (sides[side] == SIDE_FALLBACK)  # (the first offset that does)
             sides = sides.at[side].set(jnp.where(take, offset, sides[side]))
-            settled = settled.at[side].set(settled[side] | (~bisecting & as_side))
             return (jnp.where(same, mid, lo), jnp.where(same | first | ~bisecting, hi, mid),
                     jnp.where(same, s_mid, s_lo), jnp.where(same | ~bisecting, s_hi, s_mid),
-                    jnp.where(same | ~bisecting, t_hi, t_mid), faces, sides, settled)
+                    jnp.where(same | ~bisecting, t_hi, t_mid), faces, sides)
 
         start = (jnp.zeros((), dtype), jnp.asarray(h, dtype), s_a, s_a, jnp.full(levels, jnp.inf, dtype),
-                 jnp.asarray(True), jnp.full(2, SIDE_FALLBACK, dtype), jnp.zeros(2, bool))
+                 jnp.asarray(True), jnp.full(2, SIDE_FALLBACK, dtype))
         # (a chunk without shadows keeps SIDE_OFFSET: its edges are outlines, seams, cells, creases)
         steps = BISECTIONS + 1 + jnp.where(shadows, 2 * len(SIDE_CHECKS), 0)
-        lo, hi, s_lo, s_hi, t_hi, faces, sides, _ = jax.lax.fori_loop(0, steps, step, start)
+        lo, hi, s_lo, s_hi, t_hi, faces, sides = jax.lax.fori_loop(0, steps, step, start)
         sides = jnp.where(shadows, sides, SIDE_OFFSET)
         _, level, entry = changed(s_a, s_hi, ch, faces)
         # the distance seen just beyond the crossing, at its level: each side's primitive is crossed

@@ -36,7 +36,7 @@ from pathlib import Path
 import equinox as eqx
 import jax
 
-from ._packing import Frozen
+from ._packing import Frozen, is_traced
 
 PROGRAM_CACHE_BYTES = 2 << 30
 FORMAT = 1  # of an entry; a change of it, like one of the source, makes every older key miss
@@ -146,8 +146,13 @@ def compiled(name: str, fn, *args) -> Program:
 
 
 def run(name: str, fn, *args):
-    """``fn(*args)`` by the program :func:`compiled` gives (the arguments split once)."""
+    """``fn(*args)`` (``fn`` jit-compiled) by the program :func:`compiled` gives, the arguments split
+    once, where its arguments hold values and the folder is on; else ``fn(*args)`` itself: under a
+    transform (``jit``, ``vmap``, ``grad``, ``jvp``) it is part of the caller's program, and with the
+    folder off its own jit cache keeps it."""
     dynamic, static = eqx.partition(args, eqx.is_array)
+    if cache_folder() is None or is_traced(dynamic):
+        return fn(*args)
     return _program(name, fn, dynamic, static)._compiled(dynamic)
 
 

@@ -23,7 +23,6 @@ from ._edges import EDGE_LATTICE, boundary_term
 from ._gc import paused, without_collections
 from ._limits import check_render_memory
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
-from ._packing import is_traced
 from ._plan import Plan, make_plan
 from ._tiles import (
     FIRST_CAPACITY,
@@ -159,10 +158,8 @@ def _image(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, capa
     def run(room):
         args = (_image_placed(packed, scene_plan, width * height, k, room), width, height, k, room)
         args += (True,) if linear else ()  # (as ``compile_render`` asks: the two share kept programs)
-        if is_traced(args[0]) or _programs.cache_folder() is None:
-            return _render_packed(*args)  # under jit, vmap, grad, jvp: part of the caller's program
-        # with values: the program kept on disk by what its trace reads, loaded where a process
-        # compiled this structure before (``raytracer/_programs.py``), as the command line's is
+        # with values, the program kept on disk by what its trace reads, loaded where a process
+        # compiled this structure before, as the command line's is (``raytracer/_programs.py``)
         return _programs.run("render", _render_packed, *args)
 
     return _with_room(run, capacity, _room_key(packed, width, height, k, linear))

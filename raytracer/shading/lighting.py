@@ -90,11 +90,18 @@ def refract(d, n, eta):
     Returns ``(direction, tir)``; where ``tir`` the direction is the mirror direction.
     """
     c = -jnp.dot(d, n)
-    t = 1.0 + eta * eta * (c * c - 1.0)
+    t = refraction_discriminant(d, n, eta)
     tir = t < 0
     out = eta * d + (eta * c - safe_sqrt(jnp.where(tir, 1.0, t))) * n
     mirror = d + 2.0 * c * n
     return jnp.where(tir, mirror, out), tir
+
+
+def refraction_discriminant(d, n, eta):
+    """``1 + η²(c² − 1)``, c = −d·n: what is under :func:`refract`'s square root; below 0 refraction
+    is total internal reflection (its zero is where that begins: ``_edges``' margin of it)."""
+    c = -jnp.dot(d, n)
+    return 1.0 + eta * eta * (c * c - 1.0)
 
 
 def reflect(d, n):
