@@ -165,7 +165,8 @@ class Edges(NamedTuple):
 
 def _prim_tables(geo, n_prims: int):
     """(group (P,), index in its group (P,), has a margin (P,), has creases (P,), has a margin as a
-    shadow caster (P,)) of every primitive (static)."""
+    shadow caster (P,), its items are faces (P,): ``AbstractShape.items_are_faces``) of every
+    primitive (static)."""
     group = np.full(max(n_prims, 1), -1, np.int32)
     index = np.zeros(max(n_prims, 1), np.int32)
     for i, (g, j) in geo.where.items():
@@ -177,8 +178,11 @@ def _prim_tables(geo, n_prims: int):
 
     # a shadow caster's item is not known (the lattice keeps its primitive): a shape whose margin
     # is its items' (a mesh) casts no term
+    items_are_faces = np.array([bool(s.items_are_faces()) for s in geo.shapes], bool)
+    items_are_faces = np.where(group >= 0, items_are_faces[np.maximum(group, 0)] if len(items_are_faces)
+                               else False, False)
     return (group, index, of_class(lambda c: c.has_margin()), of_class(lambda c: c.faces > 1),
-            of_class(_whole_margin))
+            of_class(_whole_margin), items_are_faces)
 
 
 def _whole_margin(cls) -> bool:
@@ -211,6 +215,21 @@ def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased
 def _margin(geo, tables, p, o, d, sub=0):
     """The outline margin of primitive ``p`` (of its item ``sub``: a mesh's triangle) along the line."""
     return _per_prim(geo, tables, p, o, d, lambda s, oo, dd, _: s.item_margin(oo, dd, sub), jnp.nan)
+
+
+def _one_face(geo, tables, p, sub_a, sub_b):
+    """Whether items ``sub_a`` and ``sub_b`` of primitive ``p`` lie in one face
+    (``AbstractShape.one_face``; True for a primitive whose items are not faces)."""
+    group, index = tables[:2]
+    out = jnp.ones((), bool)
+    g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
+    for g, shapes in enumerate(geo.shapes):
+        if not shapes.items_are_faces():
+            continue
+        j = jnp.clip(j_of, 0, geo.object_from_world[g].shape[0] - 1)
+        shape = jax.tree_util.tree_map(lambda x, j=j: x[j], shapes)
+        out = jnp.where(g_of == g, shape.one_face(sub_a, sub_b), out)
+    return out
 
 
 def _face_of(geo, tables, p, o, d, t):
@@ -315,8 +334,9 @@ def _image_ray(camera, width: int, height: int, u, v):
 
 
 # a level's signature: primitive, pattern cell, branch, face, item, then the shadow casters' columns;
-# the item (``Hit.sub``: a mesh's triangle) is carried, not compared: it names the triangle whose
-# edge a mesh's outline is
+# the item (``Hit.sub``: a mesh's triangle) is carried: it names the triangle whose edge a mesh's
+# outline is; it is compared only on a primitive whose items are faces (a flat mesh), between items
+# of two faces (``AbstractShape.one_face``)
 FACE, ITEM, CASTERS = 3, 4, 5
 # a grid sample's entry where the light's centre does not light the point seen (POV-Ray shades an
 # area light by its centre's direction): whatever its sample's shadow, the light adds nothing there,
@@ -649,7 +669,7 @@ def _left_out(plan, mats, ctx) -> list[str]:
     per_item = sorted({prim.obj.shape.kind for prim in plan.prims if prim.rendered
                        and type(prim.obj.shape).has_margin() and not _whole_margin(type(prim.obj.shape))})
     if lit and per_item:
-        out.append("the creases between the triangles, and the shadow's outline, of " + ", ".join(per_item))
+        out.append("the shadow's outline of " + ", ".join(per_item))
     if any(not prim.rendered for prim in plan.prims):
         out.append("the cuts of clipped_by")
     cells = sorted(mats.pattern_names[k] for k, face in _discrete(mats) if face is None or mats.turbulent[k])
@@ -697,6 +717,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     mats = packed.mats
     cells = bool(_discrete(mats))
     creases = bool(np.any(tables[3]))  # a primitive of several faces (a box, a closed cylinder)
+    # a primitive whose items are faces (a flat mesh's triangles): a change of the item seen on it is
+    # a crease, or its outline over itself
+    item_faces = jnp.asarray(tables[5]) if np.any(tables[5]) else None
     # lights whose shadow is one ray: the first caster on it is part of what a sample sees; and
     # area lights sampled on a fixed grid: the first caster towards each sample of it (an entry of
     # its own, and a channel of its own below, since its edges lie within a penumbra close together)
@@ -877,12 +900,29 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     own = CASTERS + n_points  # channel 0's entries of a level: primitive … face, point-light casters
     channels = 1 + n_samples
 
+    def unequal(s_a, s_b):
+        """(..., levels, width_): the entries in which signatures differ, but for the item seen (an
+        entry of the primitive's own, unless its items are faces: a flat mesh's triangles) and the
+        UNLIT entries (the light adds nothing either side)."""
+        ne = ((s_a != s_b) & (s_a != UNLIT) & (s_b != UNLIT)).reshape(*s_a.shape[:-1], levels, width_)
+        keep = jnp.expand_dims(jnp.arange(width_) != ITEM, tuple(range(ne.ndim - 1)))
+        if item_faces is None:
+            return ne & keep
+        # the item, where one primitive whose items are faces is seen both sides on items of two
+        # faces (two triangles of one quad are one face: no crease between them)
+        a, b = s_a.reshape(ne.shape), s_b.reshape(ne.shape)
+        prim = jnp.maximum(a[..., 0], 0)
+        apart = ((a[..., 0] >= 0) & (a[..., 0] == b[..., 0]) & item_faces[prim]
+                 & (a[..., ITEM] != b[..., ITEM]))
+        one = jax.vmap(lambda p_, i, j: _one_face(M.geo, tables, p_, i, j))(
+            prim.reshape(-1), a[..., ITEM].reshape(-1), b[..., ITEM].reshape(-1)).reshape(apart.shape)
+        return (ne & keep) | (~keep & (apart & ~one)[..., None])
+
     def differs(s_a, s_b):
         """(..., channels): the channels in which signatures differ — 0: a level's primitive, cell,
         branch or point-light caster; 1 + s: the caster towards grid sample s at some level, where
         channel 0 agrees (an edge of the path itself counts once, in channel 0)."""
-        ne = ((s_a != s_b) & (s_a != UNLIT) & (s_b != UNLIT)).reshape(*s_a.shape[:-1], levels, width_)
-        ne = ne & jnp.expand_dims(jnp.arange(width_) != ITEM, tuple(range(ne.ndim - 1)))
+        ne = unequal(s_a, s_b)
         path = jnp.any(ne[..., :own], axis=(-2, -1))
         grid = jnp.any(ne[..., own:], axis=-2) & ~path[..., None]
         return jnp.concatenate([path[..., None], grid], axis=-1)
@@ -891,11 +931,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         """``(changed, level, entry)``: whether channel ``ch`` of the signatures differs, the first
         level of the path where it does, and there the shadow entry that differs (channel 0: the
         first point light's; else its grid sample's). Unless ``faces`` (a traced bool), the faces
-        seen are not compared."""
-        ne = ((s_a != s_b) & (s_a != UNLIT) & (s_b != UNLIT)).reshape(levels, width_)
-        ne = ne & (jnp.arange(width_) != ITEM)[None, :]
+        seen are not compared, nor the items (a flat mesh's triangles)."""
+        ne = unequal(s_a, s_b)
         if faces is not True:
-            ne = ne & ((jnp.arange(width_) != FACE) | faces)[None, :]
+            ne = ne & (((jnp.arange(width_) != FACE) & (jnp.arange(width_) != ITEM)) | faces)[None, :]
         level = jnp.argmax(jnp.any(ne[:, :own], axis=1))
         differ = jnp.any(ne[:, :own])
         if n_samples:
@@ -978,7 +1017,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     u0, v0 = (c.astype(dtype) - 0.5) * h, (r.astype(dtype) - 0.5) * h
     axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
 
-    has, creased, casts_term = (jnp.asarray(x) for x in tables[2:])
+    has, creased, casts_term = (jnp.asarray(x) for x in tables[2:5])
 
     def margins(sc, pk, s_lo, s_hi, face, level, entry, t_ref, u, v):
         """(6 or 8,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
@@ -1000,8 +1039,11 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         o, d = path_ray(sc, pk, s_lo, level, u, v)
         lo_, hi_ = jnp.maximum(a[0], 0), jnp.maximum(b[0], 0)
         scale = guard(o)
-        t_lo, n_lo = _nearest_hit(geo_, tables, lo_, o, d, scale, t_ref, a[ITEM])
-        seam = t_lo - _nearest_t(geo_, tables, hi_, o, d, scale, t_ref, b[ITEM])
+        # both sides' crossings in one batch: the program holds one copy of each shape's kernels
+        ts, ns = jax.vmap(lambda p_, item: _nearest_hit(geo_, tables, p_, o, d, scale, t_ref, item))(
+            jnp.stack([lo_, hi_]), jnp.stack([a[ITEM], b[ITEM]]))
+        t_lo, n_lo = ts[0], ns[0]
+        seam = t_lo - ts[1]
         on_face = jnp.zeros((), o.dtype)
         if cells:  # the same ray and crossing as the outline's
             on_face = jnp.dot(face[0], point_in_pattern(pk, lo_, o, d, t_lo)) - face[1]
@@ -1015,19 +1057,28 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             ior = jnp.asarray(pk.mats.ior)[lo_]
             onset = lighting.refraction_discriminant(d / jnp.sqrt(jnp.dot(d, d)), n_facing,
                                                      jnp.where(entering, 1.0 / ior, ior))
-        out = [_margin(geo_, tables, lo_, o, d, a[ITEM]), _margin(geo_, tables, hi_, o, d, b[ITEM]), seam,
-               on_face, crease, onset]
+        # the outlines' margins, both sides' and (with shadows) both sides' casters', in one batch
+        prims, items = [lo_, hi_], [a[ITEM], b[ITEM]]
+        origins, directions = [o, o], [d, d]
         if entries:
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
             l = towards_light(sc, entry, p)
-            seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point
             # along the shadow ray as the model spawns it (``casters_at``): from just off the
             # surface, so that where the caster is the surface seen (an area light's sample beyond
             # its horizon while the light's centre, which shades it, is not) its outline margin has
             # a simple zero where the ray grazes it, not the double zero of the line through p
             p_out = p + guard(p) * n_facing
-            out += [_margin(geo_, tables, jnp.maximum(s[CASTERS + entry], 0), p_out, l) + seen_at
-                    for s in (a, b)]
+            for s in (a, b):
+                prims.append(jnp.maximum(s[CASTERS + entry], 0))
+                items.append(jnp.zeros((), jnp.int32))
+                origins.append(p_out)
+                directions.append(l)
+        outline = jax.vmap(lambda p_, o_, d_, item: _margin(geo_, tables, p_, o_, d_, item))(
+            *(jnp.stack(x) for x in (prims, origins, directions, items)))
+        out = [outline[0], outline[1], seam, on_face, crease, onset]
+        if entries:
+            seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point
+            out += [outline[2] + seen_at, outline[3] + seen_at]
         return jnp.stack(out)
 
     def locate(s_a, u, v, e, ch, upto, shadows):
@@ -1107,7 +1158,13 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         g_s = g_u * e[0] + g_v * e[1]
         has_lo, has_hi = (p_lo >= 0) & has[jnp.maximum(p_lo, 0)], (p_hi >= 0) & has[jnp.maximum(p_hi, 0)]
         path = ch == 0
-        valid = [path & has_lo & ~one, path & has_hi & ~one, path & has_lo & has_hi & ~one,
+        # two items of one primitive whose items are faces (a flat mesh's triangles): a crease between
+        # them, or its outline over itself, the zero of either item's outline margin (a crease: of
+        # both, and of their seam)
+        apart = ~one
+        if item_faces is not None:
+            apart = apart | (one & (a[ITEM] != b[ITEM]) & item_faces[jnp.maximum(p_lo, 0)])
+        valid = [path & has_lo & apart, path & has_hi & apart, path & has_lo & has_hi & apart,
                  path & one & has_face & (a[1] != b[1]),
                  path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE]),
                  path & one & (jnp.minimum(a[2], b[2]) == REFRACT) & (jnp.maximum(a[2], b[2]) == TIR)]
@@ -1160,9 +1217,16 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # n_u³ where the edge turns along the rows, so the rows' midpoint sums converge fast there
     along, other = jnp.where(in_rows, g_u, g_v), jnp.where(in_rows, g_v, g_u)
     quartic = along ** 4 + other ** 4
-    # a crease across which the shading does not change (a flat-coloured box) is no edge: it has no
-    # term, and must not end the stretch of an outline beside it
-    usable = ok & (quartic > 0) & ~((kind == CREASE) & jnp.all(jump == 0, axis=-1))
+    # a crease across which the shading does not change (a flat-coloured box, two triangles of a
+    # mesh in one plane: equal but for roundings) is no edge: it has no term, and must not end the
+    # stretch of an outline beside it
+    crease = kind == CREASE
+    if item_faces is not None:  # (an outline of one of two items of one primitive: a mesh's crease)
+        at_level = jnp.arange(room), level
+        crease = crease | ((kind <= 2) & (p_lo.reshape(room, levels, width_)[at_level][:, 0]
+                                          == pb.reshape(room, levels, width_)[at_level][:, 0]))
+    flat = jnp.all(jnp.abs(jump) <= 64 * jnp.finfo(dtype).eps, axis=-1)
+    usable = ok & (quartic > 0) & ~(crease & flat)
     at, across = jnp.where(in_rows, pu, pv), jnp.where(in_rows, pv, pu)
     slope = jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0)  # d(at)/d(across)
     low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, pa, pb,

@@ -148,36 +148,35 @@ def test_a_boxs_outline_term_is_the_integral_over_its_projected_hull():
     assert _rel_l2(d_image, reference) < 0.0025
 
 
-def test_a_mesh_boxs_outline_is_its_triangles_edges_moving_with_its_vertices():
-    """The box of the test above as a mesh of twelve triangles, flat-coloured: its outline is the
-    hull of its eight projected corners again, now the edge of the triangle each ray saw last
-    (``Mesh.item_margin``, ``Hit.sub``), moved by its vertices. Along a tangent of every vertex
-    (a translation and a shear of the box): within 0.5 % at 4×4 samples a pixel."""
-    width, height = 24, 18
-    c1, c2 = np.array([-0.9, -0.6, -0.5]), np.array([0.7, 0.5, 0.6])
+# a box's eight corners (index 4x + 2y + z of which corner each coordinate takes) and its six faces
+BOX_QUADS = ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3))
 
-    def corners(a, b):
-        return np.array([[x, y, z] for x in (a[0], b[0]) for y in (a[1], b[1]) for z in (a[2], b[2])])
 
-    quads = ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3))
-    faces = [(q[0], q[1], q[2]) for q in quads] + [(q[0], q[2], q[3]) for q in quads]
-    points = corners(c1, c2)
-    text = " ".join("triangle { " + ", ".join("<{}, {}, {}>".format(*points[i]) for i in f) + " }"
-                    for f in faces)
-    scene = rt.load_scene(HEAD + "camera { location <0.8, 1.2, -4> look_at <0, 0, 0> angle 40 }\n"
-                          f"mesh {{ {text} pigment {{ rgb 1 }} {FLAT} }}")
-    params = rt.params.parameters(scene)
-    motion3 = np.array([0.3, -0.2, 0.4])[None, :] + 0.5 * points[:, [1]] * np.array([1.0, 0.0, 0.0])[None, :]
-    tangent = {"objects[0].shape.triangles": jnp.asarray(np.stack([motion3[list(f)] for f in faces]),
-                                                         jnp.float32)}
-    frame = [np.asarray(x, np.float64) for x in scene.camera.frame()]
-    eps = 1e-6
-    velocity = (project(frame, width, height, points + eps * motion3)
-                - project(frame, width, height, points - eps * motion3)) / (2 * eps)
-    reference = convex_outline_term(project(frame, width, height, points), velocity, width, height)
-    reference = reference[..., None] * np.ones(3)
-    _, d_image = _jvp(scene, params, tangent, width, height, 16)
-    assert _rel_l2(d_image, reference) < 0.005
+def _box_corners(c1, c2):
+    return np.array([[(c1, c2)[(i >> (2 - a)) & 1][a] for a in range(3)] for i in range(8)])
+
+
+def _lit_faces_term(frame, points, motion, light, width, height):
+    """(H, W, 3): the boundary term of a convex box of corners ``points`` (8, 3) moving at ``motion``
+    (8, 3; faces kept planar), diffuse in the parallel light towards ``light`` (unit): each face the
+    camera sees is a projected quadrilateral of constant radiance, so the term is the sum of their
+    outline integrals weighted by that radiance."""
+    eps, centre, out = 1e-6, points.mean(axis=0), np.zeros((height, width))
+    for quad in BOX_QUADS:
+        corners = points[list(quad)]
+        normal = np.cross(corners[1] - corners[0], corners[2] - corners[0])
+        normal *= np.sign(normal @ (corners[0] - centre)) / np.linalg.norm(normal)
+        if normal @ (frame[0] - corners[0]) <= 0:
+            continue  # faces away from the camera
+        velocity = (project(frame, width, height, corners + eps * motion[list(quad)])
+                    - project(frame, width, height, corners - eps * motion[list(quad)])) / (2 * eps)
+        outline = convex_outline_term(project(frame, width, height, corners), velocity, width, height)
+        out += max(normal @ light, 0.0) * outline
+    return out[..., None] * np.ones(3)
+
+
+LIT_BOX = ("camera { location <2.2, 2, -3.5> look_at <0, 0, 0> angle 45 }\n"
+           "light_source { <2, 5, -3> color rgb 1 parallel point_at <0, 0, 0> }\n")
 
 
 def test_a_lit_boxs_creases_move_as_its_faces_projections_do():
@@ -191,42 +190,43 @@ def test_a_lit_boxs_creases_move_as_its_faces_projections_do():
     not move, so the derivative is the term alone."""
     width, height = 24, 18
     c1, c2 = np.array([-0.9, -0.6, -0.5]), np.array([0.7, 0.5, 0.6])
-    towards_light = np.array([2.0, 5.0, -3.0])
     box = (f"box {{ <{c1[0]}, {c1[1]}, {c1[2]}>, <{c2[0]}, {c2[1]}, {c2[2]}> pigment {{ rgb 1 }} "
            "finish { ambient 0 diffuse 1 } }")
-    scene = rt.load_scene(HEAD + "camera { location <2.2, 2, -3.5> look_at <0, 0, 0> angle 45 }\n"
-                          "light_source { <2, 5, -3> color rgb 1 parallel point_at <0, 0, 0> }\n" + box)
+    scene = rt.load_scene(HEAD + LIT_BOX + box)
     t1, t2 = np.array([0.3, -0.8, 0.5]), np.array([-0.2, 0.4, 0.6])
     tangent = {"objects[0].shape.corner1": jnp.asarray(t1, jnp.float32),
                "objects[0].shape.corner2": jnp.asarray(t2, jnp.float32)}
     frame = [np.asarray(x, np.float64) for x in scene.camera.frame()]
-    eye, light = frame[0], towards_light / np.linalg.norm(towards_light)
-
-    def face_corners(a, b, axis, side):
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        u, w = [k for k in range(3) if k != axis]
-        out = []
-        for pu, pw in ((lo[u], lo[w]), (hi[u], lo[w]), (hi[u], hi[w]), (lo[u], hi[w])):
-            p = np.zeros(3)
-            p[axis], p[u], p[w] = (hi if side else lo)[axis], pu, pw
-            out.append(p)
-        return np.array(out)
-
-    eps, reference = 1e-6, np.zeros((height, width))
-    for axis in range(3):
-        for side in (0, 1):
-            normal = np.zeros(3)
-            normal[axis] = 1.0 if side else -1.0
-            corners = face_corners(c1, c2, axis, side)
-            if normal @ (eye - corners[0]) <= 0:
-                continue  # faces away from the camera
-            points = project(frame, width, height, corners)
-            motion = (project(frame, width, height, face_corners(c1 + eps * t1, c2 + eps * t2, axis, side))
-                      - project(frame, width, height, face_corners(c1 - eps * t1, c2 - eps * t2, axis, side))
-                      ) / (2 * eps)
-            reference += max(normal @ light, 0.0) * convex_outline_term(points, motion, width, height)
-    reference = reference[..., None] * np.ones(3)
+    light = np.array([2.0, 5.0, -3.0]) / np.linalg.norm([2.0, 5.0, -3.0])
+    reference = _lit_faces_term(frame, _box_corners(c1, c2), _box_corners(t1, t2), light, width, height)
     assert _rel_l2(np.asarray(_term(scene, tangent, width, height, 4).tangent), reference) < 0.015
+
+
+def test_a_flat_meshs_outline_and_creases_are_its_triangles_edges_moving_with_its_vertices():
+    """The lit box as a mesh of twelve triangles (flat: each shades with its own normal), moved by a
+    tangent of every vertex (the box test's corners' motion): its outline is the edge of the
+    triangle each ray saw last (``Mesh.item_margin``, ``Hit.sub``), a crease is where the triangle
+    seen changes between two faces (``Mesh.items_are_faces``), and the diagonal between a face's
+    two triangles is no edge (``Mesh.one_face``). The term is the faces' outline integrals weighted
+    by their radiance, as for the box: within 1.5 % at 4×4 samples a pixel (measured 0.89 %, the
+    box 0.80 %; 44 % with the creases left out, 6.8 % where a face's diagonal hides a crease beside
+    it within one lattice step)."""
+    width, height = 24, 18
+    points = _box_corners(np.array([-0.9, -0.6, -0.5]), np.array([0.7, 0.5, 0.6]))
+    faces = [(q[0], q[1], q[2]) for q in BOX_QUADS] + [(q[0], q[2], q[3]) for q in BOX_QUADS]
+    text = " ".join("triangle { " + ", ".join("<{}, {}, {}>".format(*points[i]) for i in f) + " }"
+                    for f in faces)
+    scene = rt.load_scene(HEAD + LIT_BOX + f"mesh {{ {text} pigment {{ rgb 1 }} "
+                          "finish { ambient 0 diffuse 1 } }")
+    motion = _box_corners(np.array([0.3, -0.8, 0.5]), np.array([-0.2, 0.4, 0.6]))  # the box test's
+    tangent = {"objects[0].shape.triangles": jnp.asarray(np.stack([motion[list(f)] for f in faces]),
+                                                         jnp.float32)}
+    frame = [np.asarray(x, np.float64) for x in scene.camera.frame()]
+    light = np.array([2.0, 5.0, -3.0]) / np.linalg.norm([2.0, 5.0, -3.0])
+    reference = _lit_faces_term(frame, points, motion, light, width, height)
+    with pytest.warns(RuntimeWarning, match="shadow's outline of mesh"):  # (not seen yet)
+        term = _term(scene, tangent, width, height, 4)
+    assert _rel_l2(np.asarray(term.tangent), reference) < 0.015
 
 
 def test_a_checker_floors_cell_edges_move_with_the_camera_as_their_projections_do(x64):

@@ -198,6 +198,18 @@ class AbstractShape(Record):
         term knows which one a ray sees, ``Hit.sub``); by default the shape's own."""
         return self.silhouette_margin(o, d)
 
+    def items_are_faces(self) -> bool:
+        """Whether the shading may jump between neighbouring items (a flat mesh's triangles: the
+        normal is each one's own), so that the boundary term sees a change of the item seen on the
+        shape as an edge: a crease, or the shape's outline over itself (static; False: its items
+        are pieces of one smooth surface, or the shape has one)."""
+        return False
+
+    def one_face(self, sub_a, sub_b) -> Bool[Array, ""]:
+        """Whether items ``sub_a`` and ``sub_b`` (traced) lie in one face, across which the shading
+        does not jump (a quad's two triangles); asked only where :meth:`items_are_faces`."""
+        return jnp.ones((), bool)
+
     @classmethod
     def has_margin(cls) -> bool:
         """Whether the class gives :meth:`silhouette_margin` (or, per item, :meth:`item_margin`)."""

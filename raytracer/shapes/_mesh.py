@@ -60,6 +60,23 @@ class Mesh(AbstractShape):
         tri = self.triangles[sub]
         return _triangle_margin(tri[0], tri[1], tri[2], o, d)
 
+    def items_are_faces(self) -> bool:
+        # flat: each triangle shades with its own normal; smooth: the normals interpolate across
+        # the edges (a smooth mesh's outline over itself is not seen yet)
+        return self.normals is None
+
+    def one_face(self, sub_a, sub_b):
+        # one plane, within roundings: the same normal direction (sine 1e-4), and b's corners on a's
+        # plane (1e-4 of the triangles' size)
+        a, b = self.triangles[sub_a], self.triangles[sub_b]
+        n_a = jnp.cross(a[1] - a[0], a[2] - a[0])
+        n_b = jnp.cross(b[1] - b[0], b[2] - b[0])
+        len_a, len_b = jnp.linalg.norm(n_a), jnp.linalg.norm(n_b)
+        size = jnp.max(jnp.abs(jnp.concatenate([a, b]) - a[0][None]))
+        parallel = jnp.linalg.norm(jnp.cross(n_a, n_b)) <= 1e-4 * len_a * len_b
+        on_plane = jnp.all(jnp.abs((b - a[0][None]) @ n_a) <= 1e-4 * len_a * size)
+        return parallel & on_plane
+
     def bounds(self):
         v = self.triangles.reshape(-1, 3)
         return v.min(axis=0), v.max(axis=0)
