@@ -103,7 +103,7 @@ from .kernels import world_normal
 from .scene import Scene, environment_of
 from .shading import _accel, lighting
 from .shading._chunks import map_in_place, nonzero, stable_order
-from .shading._geometry import _to_object, candidate_crossings, closest_hit, prim_bits
+from .shading._geometry import _slot_in_prim, _to_object, candidate_crossings, closest_hit, prim_bits
 from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
 from .shading._model import (
     adaptive_shadow_lights,
@@ -314,17 +314,33 @@ def _face(mats, prim, q_a, q_b):
     return normal, offset, has
 
 
-def _first_caster(geo, plan, o, d, t_min, t_max, visible, want):
+def _first_caster(geo, plan, o, d, t_min, t_max, visible, want, items: int = 0):
     """The primitive of the nearest crossing of the ray with ``t_min < t < t_max`` among the shadow
     casters (candidates where ``visible`` holds, accelerated primitives with bits ``want``), -1
     where none: ``closest_hit`` without what a caster's identity does not need (normals, POV-Ray's
-    order among exactly tied crossings: the first candidate of a tie is the caster)."""
+    order among exactly tied crossings: the first candidate of a tie is the caster). With
+    ``items`` (static: the scene's primitive count), the primitive and its item crossed, as
+    ``prim + items · item`` (``_caster_prim``, ``_caster_item``: a mesh's shadow outline is the edge
+    of the triangle crossed)."""
     if geo.accel is not None or not geo.n_candidates:
         caster = closest_hit(geo, plan, o, d, t_min, visible, want)
-        return jnp.where(caster.found & (caster.t < t_max), caster.prim, -1)
+        code = caster.prim + items * caster.sub if items else caster.prim
+        return jnp.where(caster.found & (caster.t < t_max), code, -1)
     t = candidate_crossings(geo, o, d, t_min, visible)[0]
     c = jnp.argmin(t)
-    return jnp.where(t[c] < t_max, jnp.asarray(geo.cand_prim)[c], -1)
+    code = jnp.asarray(geo.cand_prim)[c]
+    if items:
+        code = code + items * jnp.asarray(_slot_in_prim(geo.cand_prim))[c]
+    return jnp.where(t[c] < t_max, code, -1)
+
+
+def _caster_prim(code, items: int):
+    """The primitive of shadow entries ``code`` (``_first_caster``; negative: none, or unlit)."""
+    return jnp.where(code >= 0, code % items, code) if items else code
+
+
+def _caster_item(code, items: int):
+    return jnp.where(code >= 0, code // items, 0) if items else jnp.zeros_like(code)
 
 
 def _image_ray(camera, width: int, height: int, u, v):
@@ -656,7 +672,7 @@ def _spread(contribution, in_rows, at, across, low, high, slope, span, width: in
     return image
 
 
-def _left_out(plan, mats, ctx) -> list[str]:
+def _left_out(plan, mats, ctx, item_casters: bool) -> list[str]:
     """What the scene has whose edges the term does not see (static): shapes without a margin,
     ``clipped_by``, discrete patterns without cell faces, adaptive area lights' shadows."""
     out = []
@@ -668,7 +684,7 @@ def _left_out(plan, mats, ctx) -> list[str]:
     lit = bool(hard_shadow_lights(ctx) or grid_shadow_lights(ctx) or adaptive_shadow_lights(ctx))
     per_item = sorted({prim.obj.shape.kind for prim in plan.prims if prim.rendered
                        and type(prim.obj.shape).has_margin() and not _whole_margin(type(prim.obj.shape))})
-    if lit and per_item:
+    if lit and per_item and not item_casters:  # (a scene of more than 2³¹ primitives × items)
         out.append("the shadow's outline of " + ", ".join(per_item))
     if any(not prim.rendered for prim in plan.prims):
         out.append("the cuts of clipped_by")
@@ -727,7 +743,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     grid_lights = tuple((i, shadow_sample_points(ctx, scene.lights[i])[0].shape[0])
                         for i in grid_shadow_lights(ctx))
     n_points, n_samples = len(shadow_lights), sum(n for _, n in grid_lights)
-    left_out = _left_out(plan, packed.mats, ctx)
+    # a shadow caster whose margin is its items' (a mesh's triangles): the shadow entries carry the
+    # item crossed too, as ``prim + items · item`` (``_first_caster``), where that fits in int32
+    per_item = tables[2] & ~tables[4]
+    most = max((prim.obj.shape.n_crossings() for i, prim in enumerate(plan.prims) if per_item[i]), default=0)
+    items = len(plan.prims) if (n_points + n_samples) and most and len(plan.prims) * most < 2 ** 31 else 0
+    left_out = _left_out(plan, packed.mats, ctx, bool(items))
     if left_out:  # (said when the term is traced: once a program)
         warnings.warn("edges=True: no boundary term for " + "; ".join(left_out) + " (docs/gradients.md): "
                       "their derivatives hold what is seen fixed", RuntimeWarning, stacklevel=2)
@@ -845,7 +866,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 for i in shadow_lights:
                     l, _, shadow_len = light_geometry(M.ctx, M.scene.lights[i], p)
                     caster = _first_caster(M.geo, plan, p_out, l, start, shadow_len - start, vis_shadow,
-                                           casters)
+                                           casters, items)
                     casts.append(jnp.where(found & (jnp.dot(n, l) > lighting.NL_EPSILON), caster, -1))
             if grid_lights:  # towards each sample, as the model's shadow rays go
                 towards = []  # (position, lit) of every sample
@@ -859,8 +880,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 def caster_towards(q, lit, start=start, p_out=p_out):
                     to = q - p_out
                     dist = jnp.sqrt(jnp.maximum(jnp.dot(to, to), 1e-30))
-                    return jnp.where(lit, _first_caster(M.geo, plan, p_out, to / dist, start, dist - start,
-                                                        vis_shadow, casters), jnp.where(found, UNLIT, -1))
+                    first = _first_caster(M.geo, plan, p_out, to / dist, start, dist - start, vis_shadow,
+                                          casters, items)
+                    return jnp.where(lit, first, jnp.where(found, UNLIT, -1))
 
                 if sample is None:
                     casts.extend(jax.vmap(caster_towards)(targets, lit))
@@ -900,10 +922,20 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     own = CASTERS + n_points  # channel 0's entries of a level: primitive … face, point-light casters
     channels = 1 + n_samples
 
+    def stripped(s):
+        """The signatures ``s`` (..., levels · width_) with each shadow entry its caster's primitive
+        alone (the item a shadow ray crosses is carried, not compared: its outline is the edge)."""
+        if not items:
+            return s
+        x = s.reshape(*s.shape[:-1], levels, width_)
+        column = jnp.expand_dims(jnp.arange(width_) >= CASTERS, tuple(range(x.ndim - 1)))
+        return jnp.where(column, _caster_prim(x, items), x).reshape(s.shape)
+
     def unequal(s_a, s_b):
         """(..., levels, width_): the entries in which signatures differ, but for the item seen (an
-        entry of the primitive's own, unless its items are faces: a flat mesh's triangles) and the
-        UNLIT entries (the light adds nothing either side)."""
+        entry of the primitive's own, unless its items are faces: a flat mesh's triangles), the item
+        a shadow ray crosses, and the UNLIT entries (the light adds nothing either side)."""
+        s_a, s_b = stripped(s_a), stripped(s_b)
         ne = ((s_a != s_b) & (s_a != UNLIT) & (s_b != UNLIT)).reshape(*s_a.shape[:-1], levels, width_)
         keep = jnp.expand_dims(jnp.arange(width_) != ITEM, tuple(range(ne.ndim - 1)))
         if item_faces is None:
@@ -1007,7 +1039,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     in_rows, ch, r, c = crossings(which)
     pa, pb_ = sig[r, c], sig[r + ~in_rows, c + in_rows]
     first_level = jax.vmap(lambda a, b, k: changed(a, b, k)[1])(pa, pb_, ch)
-    ne = (pa != pb_).reshape(room, levels, width_)[..., CASTERS:]
+    ne = (stripped(pa) != stripped(pb_)).reshape(room, levels, width_)[..., CASTERS:]
     in_shadow = (ch > 0) | jnp.any(ne & (jnp.arange(levels)[None, :, None] <= first_level[:, None, None]),
                                    axis=(1, 2))
     order = stable_order(jnp.where(live, 2 * first_level + in_shadow, 2 * levels + 2), 2 * levels + 3)
@@ -1018,6 +1050,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     axis = jnp.stack([in_rows, ~in_rows], axis=-1).astype(dtype)  # (room, 2): along u or along v
 
     has, creased, casts_term = (jnp.asarray(x) for x in tables[2:5])
+    if items:  # (a caster's item is known: a mesh's shadow outline is its triangle's)
+        casts_term = casts_term | has
 
     def margins(sc, pk, s_lo, s_hi, face, level, entry, t_ref, u, v):
         """(6 or 8,) the margins an edge between the signatures ``s_lo`` and ``s_hi`` can be the zero
@@ -1058,7 +1092,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             onset = lighting.refraction_discriminant(d / jnp.sqrt(jnp.dot(d, d)), n_facing,
                                                      jnp.where(entering, 1.0 / ior, ior))
         # the outlines' margins, both sides' and (with shadows) both sides' casters', in one batch
-        prims, items = [lo_, hi_], [a[ITEM], b[ITEM]]
+        prims, subs = [lo_, hi_], [a[ITEM], b[ITEM]]
         origins, directions = [o, o], [d, d]
         if entries:
             p = o + jnp.where(jnp.isfinite(t_lo), t_lo, 0.0) * d
@@ -1069,12 +1103,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             # a simple zero where the ray grazes it, not the double zero of the line through p
             p_out = p + guard(p) * n_facing
             for s in (a, b):
-                prims.append(jnp.maximum(s[CASTERS + entry], 0))
-                items.append(jnp.zeros((), jnp.int32))
+                prims.append(jnp.maximum(_caster_prim(s[CASTERS + entry], items), 0))
+                subs.append(_caster_item(s[CASTERS + entry], items))
                 origins.append(p_out)
                 directions.append(l)
         outline = jax.vmap(lambda p_, o_, d_, item: _margin(geo_, tables, p_, o_, d_, item))(
-            *(jnp.stack(x) for x in (prims, origins, directions, items)))
+            *(jnp.stack(x) for x in (prims, origins, directions, subs)))
         out = [outline[0], outline[1], seam, on_face, crease, onset]
         if entries:
             seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point
@@ -1169,9 +1203,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                  path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE]),
                  path & one & (jnp.minimum(a[2], b[2]) == REFRACT) & (jnp.maximum(a[2], b[2]) == TIR)]
         if entries:  # (channel 0's shadow entries are the point lights')
-            shadow = one & (a[CASTERS + entry] != b[CASTERS + entry]) & (path == (entry < n_points))
-            valid += [shadow & (c_ >= 0) & casts_term[jnp.maximum(c_, 0)]
-                      for c_ in (a[CASTERS + entry], b[CASTERS + entry])]
+            c_a, c_b = (_caster_prim(x[CASTERS + entry], items) for x in (a, b))
+            shadow = one & (c_a != c_b) & (path == (entry < n_points))
+            valid += [shadow & (c_ >= 0) & casts_term[jnp.maximum(c_, 0)] for c_ in (c_a, c_b)]
         valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)
@@ -1229,7 +1263,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     usable = ok & (quartic > 0) & ~(crease & flat)
     at, across = jnp.where(in_rows, pu, pv), jnp.where(in_rows, pv, pu)
     slope = jnp.where(usable, -other / jnp.where(along != 0, along, 1.0), 0.0)  # d(at)/d(across)
-    low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, pa, pb,
+    low, high = _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, stripped(pa),
+                         stripped(pb),
                          lambda pa_, pb_, idx, j, ch_: _transition(pa_, pb_, idx, j, ch_, levels, width_, own,
                                                                   n_samples),
                          rows, cols, channels, h, n_dev)

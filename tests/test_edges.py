@@ -224,9 +224,7 @@ def test_a_flat_meshs_outline_and_creases_are_its_triangles_edges_moving_with_it
     frame = [np.asarray(x, np.float64) for x in scene.camera.frame()]
     light = np.array([2.0, 5.0, -3.0]) / np.linalg.norm([2.0, 5.0, -3.0])
     reference = _lit_faces_term(frame, points, motion, light, width, height)
-    with pytest.warns(RuntimeWarning, match="shadow's outline of mesh"):  # (not seen yet)
-        term = _term(scene, tangent, width, height, 4)
-    assert _rel_l2(np.asarray(term.tangent), reference) < 0.015
+    assert _rel_l2(np.asarray(_term(scene, tangent, width, height, 4).tangent), reference) < 0.015
 
 
 def test_a_checker_floors_cell_edges_move_with_the_camera_as_their_projections_do(x64):
@@ -307,6 +305,40 @@ def test_a_spheres_shadow_outline_term_is_its_outline_integral(x64):
     d_image = np.asarray(_term(scene, tangent, width, height, 8).tangent)
     assert _rel_l2(d_image, reference) < 0.004
     assert np.all(d_image[np.abs(reference).max(-1) == 0] == 0)
+
+
+def test_a_meshs_shadow_outline_is_its_triangles_edges_moving_with_its_vertices():
+    """The shadow of a box-shaped mesh the camera does not see on a lit plane, in a parallel light:
+    the hull of its corners cast along the light onto the plane, then projected into the image,
+    with the plane's diffuse term as its jump. The shadow ray's first caster carries the triangle
+    it crosses (``_edges._first_caster``), whose edge is the outline (``Mesh.item_margin``). Along
+    a tangent of every vertex: within 1 % at 4×4 samples a pixel (measured 0.31 %, float32 and
+    float64 alike; before: no term, every crossing unresolved)."""
+    width, height = 24, 18
+    points = _box_corners(np.array([-0.4, 0.2, 0.0]), np.array([0.35, 0.6, 0.5]))
+    faces = [(q[0], q[1], q[2]) for q in BOX_QUADS] + [(q[0], q[2], q[3]) for q in BOX_QUADS]
+    text = " ".join("triangle { " + ", ".join("<{}, {}, {}>".format(*points[i]) for i in f) + " }"
+                    for f in faces)
+    towards = np.array([-3.0, 6.0, -3.0])  # the light, from the origin it points at
+    scene = rt.load_scene(HEAD + "camera { location <0, 3, -3.5> look_at <0.2, -0.4, 0.4> angle 50 }\n"
+                          "light_source { <-3, 6, -3> color rgb 1 parallel point_at <0, 0, 0> }\n"
+                          "plane { y, -0.5 pigment { rgb 0.8 } finish { ambient 0.1 diffuse 0.9 } }\n"
+                          f"mesh {{ {text} pigment {{ rgb 1 }} no_image }}")
+    motion = _box_corners(np.array([0.3, -0.8, 0.5]), np.array([-0.2, 0.4, 0.6]))
+    tangent = {"objects[1].shape.triangles": jnp.asarray(np.stack([motion[list(f)] for f in faces]),
+                                                         jnp.float32)}
+    frame = [np.asarray(x, np.float64) for x in scene.camera.frame()]
+
+    def shadow(p):  # cast along the light onto the plane y = −0.5
+        return p - ((p[:, 1] + 0.5) / towards[1])[:, None] * towards[None, :]
+
+    eps = 1e-6
+    velocity = (project(frame, width, height, shadow(points + eps * motion))
+                - project(frame, width, height, shadow(points - eps * motion))) / (2 * eps)
+    jump = -0.9 * 0.8 * towards[1] / np.linalg.norm(towards)  # in the shadow minus lit
+    reference = convex_outline_term(project(frame, width, height, shadow(points)), velocity, width, height)
+    reference = reference[..., None] * jump * np.ones(3)
+    assert _rel_l2(np.asarray(_term(scene, tangent, width, height, 4).tangent), reference) < 0.01
 
 
 def test_an_area_lights_penumbra_is_the_outlines_of_its_samples_shadows(x64):
