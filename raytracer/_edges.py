@@ -13,8 +13,10 @@ triangle seen last before it, ``item_margin``), or a seam where two
 surfaces cross or a CSG difference's cut meets the surface it cuts (the difference of their
 distances along the ray, each primitive crossed nearest the distance seen) — the face of its
 primitive (a crease: a box's edge, a closed cylinder's rim; ``AbstractShape.face``, the margin the
-difference of the two faces' ``face_distance``) — the cell of its primitive's
-discrete pattern (``Pattern.cell``, ``Pattern.face``), or the first shadow caster between the point
+difference of the two faces' ``face_distance``; a flat mesh's crease, between triangles of two
+faces: ``AbstractShape.items_are_faces``) — the cell of its primitive's
+discrete pattern (``Pattern.cell``, ``Pattern.face``) or of its continuous pattern's value in the
+colour map (its steps, and its wraps from 1 to 0: ``_level_cell``), or the first shadow caster between the point
 it sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
 line from that point to the light) or one sample of an area light's fixed grid (each sample's hard
 shadow is an edge of its own, with its weight's share of the light) — and the same along the ray's
@@ -25,8 +27,9 @@ deterministic, differentiable function of the image point and the scene. The ter
 deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
 1. Each lattice sample's signature (at each level of its path: the primitive, its pattern cell, the
-   branch taken there, its face, the item seen — a mesh's triangle, carried for its margin, not
-   compared — and each such light's or grid sample's caster); a pair of neighbouring samples
+   branch taken there, its face, the item seen — a mesh's triangle, carried for its margin,
+   compared only on a flat mesh — and each such light's or grid sample's caster, with the triangle
+   a shadow ray crosses where the caster is a mesh); a pair of neighbouring samples
    (across the whole image and a ring of samples half a spacing outside it, in rows and in
    columns) with different ones holds a crossing of Γ — in
    channel 0 where the path, its cells or a point light's caster differ, else one crossing for each
@@ -38,7 +41,8 @@ deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
    tracing only the levels and shadow rays the pair differs in, then a Newton step on the margin),
    and at the first level of the path where the two sides differ, the margin ``g`` whose zero it
    is chosen: the nearer primitive's outline along that level's ray, the farther one's, their
-   seam, the pattern's cell face, a crease, or a shadow caster's outline — the one nearest the
+   seam, the pattern's cell face or the level its value crosses, a crease, the onset of total
+   internal reflection, or a shadow caster's outline — the one nearest the
    crossing. A pair that differs in more than the face it sees is bisected for that difference.
 3. There, by forward-mode derivatives: ``g_u, g_v`` along the image and ``g_θ`` along the
    parameters' tangent. The crossing of a row moves by ``−g_θ/g_u``; rows and columns share the edge
@@ -104,7 +108,7 @@ from .scene import Scene, environment_of
 from .shading import _accel, lighting
 from .shading._chunks import map_in_place, nonzero, stable_order
 from .shading._geometry import _slot_in_prim, _to_object, candidate_crossings, closest_hit, prim_bits
-from .shading._materials import _pattern_point, _raw_value, discrete_face_nudge
+from .shading._materials import _color_map, _pattern_point, _raw_value, discrete_face_nudge, waved_value
 from .shading._model import (
     adaptive_shadow_lights,
     grid_shadow_lights,
@@ -280,9 +284,50 @@ def _discrete(mats):
             if patterns.REGISTRY[name].discrete and patterns.REGISTRY[name].rendered]
 
 
+def _continuous(mats):
+    """The scene's continuous patterns (static): indices into ``mats.pattern_names`` of those whose
+    value a colour map looks up (its steps and the value's wraps are edges: ``_level_cell``)."""
+    return [k for k, name in enumerate(mats.pattern_names)
+            if name != "solid" and patterns.REGISTRY[name].rendered and not patterns.REGISTRY[name].discrete]
+
+
+# a continuous pattern's cell edge (``_face``'s ``step``): a plane face of a discrete pattern, the
+# wrap of the value from 1 to 0, the value's crossing of ½ (where no step is: an edge only if the
+# map's ends differ, a wrap's companion), or (≥ 0) the colour-map entry j whose position equals
+# entry j − 1's: a step of the colour
+PLANE, WRAP, HALF = -3, -1, -2
+
+
+def _steps(values, colors):
+    """(E − 1,): whether colour-map entry j + 1 is a step: at entry j's position, of another colour."""
+    return (values[1:] == values[:-1]) & jnp.any(colors[1:] != colors[:-1], axis=-1)
+
+
+def _level_cell(mats, row, w):
+    """The cell of the value ``w`` (``waved_value``) in row ``row``'s colour map: the steps at or
+    below it, and whether it is ½ or more where the map's ends differ (a wrap from 1 to 0 of the
+    value is an edge of the colour then, found by the change of this half)."""
+    values, colors = mats.values[row], mats.colors[row]
+    steps = jnp.sum(_steps(values, colors) & (w >= values[1:])).astype(jnp.int32)
+    one, zero = jnp.ones((), w.dtype), jnp.zeros((), w.dtype)
+    ends = jnp.any(_color_map(one, values, colors) != _color_map(zero, values, colors))
+    return steps + values.shape[0] * (ends & (w >= 0.5)).astype(jnp.int32)
+
+
+def _waved(mats, row, q):
+    """The value row ``row``'s colour map looks up at pattern-space point ``q``, of its continuous
+    pattern (0 for any other)."""
+    pid = jnp.asarray(mats.tables["pattern_id"])[row]
+    w = jnp.zeros((), q.dtype)
+    for k in _continuous(mats):
+        w = jnp.where(pid == k, waved_value(mats, row, _raw_value(mats, k, row, q)), w)
+    return w
+
+
 def _cell(mats, prim, p):
-    """The cell of primitive ``prim``'s top layer's discrete pattern at world point ``p``
-    (``Pattern.cell``, else its value: the colour's index); 0 where its pattern is not discrete."""
+    """The cell of primitive ``prim``'s top layer's pattern at world point ``p``: of a discrete
+    pattern, ``Pattern.cell``, else its value (the colour's index); of a continuous one, its value's
+    place in the colour map (``_level_cell``); 0 for a plain colour."""
     row = prim * mats.n_layers
     q = _pattern_point(mats, row, p)
     pid = jnp.asarray(mats.tables["pattern_id"])[row]
@@ -295,23 +340,38 @@ def _cell(mats, prim, p):
         else:
             own = _raw_value(mats, k, row, q).astype(jnp.int32)
         cell = jnp.where(pid == k, own, cell)
+    if _continuous(mats):
+        continuous = jnp.isin(pid, jnp.asarray(_continuous(mats)))
+        cell = jnp.where(continuous, _level_cell(mats, row, _waved(mats, row, q)), cell)
     return cell
 
 
 def _face(mats, prim, q_a, q_b):
-    """``(normal, offset, has)``: the plane between the cells of pattern-space points ``q_a`` and
-    ``q_b`` of primitive ``prim``'s top layer (``Pattern.face``); ``has`` False where its pattern has
-    no face function or a turbulence that bends its faces."""
+    """``(normal, offset, step, has)``: the edge between the cells of pattern-space points ``q_a``
+    and ``q_b`` of primitive ``prim``'s top layer: of a discrete pattern the plane ``normal · q =
+    offset`` (``Pattern.face``; step ``PLANE``), of a continuous one the level its value crosses
+    there (``step``: ``WRAP``, ``HALF`` or a colour-map entry); ``has`` False where a discrete
+    pattern has no face function or a turbulence that bends its faces."""
     row = prim * mats.n_layers
     pid = jnp.asarray(mats.tables["pattern_id"])[row]
     normal, offset, has = jnp.zeros(3, q_a.dtype), jnp.zeros((), q_a.dtype), jnp.zeros((), bool)
+    step = jnp.asarray(PLANE, jnp.int32)
+    if _continuous(mats):  # the level between the two sides' values: a wrap, else a step between them
+        w_a, w_b = _waved(mats, row, q_a), _waved(mats, row, q_b)
+        values = mats.values[row]
+        low, high = jnp.minimum(w_a, w_b), jnp.maximum(w_a, w_b)
+        between = _steps(values, mats.colors[row]) & (values[1:] > low) & (values[1:] <= high)
+        level = jnp.where(jnp.abs(w_a - w_b) > 0.5, WRAP,
+                          jnp.where(jnp.any(between), jnp.argmax(between) + 1, HALF)).astype(jnp.int32)
+        continuous = jnp.isin(pid, jnp.asarray(_continuous(mats)))
+        step, has = jnp.where(continuous, level, step), has | continuous
     for k, face in _discrete(mats):
         if face is None or mats.turbulent[k]:
             continue
         n_k, c_k, found = face(q_a, q_b, lambda q, k=k: _raw_value(mats, k, row, q))
         normal, offset, has = (jnp.where(pid == k, n_k, normal), jnp.where(pid == k, c_k, offset),
                                has | ((pid == k) & found))
-    return normal, offset, has
+    return normal, offset, step, has
 
 
 def _first_caster(geo, plan, o, d, t_min, t_max, visible, want, items: int = 0):
@@ -360,7 +420,7 @@ FACE, ITEM, CASTERS = 3, 4, 5
 # samples beyond its horizon ends: such changes were half the crossings of a lit sphere and none
 # had a term)
 UNLIT = -2
-CREASE = 4  # the margins' kind of a crease (``boundary_term.margins``)
+CELL, CREASE = 3, 4  # the margins' kinds of a pattern's cell edge and of a crease (``boundary_term.margins``)
 
 
 # crossings are located, differentiated and traced this many at a time, in chunks of the room up to
@@ -731,7 +791,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     sg = jax.lax.stop_gradient
 
     mats = packed.mats
-    cells = bool(_discrete(mats))
+    cells = bool(_discrete(mats) or _continuous(mats))
     creases = bool(np.any(tables[3]))  # a primitive of several faces (a box, a closed cylinder)
     # a primitive whose items are faces (a flat mesh's triangles): a change of the item seen on it is
     # a crease, or its outline over itself
@@ -763,7 +823,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     width_ = CASTERS + entries  # a level's entries: primitive, cell, branch, face, item, casters
     transparent = jnp.asarray(mats.tables["transparent"], bool)
     # float32 points of discrete patterns computed at the surface, as the shading computes them
-    refine = cells and dtype == jnp.float32
+    refine = bool(_discrete(mats)) and dtype == jnp.float32
     # each grid sample's shadow outline is an edge of its own: room for four image perimeters of it
     if room is None:
         room = _room(width, height, k) + n_samples * 4 * k * (width + height)
@@ -1080,7 +1140,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         seam = t_lo - ts[1]
         on_face = jnp.zeros((), o.dtype)
         if cells:  # the same ray and crossing as the outline's
-            on_face = jnp.dot(face[0], point_in_pattern(pk, lo_, o, d, t_lo)) - face[1]
+            q = point_in_pattern(pk, lo_, o, d, t_lo)
+            on_face = jnp.dot(face[0], q) - face[1]
+            if _continuous(pk.mats):  # the value less the level it crosses, about it (a wrap: 0 or 1)
+                row = lo_ * pk.mats.n_layers
+                level = jnp.where(face[2] >= 0, pk.mats.values[row, jnp.maximum(face[2], 0)],
+                                  jnp.where(face[2] == HALF, 0.5, 0.0))
+                on_level = jnp.mod(_waved(pk.mats, row, q) - level + 0.5, 1.0) - 0.5
+                on_face = jnp.where(face[2] == PLANE, on_face, on_level)
         crease = jnp.zeros((), o.dtype)
         if creases:  # between the faces of one primitive either side, along the same ray
             crease = _crease(geo_, tables, lo_, o, d, a[FACE], b[FACE], t_ref)
@@ -1173,14 +1240,14 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         a, b = s_lo.reshape(levels, width_)[level], s_hi.reshape(levels, width_)[level]
         p_lo, p_hi = a[0], b[0]
         one = (p_lo == p_hi) & (p_lo >= 0)
-        face = (jnp.zeros(3, dtype), jnp.zeros((), dtype))
+        face = (jnp.zeros(3, dtype), jnp.zeros((), dtype), jnp.asarray(PLANE, jnp.int32))
         has_face = jnp.zeros((), bool)
         if cells:  # the face between the cells just before and just after the crossing
             prim = jnp.maximum(p_lo, 0)
             q_a, q_b = (pattern_point(M.scene, M.packed, sig_, level, prim, t_ref, u + s * e[0], v + s * e[1])
                         for sig_, s in ((s_lo, lo - SIDE_OFFSET), (s_hi, hi + SIDE_OFFSET)))
-            normal, offset, has_face = _face(M.mats, prim, q_a, q_b)
-            face = (normal, offset)
+            normal, offset, step, has_face = _face(M.mats, prim, q_a, q_b)
+            face = (normal, offset, step)
         mid = 0.5 * (lo + hi)
         # every margin and its derivatives along the image at the crossing: one jvp, two tangents
         point = jnp.stack([u + mid * e[0], v + mid * e[1]])
@@ -1254,7 +1321,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # a crease across which the shading does not change (a flat-coloured box, two triangles of a
     # mesh in one plane: equal but for roundings) is no edge: it has no term, and must not end the
     # stretch of an outline beside it
-    crease = kind == CREASE
+    crease = (kind == CREASE) | (kind == CELL)  # (a cell edge between two cells of one colour)
     if item_faces is not None:  # (an outline of one of two items of one primitive: a mesh's crease)
         at_level = jnp.arange(room), level
         crease = crease | ((kind <= 2) & (p_lo.reshape(room, levels, width_)[at_level][:, 0]

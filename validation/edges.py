@@ -388,6 +388,37 @@ def checker_floor_term(frame_at, offset, size: float, height_y: float, colours, 
     return out
 
 
+def stripe_floor_term(frame_at, shift: float, size: float, height_y: float, colours, width: int, height: int,
+                      stripes: int = 24, length: float = 12.0) -> np.ndarray:
+    """(H, W): the boundary term of a floor ``y = height_y`` striped along x: colour ``colours[0]``
+    where the fractional part of ``(x + shift) / size`` is below ½, ``colours[1]`` above (POV-Ray's
+    ``gradient x`` with the map ``[0 A] [0.5 A] [0.5 B] [1 B]``, scaled by ``size`` and moved by
+    ``−shift``; ``x + shift`` positive where seen), for a camera whose frame is ``frame_at(s)``: each
+    stripe edge within ``stripes`` half-periods of x = −shift is straight, cut into pieces of ``size``
+    along z up to ``length``, each a segment of the image whose ends move as their projections do
+    (pieces that reach behind the camera are left out)."""
+    f0, fp, fm, eps = _frames(frame_at)
+    forward = np.asarray(f0[1], np.float64) / np.linalg.norm(f0[1])
+    out = np.zeros((height, width))
+    for n in range(stripes):
+        x = 0.5 * n * size - shift
+        # going +x across it: into colour 1 at an odd half (a step at ½), into colour 0 at a whole one
+        before, after = (colours[0], colours[1]) if n % 2 else (colours[1], colours[0])
+        for z in np.arange(-length, length, size):
+            points = np.array([[x, height_y, z], [x, height_y, z + size]])
+            if np.any((points - np.asarray(f0[0])) @ forward <= 0.1):
+                continue
+            ends = project(f0, width, height, points)
+            motion = (project(fp, width, height, points) - project(fm, width, height, points)) / (2 * eps)
+            edge = ends[1] - ends[0]
+            normal = np.array([edge[1], -edge[0]])
+            ahead = project(f0, width, height, np.array([[x + 0.1 * size, height_y, z + 0.5 * size]]))[0]
+            # the jump: the radiance on the side the normal points away from minus the other
+            jump = before - after if np.dot(ahead - ends[0], normal) > 0 else after - before
+            out += segments_term(ends[None], motion[None], [jump], width, height)
+    return out
+
+
 def _frames(frame_at, eps: float = 1e-6):
     """The camera's frame at the parameter's 0 and ±eps (its motion by central differences)."""
     return frame_at(0.0), frame_at(eps), frame_at(-eps), eps

@@ -350,9 +350,9 @@ def discrete_face_nudge(mats: PackedMaterials, row, q):
     return jnp.where(jnp.asarray(mats.tables["exact_space"])[row], patterns.FACE_NUDGE, loose)
 
 
-def _pigment_of_value(mats: PackedMaterials, prim, v):
-    """RGBFT (5,) of row ``prim`` whose pattern has raw value ``v``: frequency, phase, wave and
-    colour map (or list entry); a solid row's colour whatever ``v``."""
+def waved_value(mats: PackedMaterials, prim, v):
+    """The value row ``prim``'s colour map looks up, of raw value ``v``: frequency and phase (not for
+    a discrete pattern, whose value is the index of its colour), then the row's wave."""
     pid = jnp.asarray(mats.tables["pattern_id"])[prim]
     # frequency / phase with POV's 1.00001 wrap (semantics §5.2 step 3); a discrete pattern's value is the
     # index of its colour and is never wrapped
@@ -365,6 +365,15 @@ def _pigment_of_value(mats: PackedMaterials, prim, v):
     if np.any(mats.waves != 0):
         waved = jnp.stack([patterns.apply_wave(v, name) for name in WAVES])
         v = waved[wave]
+    return v
+
+
+def _pigment_of_value(mats: PackedMaterials, prim, v):
+    """RGBFT (5,) of row ``prim`` whose pattern has raw value ``v``: frequency, phase, wave and
+    colour map (or list entry); a solid row's colour whatever ``v``."""
+    pid = jnp.asarray(mats.tables["pattern_id"])[prim]
+    discrete = jnp.asarray([patterns.REGISTRY[name].discrete for name in mats.pattern_names])[pid]
+    v = waved_value(mats, prim, v)
     kinds = [patterns.REGISTRY[name].discrete for name in mats.pattern_names if name != "solid"]
     if kinds and all(kinds):  # every pattern lists its colours (checker floors): no colour map
         c = _list_entry(v, mats.colors[prim])
