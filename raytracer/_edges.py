@@ -9,22 +9,21 @@ parameter θ moves, the derivative of the pixel has a second term besides the me
 
 v_n the normal speed of Γ. Here Γ is where what a camera ray sees changes: its primitive — an
 outline over what lies behind it (``AbstractShape.silhouette_margin``; a mesh's, the edge of the
-triangle seen last before it, ``item_margin``), or a seam where two
-surfaces cross or a CSG difference's cut meets the surface it cuts (the difference of their
-distances along the ray, each primitive crossed nearest the distance seen) — the face of its
-primitive (a crease: a box's edge, a closed cylinder's rim; ``AbstractShape.face``, the margin the
-difference of the two faces' ``face_distance``; a flat mesh's crease, between triangles of two
-faces: ``AbstractShape.items_are_faces``) — the cell of its primitive's
-discrete pattern (``Pattern.cell``, ``Pattern.face``) or of its continuous pattern's value in the
-colour map (its steps, and its wraps from 1 to 0: ``_level_cell``), or the first shadow caster between the point
-it sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
+triangle seen last before it, ``item_margin``), or a seam where two surfaces cross or a CSG
+difference's cut meets the surface it cuts (the difference of their distances along the ray, each
+primitive crossed nearest the distance seen) — the face of its primitive (a crease: a box's edge, a
+closed cylinder's rim; ``AbstractShape.face``, the margin the difference of the two faces'
+``face_distance``; a flat mesh's crease, between triangles of two faces:
+``AbstractShape.items_are_faces``) — the cell of its primitive's discrete pattern
+(``Pattern.cell``, ``Pattern.face``) or of its continuous pattern's value in the colour map (its
+steps, and its wraps from 1 to 0: ``_level_cell``), or the first shadow caster between the point it
+sees and a light whose shadow is one ray (point, spot, parallel; the caster's outline along the
 line from that point to the light) or one sample of an area light's fixed grid (each sample's hard
 shadow is an edge of its own, with its weight's share of the light) — and the same along the ray's
-path through mirrors and glass:
-a surface whose pigment can transmit passes the refracted ray on (or, past the critical angle, the
-mirror ray), one whose finish reflects the mirror ray, up to ``PATH_BOUNCES`` of them, each a
-deterministic, differentiable function of the image point and the scene. The term is computed
-deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
+path through mirrors and glass: a surface whose pigment can transmit passes the refracted ray on
+(or, past the critical angle, the mirror ray), one whose finish reflects the mirror ray, up to
+``PATH_BOUNCES`` of them, each a deterministic, differentiable function of the image point and the
+scene. The term is computed deterministically on a lattice of at least ``EDGE_LATTICE``² samples a pixel:
 
 1. Each lattice sample's signature (at each level of its path: the primitive, its pattern cell, the
    branch taken there, its face, the item seen — a mesh's triangle, carried for its margin,
