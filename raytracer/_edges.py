@@ -272,6 +272,38 @@ def _nearest_hit(geo, tables, p, o, d, t_min, t_ref=None, sub=None):
     return out[0], out[1:]
 
 
+def _crossings(geo, tables, p, o, d, k: int):
+    """(k,): every crossing of the line ``o + t d`` with primitive ``p`` (any shape but a mesh; inf
+    past its own, and where none)."""
+    def all_t(s, oo, dd, _):
+        t = s.hits(oo, dd)[0]
+        t = t[:k] if t.shape[0] >= k else jnp.concatenate([t, jnp.full(k - t.shape[0], jnp.inf, t.dtype)])
+        return jnp.where(jnp.isfinite(t), t, jnp.inf)
+
+    return _per_prim(geo, tables, p, o, d, all_t, jnp.full(k, jnp.inf, o.dtype), every_shape=True)
+
+
+def _condition_leaves(plan) -> np.ndarray:
+    """(P, M) int32: the primitives of each primitive's CSG and clipping conditions (its own
+    excluded; -1 past them), M at least 1."""
+    def leaves(tree):
+        if hasattr(tree, "prim"):
+            return [tree.prim]
+        return [p for t in tree.terms for p in leaves(t)]
+
+    per = [sorted({q for c in prim.conditions for q in leaves(c.tree)} - {i})
+           for i, prim in enumerate(plan.prims)]
+    out = np.full((max(len(per), 1), max([len(x) for x in per] + [1])), -1, np.int32)
+    for i, x in enumerate(per):
+        out[i, :len(x)] = x
+    return out
+
+
+# a conditioned primitive's (CSG, clipping) face entry: its face, plus this where the ray leaves its
+# surface (the inside of a bowl cut out of a sphere, seen past its rim, is the sphere again)
+LEAVING = 16
+
+
 def _nearest_t(geo, tables, p, o, d, t_min, t_ref=None, sub=None):
     return _nearest_hit(geo, tables, p, o, d, t_min, t_ref, sub)[0]
 
@@ -733,7 +765,7 @@ def _spread(contribution, in_rows, at, across, low, high, slope, span, width: in
 
 def _left_out(plan, mats, ctx, item_casters: bool) -> list[str]:
     """What the scene has whose edges the term does not see (static): shapes without a margin,
-    ``clipped_by``, discrete patterns without cell faces, adaptive area lights' shadows."""
+    discrete patterns without cell faces, the shadows of rims, adaptive area lights' shadows."""
     out = []
     shapes = sorted({prim.obj.shape.kind for prim in plan.prims if prim.rendered
                      and (not type(prim.obj.shape).has_margin() or getattr(prim.obj.shape, "open", False))})
@@ -745,8 +777,8 @@ def _left_out(plan, mats, ctx, item_casters: bool) -> list[str]:
                        and type(prim.obj.shape).has_margin() and not _whole_margin(type(prim.obj.shape))})
     if lit and per_item and not item_casters:  # (a scene of more than 2³¹ primitives × items)
         out.append("the shadow's outline of " + ", ".join(per_item))
-    if any(not prim.rendered for prim in plan.prims):
-        out.append("the cuts of clipped_by")
+    if lit and any(prim.conditions for prim in plan.prims if prim.rendered):
+        out.append("the shadows of the rims of CSG cuts and clipped_by")
     cells = sorted(mats.pattern_names[k] for k, face in _discrete(mats) if face is None or mats.turbulent[k])
     if cells:
         out.append("the cell edges of " + ", ".join(cells) + " (turbulent, or without a face)")
@@ -795,6 +827,13 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     # a primitive whose items are faces (a flat mesh's triangles): a change of the item seen on it is
     # a crease, or its outline over itself
     item_faces = jnp.asarray(tables[5]) if np.any(tables[5]) else None
+    # the primitives a primitive's CSG and clipping conditions test (a rim: where its surface meets
+    # theirs, what is seen past it is another primitive, or its own far side)
+    leaves = _condition_leaves(plan)
+    rims = bool(np.any(leaves >= 0))
+    conditioned = jnp.asarray(np.any(leaves >= 0, axis=1)) if rims else None
+    # crossings of a line a rim's margin compares (the most any shape class but meshes gives)
+    rim_k = max([type(g).crossings for g in geo.shapes if g.kind != "mesh"] + [1])
     # lights whose shadow is one ray: the first caster on it is part of what a sample sees; and
     # area lights sampled on a fixed grid: the first caster towards each sample of it (an entry of
     # its own, and a channel of its own below, since its edges lie within a penumbra close together)
@@ -892,6 +931,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             p_cell = p if hit.point is None else hit.point
             # the face of the primitive seen (creases: a box's edges, a cylinder's rims)
             face = _face_of(M.geo, tables, hit.prim, o, d, hit.t) if creases else jnp.zeros((), jnp.int32)
+            if rims:  # which side of a conditioned primitive's surface (a bowl's inside past its rim)
+                leaving = conditioned[jnp.maximum(hit.prim, 0)] & (jnp.dot(hit.normal, d) > 0)
+                face = face + LEAVING * leaving.astype(jnp.int32)
             cell = _cell(M.mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
             casts = []
 
@@ -1149,7 +1191,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 on_face = jnp.where(face[2] == PLANE, on_face, on_level)
         crease = jnp.zeros((), o.dtype)
         if creases:  # between the faces of one primitive either side, along the same ray
-            crease = _crease(geo_, tables, lo_, o, d, a[FACE], b[FACE], t_ref)
+            crease = _crease(geo_, tables, lo_, o, d, a[FACE] % LEAVING, b[FACE] % LEAVING, t_ref)
         entering = jnp.dot(n_lo, d) < 0
         n_facing = jnp.where(entering, n_lo, -n_lo)  # towards the ray, as ``child`` and the model turn it
         onset = jnp.zeros((), o.dtype)
@@ -1179,6 +1221,16 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         if entries:
             seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point
             out += [outline[2] + seen_at, outline[3] + seen_at]
+        if rims:  # each side's rim: its crossing nearest a crossing of a primitive its conditions test
+            for p_ in (lo_, hi_):
+                own = _crossings(geo_, tables, p_, o, d, rim_k)
+                others = jax.vmap(lambda q: _crossings(geo_, tables, jnp.maximum(q, 0), o, d, rim_k))(
+                    jnp.asarray(leaves)[p_])
+                others = jnp.where((jnp.asarray(leaves)[p_] >= 0)[:, None], others, jnp.inf)
+                gap = own[None, :, None] - others[:, None, :]  # (M, k, k)
+                size = jnp.where(jnp.isfinite(gap), jnp.abs(gap), jnp.inf)
+                nearest = jnp.argmin(jax.lax.stop_gradient(size).reshape(-1))
+                out.append(jnp.where(jnp.isfinite(jnp.min(size)), gap.reshape(-1)[nearest], jnp.nan))
         return jnp.stack(out)
 
     def locate(s_a, u, v, e, ch, upto, shadows):
@@ -1266,12 +1318,15 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             apart = apart | (one & (a[ITEM] != b[ITEM]) & item_faces[jnp.maximum(p_lo, 0)])
         valid = [path & has_lo & apart, path & has_hi & apart, path & has_lo & has_hi & apart,
                  path & one & has_face & (a[1] != b[1]),
-                 path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE]),
+                 path & one & creased[jnp.maximum(p_lo, 0)] & (a[FACE] % LEAVING != b[FACE] % LEAVING),
                  path & one & (jnp.minimum(a[2], b[2]) == REFRACT) & (jnp.maximum(a[2], b[2]) == TIR)]
         if entries:  # (channel 0's shadow entries are the point lights')
             c_a, c_b = (_caster_prim(x[CASTERS + entry], items) for x in (a, b))
             shadow = one & (c_a != c_b) & (path == (entry < n_points))
             valid += [shadow & (c_ >= 0) & casts_term[jnp.maximum(c_, 0)] for c_ in (c_a, c_b)]
+        if rims:  # where what is seen changes, or one primitive's side: a conditioned one's rim
+            valid += [path & (p_ >= 0) & conditioned[jnp.maximum(p_, 0)] & (~one | (a[FACE] != b[FACE]))
+                      for p_ in (p_lo, p_hi)]
         valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)

@@ -522,6 +522,60 @@ def test_a_csg_differences_cut_moves_as_the_rim_where_its_operands_meet(x64):
     assert int(edges.unresolved) == 0 and int(edges.crossings) > 0
 
 
+def test_a_clipped_spheres_rim_moves_with_its_clipping_plane(x64):
+    """A flat sphere clipped by a plane across its front (``clipped_by``), seen along the plane's
+    normal by an orthographic camera: past the rim, where the sphere's front meets the plane, both
+    its crossings are cut and nothing is seen, so the image is the disc of radius² r² − c². The
+    rim's margin is the gap between the sphere's crossing and the plane's nearest it along the ray
+    (``_edges._condition_leaves``). Along the plane's distance and the radius: within 0.5 % of the
+    disc's outline integral at 4×4 samples a pixel (measured 0.28 %; before: no term, every
+    crossing unresolved)."""
+    width, height = 24, 18
+    red = np.array([1.0, 0.3, 0.2])
+    scene = rt.load_scene(HEAD + "camera { orthographic location <0, 0, -10> look_at <0, 0, 0> "
+                          "right x*4 up y*3 }\n"
+                          f"sphere {{ 0, 1 pigment {{ rgb <1, 0.3, 0.2> }} {FLAT} "
+                          "clipped_by { plane { z, -0.3 } } }")
+    tangent = {"objects[0].clipped_by[0].shape.distance": jnp.asarray(0.4),
+               "objects[0].shape.radius": jnp.asarray(0.1)}
+
+    def disc(s):  # the rim's disc in the image at a step s along the tangent
+        c, r = -0.3 + 0.4 * s, 1.0 + 0.1 * s
+        return lambda u, v: r * r - c * c - ((u / width - 0.5) * 4) ** 2 - ((0.5 - v / height) * 3) ** 2
+
+    rate = lambda u, v: (disc(1e-6)(u, v) - disc(-1e-6)(u, v)) / 2e-6  # noqa: E731
+    reference = ellipse_outline_term(disc(0.0), rate, width, height)[..., None] * red
+    edges = _term(scene, tangent, width, height, 4)
+    assert _rel_l2(np.asarray(edges.tangent), reference) < 0.005
+    assert int(edges.unresolved) == 0
+
+
+def test_a_bowls_rim_over_its_own_inside_matches_converged_finite_differences(x64):
+    """A sphere whose cap is clipped off, lit (shadowless), seen from above: past the rim's near
+    side the sphere's inside is seen, the same primitive from its other side (the lattice tells the
+    two sides apart: ``_edges.LEAVING``). Moving the clipping plane moves only the rim, so the
+    derivative is the term alone: within 3 % of central differences of 128×128-sample renders at
+    8×8 samples a pixel (measured 2.2 %, 6.8 % at 4×4: the rim meets the outline tangentially, where
+    a crossing stands for its band of the lattice), the image's sum within 1.5 %."""
+    width, height = 16, 12
+    scene = rt.load_scene(HEAD + "camera { location <0, 2.5, -3> look_at <0, -0.2, 0> angle 45 }\n"
+                          "light_source { <2, 5, -3> color rgb 1 parallel point_at <0, 0, 0> shadowless }\n"
+                          "sphere { 0, 1 pigment { rgb <1, 0.6, 0.3> } finish { ambient 0.2 diffuse 0.8 } "
+                          "clipped_by { plane { y, 0.2 } } }")
+    params = rt.params.parameters(scene)
+    name = "objects[0].clipped_by[0].shape.distance"
+
+    def image(step):
+        moved = rt.params.replace(scene, {**params, name: params[name] + step})
+        return np.asarray(rt.render(moved, width=width, height=height, spp=16384))
+
+    reference = (image(0.01) - image(-0.01)) / 0.02
+    term = np.asarray(_term(scene, {name: jnp.asarray(1.0)}, width, height, 8).tangent)
+    mask = np.abs(reference).max(-1) > 0.02 * np.abs(reference).max()
+    assert np.linalg.norm((term - reference)[mask]) / np.linalg.norm(reference[mask]) < 0.03
+    assert term.sum() == pytest.approx(reference.sum(), rel=0.015)
+
+
 def test_reverse_mode_is_the_transpose_of_forward_mode_and_the_image_is_unchanged(x64):
     """⟨w, J t⟩ = ⟨Jᵀ w, t⟩ with the boundary term, for a sphere, a box and the horizon of a ground
     plane (float64); the image is the one without it."""
