@@ -119,7 +119,9 @@ def fit(name: str, edges: bool, steps: int, rate: float = 0.02) -> dict:
     derived = derived[0] if derived else Derived({}, lambda p: p)
     scenes = _scenes(body, views, lights)
     params = [rt.params.parameters(s) for s in scenes]
-    truth = {n: jnp.asarray(derived.truth[n] if n in derived.truth else params[0][n]) for n in offsets}
+    # (placed as the render takes them, as params.parameters' are: the step then compiles once)
+    truth = rt.params.placed({n: jnp.asarray(derived.truth[n] if n in derived.truth else params[0][n])
+                              for n in offsets})
     targets = [rt.render(s, width=WIDTH, height=HEIGHT, spp=SPP) for s in scenes]
 
     def loss(p):

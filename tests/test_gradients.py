@@ -475,3 +475,53 @@ def test_fit_material_example_recovers_its_parameters(tmp_path):
     assert last.startswith("max relative parameter error: ")
     assert float(last.split(":")[1]) <= 1e-3
     assert (tmp_path / "fit.png").is_file()
+
+
+FIT_STEPS = """
+import json, sys
+import jax, jax.numpy as jnp
+import raytracer as rt
+compiles = []
+def listen(name, *_, **__):
+    if name == "/jax/core/compile/backend_compile_duration":
+        compiles.append(1)
+
+jax.monitoring.register_event_duration_secs_listener(listen)
+scene = rt.load_scene("camera { location <0, 0, -4> look_at 0 } light_source { <2, 3, -4> rgb 1 } "
+                      "sphere { 0, 1 pigment { rgb 1 } }")
+full = rt.params.parameters(scene)
+target = rt.render(scene, width=64, height=48, spp=4)  # (split over both devices)
+name = "objects[0].shape.center"
+
+def loss(x):
+    image = rt.render(rt.params.replace(scene, {**full, name: x}), width=64, height=48, spp=4)
+    return jnp.mean((image - target) ** 2)
+
+step = jax.jit(jax.value_and_grad(loss))
+x = full[name] + jnp.asarray([0.1, -0.1, 0.0])
+counts = []
+for _ in range(3):
+    before = len(compiles)
+    value, grad = step(x)
+    x = x - 0.1 * grad
+    counts.append(len(compiles) - before)
+json.dump({"devices": len(jax.local_devices()), "compiles": counts}, open(sys.argv[1], "w"))
+"""
+
+
+def test_a_fits_step_compiles_once_when_its_parameters_come_from_the_scene(tmp_path, two_device_env):
+    """With two devices the render runs on both, so a fit's step returns gradients placed on both;
+    parameters made on one device are another input to ``jit`` and the step would trace and compile
+    again at its second call. ``params.parameters`` places them as the render takes them
+    (``params.placed``): three steps, one compile of the step (before: two)."""
+    import json
+    import subprocess
+    import sys
+
+    env = {**two_device_env, "RAYTRACER_CACHE_DIR": "off"}
+    run = subprocess.run([sys.executable, "-c", FIT_STEPS, str(tmp_path / "out.json")], env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    got = json.loads((tmp_path / "out.json").read_text())
+    assert got["devices"] == 2
+    assert got["compiles"][0] >= 1 and got["compiles"][1:] == [0, 0]
