@@ -652,11 +652,13 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, pa, pb,
             """Where the edge of the crossings ``idx`` ends towards their next line (``step``) at
             another edge — its own turning onto the other pass's lines at a vertex, or another edge
             that crosses it (a cell corner, an outline over it): the meeting of the crossing's tangent
-            line with that of a crossing of the other pass nearby, within two lattice steps of both.
-            The meeting may lie up to a step past the next line: a vertex just past a line (a box's
-            corner 0.0005 px past a column) leaves the line no pair of samples either side of the
-            edge, so the edge holds no crossing there and ends beyond it (the translated lit box's
-            term 3.7 → 1.85 % at 4×4 samples a pixel with the meeting at most one step on)."""
+            line with that of a crossing of the other pass nearby, within four lattice steps of both
+            (a crossing's edge may run at 1.5 steps a line). The meeting may lie up to a step past
+            the next line: a vertex just past a line (a box's corner 0.0005 px past a column) leaves
+            the line no pair of samples either side of the edge, and where a crease ends on an
+            outline, the outline's crossing on that line hides the crease's (the lit box translated:
+            3.7 % at 4×4 samples a pixel with the meeting up to the next line and within two steps
+            of both, 0.22 % now)."""
             in_rows_i, pu_i, pv_i, gu_i, gv_i, across_i = (x[idx] for x in (in_rows, pu, pv, gu, gv, across))
             # the other pass's lattice pairs between the two lines, and the next ones beyond (the other
             # edge may cross the other pass's lines only beyond the vertex), on its lines about this one
@@ -686,7 +688,7 @@ def _extents(usable, in_rows, r, c, ch, at, across, along, other, slope, pa, pb,
             offset = step * (meet - across_i[:, None])
             valid = (inside & (cand >= 0) & usable[idx][:, None] & (jnp.abs(det) > TURN * scale)
                      & (jnp.abs(slope[idx]) <= STEEP)[:, None] & (jnp.abs(slope[j]) <= STEEP)
-                     & (offset >= 0) & (offset <= 2 * h) & (reach <= 2 * h))
+                     & (offset >= 0) & (offset <= 2 * h) & (reach <= 4 * h))
             distance = jnp.where(valid, reach, jnp.inf)
             k = jnp.argmin(distance, axis=1)
             return jnp.isfinite(distance[lanes_, k]), meet[lanes_, k]
