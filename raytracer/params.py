@@ -53,14 +53,15 @@ def _named(tree) -> dict:
 def placed(values):
     """``values`` (a pytree of arrays) placed as the render's programs take them: replicated over
     this process's devices where the API splits the CPU into several (``raytracer/_xla.py``);
-    traced values, and values on one device, as they are.
+    traced values, and values where the process has one device, as they are.
 
-    A fit's step (``jax.jit`` of a loss and its gradient) returns gradients placed so, since its
-    render runs on every device; the parameters it is called with next are then placed so too. A
-    first call with values made on one device (a NumPy array, ``jnp.asarray``) is another input to
-    ``jit``, which traces and compiles the step a second time at the second call (3.5 s for a
-    sphere's fit without the boundary term, 9 s with it). Values placed from the start keep one
-    program."""
+    For the values a fit starts from: its step (``jax.jit`` of a loss and its gradient) returns
+    gradients placed so, since its render runs on every device, and the parameters it is called
+    with next are then placed so too. A first call with values made on one device (a NumPy array,
+    ``jnp.asarray``) is another input to ``jit``, which traces and compiles the step a second time
+    at its second call (3.5 s for a sphere's fit without the boundary term, 9 s with it). Not for
+    the scene's other values a loss closes over: those stay NumPy arrays (:func:`parameters`),
+    which the packing reads for the scene's structure (a colour that filters)."""
     if jax.process_count() > 1 or any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(values)):
         return values
     devices = jax.local_devices()
@@ -72,20 +73,19 @@ def placed(values):
 
 
 def parameters(tree) -> dict[str, jax.Array]:
-    """All differentiable parameters of ``tree`` (a scene or any sub-pytree), by name, placed as
-    the render's programs take them (:func:`placed`: a fit that starts from them compiles its step
-    once)."""
-    return placed(_named(tree))
+    """All differentiable parameters of ``tree`` (a scene or any sub-pytree), by name (start a fit
+    from :func:`placed` values of them: its step then compiles once)."""
+    return _named(tree)
 
 
 def get(tree, name: str) -> jax.Array:
-    """The parameter called ``name`` (see :func:`parameters` for the names), placed as they are."""
+    """The parameter called ``name`` (see :func:`parameters` for the names)."""
     params = _named(tree)
     if name not in params:
         close = [n for n in params if name.split(".")[-1] in n][:5]
         hint = f"; did you mean one of {close}?" if close else ""
         raise KeyError(f"no parameter {name!r}{hint}")
-    return placed(params[name])
+    return params[name]
 
 
 def replace(tree, values: dict[str, jax.Array]):
@@ -117,8 +117,7 @@ def split(tree, names: list[str]):
     mask_flat = [(_name(path) in wanted) and _is_parameter(leaf) for path, leaf in leaves]
     treedef = jax.tree_util.tree_structure(tree)
     mask = jax.tree_util.tree_unflatten(treedef, mask_flat)
-    selected, rest = eqx.partition(tree, mask)
-    return placed(selected), rest
+    return eqx.partition(tree, mask)
 
 
 # Parameter names (as :func:`parameters` writes them) that can move a visibility edge: a silhouette,

@@ -498,7 +498,7 @@ def loss(x):
     return jnp.mean((image - target) ** 2)
 
 step = jax.jit(jax.value_and_grad(loss))
-x = full[name] + jnp.asarray([0.1, -0.1, 0.0])
+x = rt.params.placed(full[name] + jnp.asarray([0.1, -0.1, 0.0]))
 counts = []
 for _ in range(3):
     before = len(compiles)
@@ -509,11 +509,11 @@ json.dump({"devices": len(jax.local_devices()), "compiles": counts}, open(sys.ar
 """
 
 
-def test_a_fits_step_compiles_once_when_its_parameters_come_from_the_scene(tmp_path, two_device_env):
+def test_a_fits_step_compiles_once_from_placed_values(tmp_path, two_device_env):
     """With two devices the render runs on both, so a fit's step returns gradients placed on both;
     parameters made on one device are another input to ``jit`` and the step would trace and compile
-    again at its second call. ``params.parameters`` places them as the render takes them
-    (``params.placed``): three steps, one compile of the step (before: two)."""
+    again at its second call. Started from ``params.placed`` values (placed as the render takes
+    them): three steps, one compile of the step (from unplaced values: two)."""
     import json
     import subprocess
     import sys
