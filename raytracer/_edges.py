@@ -71,17 +71,16 @@ two edges between neighbouring samples count as one, a crossing's jump takes in 
 within ``2 SIDE_OFFSET`` of it (a dense area light's penumbra: 1.2 % at 16×16 samples; farther,
 ``SIDE_CHECKS``, where a float32 shadow flickers), and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
-tube over its far one: one primitive on both sides, the signature does not change); a shape
-without a margin (polynomials, open cylinders and cones), a turbulent discrete pattern
-and ``clipped_by`` get no term (``Edges.unresolved``
-counts those crossings), nor do a mesh's shadow outline and the creases between its triangles;
-the onset of total internal reflection is the zero of refraction's discriminant there. Not in
-this term: the shadows of
-area lights whose samples adaptive sampling chooses (a warning says so), a shadow's edge inside
-another caster's shadow (the first caster along the shadow ray is
-the one seen), what the mirror ray of a transparent surface shows (the path follows its refracted
-ray), and paths longer than ``PATH_BOUNCES``. The path's ray crosses a surface as if from air into
-the surface's interior or back (POV-Ray's list of nested interiors is not followed).
+tube over its far one, a smooth mesh's over itself: one primitive on both sides, the signature
+does not change); a shape without a margin (polynomials, open cylinders and cones) and a turbulent
+discrete pattern get no term (``Edges.unresolved`` counts those crossings), nor does the shadow of
+a rim (a CSG cut's, a ``clipped_by``'s); the onset of total internal reflection is the zero of
+refraction's discriminant there. Not in this term: the shadows of area lights whose samples
+adaptive sampling chooses (a warning says so), a shadow's edge inside another caster's shadow (the
+first caster along the shadow ray is the one seen), what the mirror ray of a transparent surface
+shows (the path follows its refracted ray), and paths longer than ``PATH_BOUNCES``. The path's ray
+crosses a surface as if from air into the surface's interior or back (POV-Ray's list of nested
+interiors is not followed).
 """
 
 from __future__ import annotations
@@ -179,8 +178,8 @@ def _prim_tables(geo, n_prims: int):
         per_group = np.array([test(type(s)) for s in geo.shapes], bool)
         return np.where(group >= 0, per_group[np.maximum(group, 0)] if len(per_group) else False, False)
 
-    # a shadow caster's item is not known (the lattice keeps its primitive): a shape whose margin
-    # is its items' (a mesh) casts no term
+    # (a shape whose margin is its items' (a mesh) casts a term where the shadow entries carry the
+    # item a shadow ray crosses: ``_first_caster``'s ``items``)
     items_are_faces = np.array([bool(s.items_are_faces()) for s in geo.shapes], bool)
     items_are_faces = np.where(group >= 0, items_are_faces[np.maximum(group, 0)] if len(items_are_faces)
                                else False, False)
@@ -194,16 +193,20 @@ def _whole_margin(cls) -> bool:
 
 
 def _per_prim(geo, tables, p, o, d, fn, fill, every_shape: bool = False, creased: bool = False,
-              meshes: bool = False):
+              meshes: bool = False, only=None):
     """``fn(shape, object-space o, d, object_from_world)`` of the primitive ``p`` (traced index),
     over every group of a shape class with a margin (``every_shape``: of any class but meshes, whose
     every triangle a call would cross, unless ``meshes``: ``fn`` then asks one; ``creased``: of a
-    class of several faces); ``fill`` where it has none."""
+    class of several faces; ``only``: of the groups whose stacked shapes it holds for); ``fill``
+    where it has none."""
     group, index = tables[:2]
     out = jnp.asarray(fill, o.dtype)
     g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
     for g, (shapes, ofw) in enumerate(zip(geo.shapes, geo.object_from_world, strict=True)):
-        if creased:
+        if only is not None:
+            if not only(shapes):
+                continue
+        elif creased:
             if type(shapes).faces <= 1:
                 continue
         elif not (type(shapes).has_margin() or (every_shape and (meshes or shapes.kind != "mesh"))):
@@ -223,16 +226,10 @@ def _margin(geo, tables, p, o, d, sub=0):
 def _one_face(geo, tables, p, sub_a, sub_b):
     """Whether items ``sub_a`` and ``sub_b`` of primitive ``p`` lie in one face
     (``AbstractShape.one_face``; True for a primitive whose items are not faces)."""
-    group, index = tables[:2]
-    out = jnp.ones((), bool)
-    g_of, j_of = jnp.asarray(group)[p], jnp.asarray(index)[p]
-    for g, shapes in enumerate(geo.shapes):
-        if not shapes.items_are_faces():
-            continue
-        j = jnp.clip(j_of, 0, geo.object_from_world[g].shape[0] - 1)
-        shape = jax.tree_util.tree_map(lambda x, j=j: x[j], shapes)
-        out = jnp.where(g_of == g, shape.one_face(sub_a, sub_b), out)
-    return out
+    at = jnp.zeros(3, geo.object_from_world[0].dtype)  # (no line: the items' own geometry)
+    one = _per_prim(geo, tables, p, at, at, lambda s, *_: s.one_face(sub_a, sub_b).astype(at.dtype), 1.0,
+                    only=lambda shapes: shapes.items_are_faces())
+    return one > 0.5
 
 
 def _face_of(geo, tables, p, o, d, t):
@@ -1227,16 +1224,17 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         if entries:
             seen_at = jnp.where(jnp.isfinite(t_lo), 0.0, jnp.nan)  # NaN: no point
             out += [outline[2] + seen_at, outline[3] + seen_at]
-        if rims:  # each side's rim: its crossing nearest a crossing of a primitive its conditions test
-            for p_ in (lo_, hi_):
+        if rims:  # each side's rim (one batch): its crossing nearest one of a primitive its conditions test
+            def rim(p_):
+                tested = jnp.asarray(leaves)[p_]
                 own = _crossings(geo_, tables, p_, o, d, rim_k)
-                others = jax.vmap(lambda q: _crossings(geo_, tables, jnp.maximum(q, 0), o, d, rim_k))(
-                    jnp.asarray(leaves)[p_])
-                others = jnp.where((jnp.asarray(leaves)[p_] >= 0)[:, None], others, jnp.inf)
-                gap = own[None, :, None] - others[:, None, :]  # (M, k, k)
-                size = jnp.where(jnp.isfinite(gap), jnp.abs(gap), jnp.inf)
+                others = jax.vmap(lambda q: _crossings(geo_, tables, jnp.maximum(q, 0), o, d, rim_k))(tested)
+                gap = own[None, :, None] - jnp.where((tested >= 0)[:, None], others, jnp.inf)[:, None, :]
+                size = jnp.where(jnp.isfinite(gap), jnp.abs(gap), jnp.inf)  # (M, k, k)
                 nearest = jnp.argmin(jax.lax.stop_gradient(size).reshape(-1))
-                out.append(jnp.where(jnp.isfinite(jnp.min(size)), gap.reshape(-1)[nearest], jnp.nan))
+                return jnp.where(jnp.isfinite(jnp.min(size)), gap.reshape(-1)[nearest], jnp.nan)
+
+            out += list(jax.vmap(rim)(jnp.stack([lo_, hi_])))
         return jnp.stack(out)
 
     def locate(s_a, u, v, e, ch, upto, shadows):
@@ -1303,8 +1301,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             prim = jnp.maximum(p_lo, 0)
             q_a, q_b = (pattern_point(M.scene, M.packed, sig_, level, prim, t_ref, u + s * e[0], v + s * e[1])
                         for sig_, s in ((s_lo, lo - SIDE_OFFSET), (s_hi, hi + SIDE_OFFSET)))
-            normal, offset, step, has_face = _face(M.mats, prim, q_a, q_b)
-            face = (normal, offset, step)
+            normal, offset, crossed, has_face = _face(M.mats, prim, q_a, q_b)
+            face = (normal, offset, crossed)
         mid = 0.5 * (lo + hi)
         # every margin and its derivatives along the image at the crossing: one jvp, two tangents
         point = jnp.stack([u + mid * e[0], v + mid * e[1]])
