@@ -1,5 +1,6 @@
 """Builds the native BVH (``raytracer/_native/bvh.cc``), POV-Ray's anti-aliasing rule
-(``antialias.cc``) and stream compaction (``compact.cc``), called from JAX through XLA's FFI, at install.
+(``antialias.cc``), stream compaction (``compact.cc``) and the compiled programs' run-time warnings
+(``notice.cc``), called from JAX through XLA's FFI, at install.
 
 Everything else about the package is in ``pyproject.toml``. The extension is optional: without a
 C++ compiler the package still installs and renders with the pure-JAX path (``raytracer info``
@@ -27,7 +28,8 @@ setup(
     ext_modules=[
         Extension(
             "raytracer._native._bvh",
-            ["raytracer/_native/bvh.cc", "raytracer/_native/antialias.cc", "raytracer/_native/compact.cc"],
+            ["raytracer/_native/bvh.cc", "raytracer/_native/antialias.cc", "raytracer/_native/compact.cc",
+             "raytracer/_native/notice.cc"],
             depends=["raytracer/_native/kinds.h"],
             language="c++",
             extra_compile_args=["-std=c++17", "-O3", "-fno-math-errno"],

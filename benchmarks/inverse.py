@@ -30,6 +30,10 @@ Fits:
   which between them see every face, each coordinate started 0.1–0.2 units off (fixed seed): its
   outline and its creases are the signal.
 
+``--new-processes``: each fit's first call (trace, lowering and compile of its step) in a new
+process with an empty JAX persistent compilation cache, then in another with the cache it filled
+(``benchmarks/results/inverse-first-calls.json``).
+
 ``--batched``: the warm forward + backward time and the first call of one loss over five views
 of a sphere on a floor (its centre the parameter), the views as a Python loop in one program,
 ``jax.vmap`` and ``jax.lax.map``, with the term and without.
@@ -156,10 +160,33 @@ def fit(name: str, edges: bool, steps: int, rate: float = 0.02) -> dict:
         taken = i
         if error(x) < start_error / 100:
             break
+    if steps == 0:
+        return {"fit": name, "edges": edges, "first_call_s": first}
     final = error(x)
     return {"fit": name, "edges": edges, "converged": final <= start_error / 10, "start_error": start_error,
             "final_error": final, "steps": taken, "warm_fwd_bwd_s": float(np.median(times)),
             "first_call_s": first, "final_loss": float(value)}
+
+
+def new_process_first_calls(name: str, edges: bool) -> dict:
+    """The first call of a fit's step in a new process: with an empty persistent compilation cache
+    (a temporary one), then in another new process with the cache the first one filled."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "JAX_COMPILATION_CACHE_DIR": cache,
+               "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0",
+               "JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES": "0"}
+        for key in ("empty_cache_s", "warm_cache_s"):
+            run = subprocess.run([sys.executable, "-m", "benchmarks.inverse", "--first-call", name,
+                                  *(["--no-edges"] if not edges else [])],
+                                 env=env, capture_output=True, text=True, check=True)
+            out[key] = json.loads(run.stdout.strip().splitlines()[-1])["first_call_s"]
+    return {"fit": name, "edges": edges, **out}
 
 
 BATCH = ("plane { y, -0.8 pigment { rgb 0.8 } }\n"
@@ -207,7 +234,29 @@ def main(argv=None) -> None:
     ap.add_argument("--fits", nargs="*", default=list(FITS))
     ap.add_argument("--json", type=Path)
     ap.add_argument("--batched", action="store_true", help="five views as a loop, vmap and lax.map")
+    ap.add_argument("--new-processes", action="store_true",
+                    help="each fit's first call in a new process, with an empty and a warm compilation cache")
+    # one first call, for --new-processes
+    ap.add_argument("--first-call", metavar="FIT", help=argparse.SUPPRESS)
+    ap.add_argument("--no-edges", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.first_call:
+        print(json.dumps(fit(args.first_call, not args.no_edges, 0)))
+        return
+    if args.new_processes:
+        print(f"{'fit':8} {'edges':6} {'empty cache s':>13} {'warm cache s':>12}")
+        firsts = []
+        for name in args.fits:
+            for edges in (True, False):
+                r = new_process_first_calls(name, edges)
+                firsts.append(r)
+                print(f"{name:8} {edges!s:6} {r['empty_cache_s']:13.1f} {r['warm_cache_s']:12.1f}",
+                      flush=True)
+        if args.json:
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+            args.json.write_text(json.dumps({"width": WIDTH, "height": HEIGHT, "spp": SPP,
+                                             "new_process_first_calls": firsts}, indent=1))
+        return
     rows = []
     print(f"{'fit':8} {'edges':6} {'conv':5} {'start':>8} {'final':>9} {'steps':>5} {'fwd+bwd ms':>10} "
           f"{'first s':>8}")

@@ -10,7 +10,7 @@ shapes, dtypes and placements of its arrays — and from everything else a trace
 package's source files and native library, the versions of JAX, jaxlib, Equinox and NumPy, JAX's
 configuration, the ``RAYTRACER_*``, ``JAX_*`` and ``XLA_*`` environment and the devices. A hit
 loads the serialised executable (``jax.experimental.serialize_executable``). A static value that
-does not pickle, a program that does not serialise (a host callback), or an unreadable entry falls
+does not pickle, a program that does not serialise (a JAX host callback), or an unreadable entry falls
 back to compiling, which is always right; an entry that fails to load is removed.
 
 Where: ``$RAYTRACER_CACHE_DIR/programs`` (default ``~/.cache/raytracer/xla/programs``; ``off``

@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._notice import DROPPED_RAYS, notice, on
 from ._packed import Packed, _placed, _plan_of
 from ._plan import Plan
 from .scene import Scene, environment_of
@@ -369,6 +370,7 @@ def _deal(pixels, size: int, per_tile: int, n_dev: int):
     return jnp.where((j[:, None] < used) & (i < live), pixels[jnp.minimum(i, m - 1)], size)
 
 
+@on(DROPPED_RAYS)
 def _warn_dropped(dropped, capacity: int) -> None:
     if int(dropped) > 0:
         warnings.warn(
@@ -419,10 +421,8 @@ def _with_room(fn, capacity, key):
         if capacity is None:
             return value
         if isinstance(dropped, jax.core.Tracer):
-            # under jit / vmap the count is known only when the program runs; the host callback
-            # only when rays were dropped (a callback costs ~0.5 ms a call: a small render's time)
-            jax.lax.cond(dropped > 0, lambda d, c=capacity: jax.debug.callback(_warn_dropped, d, c),
-                         lambda d: None, dropped)
+            # under jit / vmap the count is known only when the program runs
+            notice(DROPPED_RAYS, (dropped,), (capacity,))
             return value
         # with values, and under eager jax.grad / jvp / vjp too (an integer output carries no
         # tangent: its value is known here), a tree level wider than the room renders again with

@@ -22,6 +22,7 @@ from ._adaptive import Adaptive, _render_adaptive
 from ._edges import EDGE_LATTICE, boundary_term
 from ._gc import paused, without_collections
 from ._limits import check_render_memory
+from ._notice import EDGES_LEFT_OUT, notice, on
 from ._packed import Packed, _placed, _plan_of, _scene_plan, pack
 from ._plan import Plan, make_plan
 from ._tiles import (
@@ -165,6 +166,7 @@ def _image(scene: Scene, scene_plan: Plan, width: int, height: int, k: int, capa
     return _with_room(run, capacity, _room_key(packed, width, height, k, linear))
 
 
+@on(EDGES_LEFT_OUT)
 def _warn_edges_left_out(overflow, dropped, tree_room: int) -> None:
     """What the boundary term left out: crossings past its room, rays of the jumps' ray trees."""
     if int(overflow) > 0:
@@ -198,9 +200,7 @@ def _render_with_edges(scene: Scene, width: int, height: int, k: int, capacity):
         edges = boundary_term(dyn, dyn_dot, static, width, height, max(k, EDGE_LATTICE), tree_room)
         counts = (edges.overflow, edges.dropped)
         if isinstance(edges.overflow, jax.core.Tracer):  # known when the program runs
-            jax.lax.cond((edges.overflow > 0) | (edges.dropped > 0),
-                         lambda c: jax.debug.callback(_warn_edges_left_out, *c, tree_room),
-                         lambda c: None, counts)
+            notice(EDGES_LEFT_OUT, counts, (tree_room,))
         else:
             _warn_edges_left_out(*counts, tree_room)
         return value, value_dot + edges.tangent

@@ -37,11 +37,9 @@ uses.
 
 from __future__ import annotations
 
-import ctypes
 import dataclasses
 import functools
 import os
-from pathlib import Path
 from typing import NamedTuple
 
 import jax
@@ -49,6 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.custom_batching import custom_vmap
 
+from .. import _native
 from .._packing import any_traced, bucket, is_traced, pad_rows, register_packed
 from ..kernels import matvec, world_normal
 from ..shapes._base import AbstractShape, native_kinds
@@ -78,30 +77,11 @@ class AccelUnavailable(RuntimeError):
     pass
 
 
-@functools.cache
 def _library() -> str | None:
-    """Loads the native library and registers its FFI targets (the hierarchy's, POV-Ray's
-    anti-aliasing rule, ``_adaptive._scan_flags``, and compaction, ``_chunks.nonzero``); the reason
-    it failed otherwise."""
-    folder = Path(__file__).resolve().parent.parent / "_native"
-    found = sorted(folder.glob("_bvh*.so"))
-    if not found:
-        return f"the native BVH library is not built (no _bvh*.so in {folder}; reinstall with a C++ compiler)"
-    try:
-        lib = ctypes.cdll.LoadLibrary(str(found[0]))
-    except OSError as e:
-        return f"the native BVH library does not load: {e}"
-    names = [name + suffix for name in ("BvhBuild", "BvhClosest", "BvhAny", "BvhAll", "AaFlags")
-             for suffix in ("F32", "F64")]
-    names += ["Compact", "StableOrder"]  # (``_chunks.nonzero``, ``_chunks.stable_order``)
-    missing = [name for name in names if not hasattr(lib, name)]
-    if missing:  # a library built from older sources (an editable install not rebuilt)
-        return (f"the native library {found[0].name} lacks {', '.join(missing)}: it was built from older "
-                "sources (reinstall: pip install -e .)")
-    for name in names:
-        capsule = jax.ffi.pycapsule(getattr(lib, name))
-        jax.ffi.register_ffi_target(f"raytracer_{name}", capsule, platform="cpu")
-    return None
+    """Loads the native library and registers its FFI targets (``raytracer/_native``: the
+    hierarchy's, POV-Ray's anti-aliasing rule, compaction, run-time warnings); the reason it failed
+    otherwise."""
+    return _native.library()[1]
 
 
 def mode() -> str:
