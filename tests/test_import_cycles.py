@@ -100,7 +100,7 @@ LAYERS = (
     ("raytracer.shapes", "raytracer.patterns"),
     ("raytracer.scene",),
     ("raytracer._packing", "raytracer._plan", "raytracer._programs"),
-    ("raytracer.shading", "raytracer._native"),
+    ("raytracer.shading", "raytracer._native", "raytracer._notice"),
     ("raytracer._packed", "raytracer._tiles", "raytracer._adaptive", "raytracer._edges", "raytracer.render",
      "raytracer.query", "raytracer.distributed"),
     ("raytracer.sdl",),
