@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = {
     "seed": ROOT / "examples" / "scenes" / "seed.pov",
     "whitted": ROOT / "benchmarks" / "scenes" / "whitted.pov",
+    "whitted_lights": ROOT / "benchmarks" / "scenes" / "whitted_lights.pov",
     "lambert": ROOT / "benchmarks" / "scenes" / "lambert.pov",
     "area": ROOT / "benchmarks" / "scenes" / "area.pov",
 }

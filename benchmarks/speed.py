@@ -1,5 +1,6 @@
-"""Speed benchmark: our renderer next to POV-Ray on the seed scene (640×480) and a Whitted scene
-with a glass and a mirror sphere over a checker floor (1024×768, ``max_trace_level 5``).
+"""Speed benchmark: our renderer next to POV-Ray on the seed scene (640×480), a Whitted scene with
+a glass and a mirror sphere over a checker floor, and a Whitted scene with three lights and four
+phong spheres over a checker box (tinyraytracer's; both 1024×768, ``max_trace_level 5``).
 
     python -m benchmarks.speed [--quick] [--out DIR] [--repeats 3]
 
@@ -33,7 +34,7 @@ import numpy as np
 
 from ._common import SCENES, fmt, machine, md_table, run_job
 
-CASES = [("seed", 640, 480), ("whitted", 1024, 768)]
+CASES = [("seed", 640, 480), ("whitted", 1024, 768), ("whitted_lights", 1024, 768)]
 
 
 def measure(name: str, width: int, height: int, repeats: int, work: Path) -> dict:
