@@ -72,7 +72,7 @@ within ``2 SIDE_OFFSET`` of it (a dense area light's penumbra: 1.2 % at 16×16 s
 ``SIDE_CHECKS``, where a float32 shadow flickers), and
 features thinner than ``h`` are missed, and so is a shape's outline over itself (a torus's near
 tube over its far one, a smooth mesh's over itself: one primitive on both sides, the signature
-does not change); a shape without a margin (polynomials, open cylinders and cones) and a turbulent
+does not change); a shape without a margin (polynomials) and a turbulent
 discrete pattern get no term (``Edges.unresolved`` counts those crossings), nor does the shadow of
 a rim (a CSG cut's, a ``clipped_by``'s); the onset of total internal reflection is the zero of
 refraction's discriminant there. Not in this term: the shadows of area lights whose samples
@@ -770,11 +770,10 @@ def _left_out(plan, mats, ctx, item_casters: bool) -> list[str]:
     """What the scene has whose edges the term does not see (static): shapes without a margin,
     discrete patterns without cell faces, the shadows of rims, adaptive area lights' shadows."""
     out = []
-    shapes = sorted({prim.obj.shape.kind for prim in plan.prims if prim.rendered
-                     and (not type(prim.obj.shape).has_margin() or getattr(prim.obj.shape, "open", False))})
+    shapes = sorted({prim.obj.shape.kind for prim in plan.prims
+                     if prim.rendered and not type(prim.obj.shape).has_margin()})
     if shapes:
-        out.append("the outlines of " + ", ".join(("open " if name in ("cylinder", "cone") else "") + name
-                                                  for name in shapes))
+        out.append("the outlines of " + ", ".join(shapes))
     lit = bool(hard_shadow_lights(ctx) or grid_shadow_lights(ctx) or adaptive_shadow_lights(ctx))
     per_item = sorted({prim.obj.shape.kind for prim in plan.prims if prim.rendered
                        and type(prim.obj.shape).has_margin() and not _whole_margin(type(prim.obj.shape))})
@@ -1370,6 +1369,11 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     ok = live & (kind >= 0)
     g_u, g_v = jnp.where(ok, g_u, 0.0), jnp.where(ok, g_v, 0.0)
     pu, pv = u0 + cross * axis[:, 0], v0 + cross * axis[:, 1]
+    # the margin's tangent is taken where its derivatives along the image were (the bracket's
+    # middle, within 2⁻¹³ of a spacing of the crossing), on the same side of the edge: a margin that
+    # is one function on each side (an open tube's rim) has one scale on each
+    mid = 0.5 * (lo + hi)
+    mu, mv = u0 + mid * axis[:, 0], v0 + mid * axis[:, 1]
 
     # a crossing of a row moves by −g_θ/g_u; its share of the edge integral is w_u = g_u⁴/(g_u⁴ + g_v⁴)
     # (a column's w_v = 1 − w_u): the shares add up to ∫ ds, and the row integrand vanishes as
@@ -1410,7 +1414,7 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
 
     pk_floats, pk_dot = jax.jvp(packed_floats, (dynamic,), (tangent,))
     flat_dot, unravel = ravel_pytree((tangent, pk_dot))
-    per_margin = (kind, p_lo, pb, face, level, entry, t_ref, pu, pv)
+    per_margin = (kind, p_lo, pb, face, level, entry, t_ref, mu, mv)
     per_spread = (scale, in_rows, at, across, low, high, slope, span)
 
     def chosen(point, i, per):

@@ -22,6 +22,7 @@ from validation.edges import (
     ellipse_area,
     ellipse_outline_term,
     hexagon_floor_term,
+    open_tube_outline_term,
     plane_point,
     project,
     shadow_conic,
@@ -619,25 +620,33 @@ def test_reverse_mode_is_the_transpose_of_forward_mode_and_the_image_is_unchange
     np.testing.assert_array_equal(np.asarray(value), np.asarray(plain))
 
 
-def test_a_torus_and_a_quadric_outline_as_their_closed_forms(x64):
+def test_a_torus_a_quadric_and_an_open_tube_outline_as_their_closed_forms(x64):
     """Seen along z by an orthographic camera, a torus about z is an annulus of radii R ± r (its
-    margin a line's distance from the core circle, minimised over the circle) and a quadric
-    sphere a disc (the discriminant). Along a tangent of R, r and the quadric's constant the term
-    is the closed forms' outline integrals within 1 % at 4×4 samples a pixel. An open cylinder has
-    no margin (its bore is not a solid): its outline's crossings are counted as unresolved and get
-    no term, not a guess, and a warning names it;
-    adaptive anti-aliasing has no lattice. (The term alone, ``boundary_term``: the radiance is
-    flat, so the render's own tangent is zero.)"""
+    margin a line's distance from the core circle, minimised over the circle), a quadric
+    sphere a disc (the discriminant), and a tilted open cylinder the hull of its rims' ellipses less
+    their overlap, where a line passes through both openings (its margin: the side's discriminant,
+    and the height of the line's crossings with the side within the ends; ``open_tube_outline_
+    term``). Along a tangent of R, r, the quadric's constant and the tube's radius and place the
+    term is the closed forms' outline integrals within 1 % at 4×4 samples a pixel. A polynomial
+    has no margin: its outline's crossings are counted as unresolved and get no term, not a
+    guess, and a warning names it; adaptive anti-aliasing has no lattice. (The term alone,
+    ``boundary_term``: the radiance is flat, so the render's own tangent is zero.)"""
     width, height, colour = 24, 18, np.array([1.0, 0.5, 0.25])
     pig = f"pigment {{ rgb <1, 0.5, 0.25> }} {FLAT}"
+    base, cap = np.array([1.4, -1.9, -1.0]), np.array([2.0, -1.9, 1.0])
     scene = rt.load_scene(HEAD + "camera { orthographic location <0, 0, -10> look_at <0, 0, 0> "
                           "right x*8 up y*6 }\n"
                           f"torus {{ 1, 0.35 rotate x*90 translate <-1.5, 0.4, 0> {pig} }}\n"
                           "quadric { <1, 1, 1>, <0, 0, 0>, <0, 0, 0>, -0.64 "
                           f"translate <1.9, 0.9, 0> {pig} }}\n"
-                          "cylinder { <2, -2, -1>, <2.5, -2, 1>, 0.4 open pigment { rgb 1 } }")
+                          f"cylinder {{ <1.4, -1.9, -1>, <2.0, -1.9, 1>, 0.75 open {pig} }}\n"
+                          "polynomial { 4, xyz(4, 0, 0): 1, xyz(0, 4, 0): 1, xyz(0, 0, 4): 1, "
+                          "xyz(0, 0, 0): -0.2 translate <-2.8, -2, 0> pigment { rgb 1 } }")
     tangent = {"objects[0].shape.major": jnp.asarray(0.3), "objects[0].shape.minor": jnp.asarray(-0.2),
-               "objects[1].shape.coeffs": jnp.zeros(10).at[9].set(1.0)}
+               "objects[1].shape.coeffs": jnp.zeros(10).at[9].set(1.0),
+               "objects[2].shape.radius": jnp.asarray(0.5),
+               "objects[2].shape.base": jnp.array([0.3, -0.2, 0.0]),
+               "objects[2].shape.cap": jnp.array([0.3, -0.2, 0.0])}
 
     def disc(cx, cy, radius):  # the disc about (cx, cy) of the plane z = 0, in image points (u, v)
         return lambda u, v: (radius ** 2 - ((u / width - 0.5) * 8 - cx) ** 2
@@ -649,8 +658,10 @@ def test_a_torus_and_a_quadric_outline_as_their_closed_forms(x64):
 
     reference = (term(lambda s: disc(-1.5, 0.4, 1.35 + 0.1 * s))
                  - term(lambda s: disc(-1.5, 0.4, 0.65 + 0.5 * s))
-                 + term(lambda s: disc(1.9, 0.9, np.sqrt(0.64 - s))))[..., None] * colour
-    with pytest.warns(RuntimeWarning, match="no boundary term for the outlines of open cylinder"):
+                 + term(lambda s: disc(1.9, 0.9, np.sqrt(0.64 - s)))
+                 + open_tube_outline_term(base, cap, 0.75, 0.5, [0.3, -0.2], (8, 6), width, height)
+                 )[..., None] * colour
+    with pytest.warns(RuntimeWarning, match="no boundary term for the outlines of poly"):
         edges = _term(scene, tangent, width, height, 4)
     assert _rel_l2(np.asarray(edges.tangent), reference) < 0.01
     assert int(edges.unresolved) > 0 and int(edges.overflow) == 0 and int(edges.dropped) == 0

@@ -494,3 +494,68 @@ def brick_floor_term(frame_at, scale: float, height_y: float, colours, width: in
                 out = out + _floor_edge(frames, a, b, height_y, centre, colours[1] - colours[0],
                                         width, height)
     return out
+
+
+def open_tube_outline_term(base, cap, radius: float, d_radius: float, d_centre, extent, width: int,
+                           height: int) -> np.ndarray:
+    """(H, W): ``∫_{Γ∩P} ΔL v_out ds`` per pixel, radiance 1 on the tube and 0 elsewhere, for an
+    open cylinder (``base``, ``cap``: 3-D, differing in x and z only) seen by an orthographic camera
+    along +z whose image spans ``extent`` = (width, height) about the origin, the radius moving at
+    ``d_radius`` and the whole cylinder at ``d_centre`` (x, y).
+
+    Each rim projects to an ellipse ``Q ≥ 0``, ``Q(p) = r² − |p − c|² − (n_xy·(p − c))²/n_z²`` (n
+    the axis). The tube covers the hull of the two ellipses less their overlap, through which a line
+    passes both openings and misses the side: its outline is each ellipse's outer half, the two
+    lines that touch both (y = c_y ± r), and each ellipse's arc inside the other, where the
+    covered side is outside. ``Q_θ = 2 r ṙ − ∇Q·ċ``."""
+    base, cap = np.asarray(base, np.float64), np.asarray(cap, np.float64)
+    if base[1] != cap[1]:
+        raise ValueError("base and cap must differ in x and z only")
+    axis = (cap - base) / np.linalg.norm(cap - base)
+    w_world, h_world = extent
+    d_centre = np.asarray(d_centre, np.float64)
+
+    def world(u, v):
+        return (u / width - 0.5) * w_world, (0.5 - v / height) * h_world
+
+    def pixel_u(x):
+        return (x / w_world + 0.5) * width
+
+    def rim(centre, r):
+        def q(u, v):
+            x, y = world(u, v)
+            px, py = x - centre[0], y - centre[1]
+            return r * r - px * px - py * py - (axis[0] * px) ** 2 / axis[2] ** 2
+        return q
+
+    def rate(centre):
+        def q_theta(u, v):
+            x, y = world(u, v)
+            px, py = x - centre[0], y - centre[1]
+            grad = np.stack([-2 * px - 2 * axis[0] ** 2 * px / axis[2] ** 2, -2 * py], -1)  # ∇Q, world
+            return 2 * radius * d_radius - grad @ d_centre
+        return q_theta
+
+    (c1, c2) = sorted([base[:2], cap[:2]], key=lambda c: c[0])
+    q1, q2 = rim(c1, radius), rim(c2, radius)
+    u1, u2 = pixel_u(c1[0]), pixel_u(c2[0])
+    out = ellipse_outline_term(q1, rate(c1), width, height,
+                               jump=lambda u, v: np.where(q2(u, v) > 0, -1.0, np.where(u < u1, 1.0, 0.0)),
+                               splits=(lambda u, v: u - u1, q2))
+    out += ellipse_outline_term(q2, rate(c2), width, height,
+                                jump=lambda u, v: np.where(q1(u, v) > 0, -1.0, np.where(u > u2, 1.0, 0.0)),
+                                splits=(lambda u, v: u - u2, q1))
+    # the lines touching both ellipses at their top and bottom, moving with the radius and the centre
+    scale = np.array([width / w_world, -height / h_world])
+
+    def to_pixels(x, y):
+        return np.array([pixel_u(x), (0.5 - y / h_world) * height])
+
+    ends, motions = [], []
+    for side in (1.0, -1.0):
+        y = c1[1] + side * radius
+        left, right = to_pixels(c1[0], y), to_pixels(c2[0], y)
+        ends.append([left, right] if side > 0 else [right, left])  # each normal points off the tube
+        motion = (d_centre + np.array([0.0, side * d_radius])) * scale
+        motions.append([motion, motion])
+    return out + segments_term(ends, motions, np.ones(2), width, height)

@@ -126,8 +126,16 @@ def _frustum_margin(base, base_radius, cap, cap_radius, o, d, open_):
     t), ``h`` and ``length − h`` (the two caps' planes, linear) — positive exactly where the line
     passes through the solid. The largest least value is the vertex of the side's quadratic or a
     meeting of two of the three; its value is that candidate's own (a smooth function of the shape
-    and the line: a min or max over tied values would split the derivative between them). NaN for
-    an open frustum (its bore is not a solid) or a degenerate one: no margin."""
+    and the line: a min or max over tied values would split the derivative between them).
+
+    An open frustum is its side alone: a line through both end openings passes down the bore and
+    misses it. With ``e₀, e₁`` the side's inside where the line crosses the two ends' planes (the
+    openings' margins: zero where the line passes through a rim), the margin is ``−e₀ e₁`` through
+    either opening (positive through one only: the line crosses the side between the ends) and the
+    closed frustum's through neither; it is continuous, and each piece is smooth where it vanishes
+    (a rim seen past the other's opening, a rim's outline, the side's; where the two rims' images
+    cross, the product's two factors vanish together: a corner of the bore's outline, each edge
+    the zero of its own factor). NaN for a degenerate frustum: no margin."""
     a_hat, length, proper = _frame(base, cap)
     slope = safe_div(cap_radius - base_radius, length)
     l = o - base
@@ -166,8 +174,17 @@ def _frustum_margin(base, base_radius, cap, cap_radius, o, d, open_):
     # where they meet
     value = jnp.concatenate([side(t[:5]), base_in[5:]])
     best = jnp.argmax(jnp.where(ok, 2 * depth - value, -jnp.inf))
-    usable = proper & ~jnp.asarray(open_) & jnp.any(ok)
-    return jnp.where(usable, value[best], jnp.nan)
+    closed = jnp.where(jnp.any(ok), value[best], jnp.nan)
+    # open: the side's inside where the line crosses each end's plane (positive: through that
+    # end's opening). Through one opening only, the line crosses the side between the ends; through
+    # both it passes down the bore; through neither it crosses the side where it crosses the solid
+    along = jnp.abs(hd) > tiny
+    ends = jnp.where(along, side(jnp.stack([-h0, length - h0]) / safe(hd)), -1.0)
+    through = ends > 0
+    # (through neither, a line that meets no candidate, along the axis, misses the side)
+    neither = jnp.where(jnp.any(ok), closed, -1.0)
+    opened = jnp.where(through[0] | through[1], -ends[0] * ends[1], neither)
+    return jnp.where(proper, jnp.where(jnp.asarray(open_), opened, closed), jnp.nan)
 
 
 def frustum_form_hits(arrays, o, d):

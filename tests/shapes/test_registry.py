@@ -129,8 +129,7 @@ def test_every_shape_gives_its_outline_margin_or_is_listed_without_one():
         assert type(case.make(*case.params)).has_margin() == (case.kind not in WITHOUT_MARGIN), case.name
 
 
-# an open cylinder or cone has a margin of NaN (its bore is not a solid): no term at its outline
-_MARGINS = [i for i, c in enumerate(CASES) if c.kind not in WITHOUT_MARGIN and not c.name.startswith("open")]
+_MARGINS = [i for i, c in enumerate(CASES) if c.kind not in WITHOUT_MARGIN]
 
 
 @pytest.mark.parametrize("index", _MARGINS, ids=[CASES[i].name for i in _MARGINS])
