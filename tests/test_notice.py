@@ -61,6 +61,7 @@ json.dump(out, open(sys.argv[1], "w"))
 """
 
 
+@pytest.mark.slow  # a two-device subprocess that compiles a render
 @pytest.mark.skipif(_native.library()[0] is None, reason="the native library is not built")
 def test_a_dropped_ray_count_is_reported_once_a_run_by_a_program_that_serialises(tmp_path, two_device_env):
     run = subprocess.run([sys.executable, "-c", RUN, str(tmp_path / "out.json")],
