@@ -241,6 +241,9 @@ def _without_jax_cache():
 def _load(path: Path, dynamic):
     from jax.experimental.serialize_executable import deserialize_and_load
 
+    from . import _native
+
+    _native.library()  # its FFI targets (a program's run-time warnings among them) resolve on load
     try:
         blob = path.read_bytes()
     except OSError:
