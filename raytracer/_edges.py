@@ -167,8 +167,9 @@ class Edges(NamedTuple):
 
 def _prim_tables(geo, n_prims: int):
     """(group (P,), index in its group (P,), has a margin (P,), has creases (P,), has a margin as a
-    shadow caster (P,), its items are faces (P,): ``AbstractShape.items_are_faces``) of every
-    primitive (static)."""
+    shadow caster (P,), its items are faces (P,): ``AbstractShape.items_are_faces``, it shows its
+    inside across a rim of its own (P,): ``AbstractShape.shows_inside``) of every primitive
+    (static)."""
     group = np.full(max(n_prims, 1), -1, np.int32)
     index = np.zeros(max(n_prims, 1), np.int32)
     for i, (g, j) in geo.where.items():
@@ -183,8 +184,11 @@ def _prim_tables(geo, n_prims: int):
     items_are_faces = np.array([bool(s.items_are_faces()) for s in geo.shapes], bool)
     items_are_faces = np.where(group >= 0, items_are_faces[np.maximum(group, 0)] if len(items_are_faces)
                                else False, False)
+    shows_inside = np.array([bool(s.shows_inside()) for s in geo.shapes], bool)
+    shows_inside = np.where(group >= 0, shows_inside[np.maximum(group, 0)] if len(shows_inside) else False,
+                            False)
     return (group, index, of_class(lambda c: c.has_margin()), of_class(lambda c: c.faces > 1),
-            of_class(_whole_margin), items_are_faces)
+            of_class(_whole_margin), items_are_faces, shows_inside)
 
 
 def _whole_margin(cls) -> bool:
@@ -834,6 +838,12 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     leaves = _condition_leaves(plan)
     rims = bool(np.any(leaves >= 0))
     conditioned = jnp.asarray(np.any(leaves >= 0, axis=1)) if rims else None
+    # primitives seen from inside and outside across a rim of their own (an open cylinder's): the
+    # side seen is part of the signature, and the rim's margin is the shape's own
+    open_rims = bool(np.any(tables[6]))
+    sided = jnp.asarray(np.any(leaves >= 0, axis=1) | tables[6][:leaves.shape[0]]) \
+        if (rims or open_rims) else None
+    shows_inside = jnp.asarray(tables[6]) if open_rims else None
     # crossings of a line a rim's margin compares (the most any shape class but meshes gives)
     rim_k = max([type(g).crossings for g in geo.shapes if g.kind != "mesh"] + [1])
     # lights whose shadow is one ray: the first caster on it is part of what a sample sees; and
@@ -933,8 +943,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
             p_cell = p if hit.point is None else hit.point
             # the face of the primitive seen (creases: a box's edges, a cylinder's rims)
             face = _face_of(M.geo, tables, hit.prim, o, d, hit.t) if creases else jnp.zeros((), jnp.int32)
-            if rims:  # which side of a conditioned primitive's surface (a bowl's inside past its rim)
-                leaving = conditioned[jnp.maximum(hit.prim, 0)] & (jnp.dot(hit.normal, d) > 0)
+            if rims or open_rims:  # which side of the surface: a bowl's inside past its rim, a bore's
+                leaving = sided[jnp.maximum(hit.prim, 0)] & (jnp.dot(hit.normal, d) > 0)
                 face = face + LEAVING * leaving.astype(jnp.int32)
             cell = _cell(M.mats, hit.prim, p_cell) if cells else jnp.zeros((), jnp.int32)
             casts = []
@@ -1234,6 +1244,9 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
                 return jnp.where(jnp.isfinite(jnp.min(size)), gap.reshape(-1)[nearest], jnp.nan)
 
             out += list(jax.vmap(rim)(jnp.stack([lo_, hi_])))
+        if open_rims:  # a rim of the primitive's own, its inside seen on one side
+            out.append(_per_prim(geo_, tables, lo_, o, d, lambda s, oo, dd, _: s.rim_margin(oo, dd), jnp.nan,
+                                 only=lambda shapes: shapes.shows_inside()))
         return jnp.stack(out)
 
     def locate(s_a, u, v, e, ch, upto, shadows):
@@ -1330,6 +1343,8 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
         if rims:  # where what is seen changes, or one primitive's side: a conditioned one's rim
             valid += [path & (p_ >= 0) & conditioned[jnp.maximum(p_, 0)] & (~one | (a[FACE] != b[FACE]))
                       for p_ in (p_lo, p_hi)]
+        if open_rims:
+            valid.append(path & one & shows_inside[jnp.maximum(p_lo, 0)] & (a[FACE] != b[FACE]))
         valid = jnp.stack(valid)
         valid = valid & jnp.isfinite(g) & (g_s != 0)
         distance = jnp.where(valid, jnp.abs(g) / jnp.where(g_s != 0, jnp.abs(g_s), 1.0), jnp.inf)

@@ -198,6 +198,18 @@ class AbstractShape(Record):
         term knows which one a ray sees, ``Hit.sub``); by default the shape's own."""
         return self.silhouette_margin(o, d)
 
+    def shows_inside(self) -> bool:
+        """Whether a camera ray can see this surface from inside the solid and, across an edge of
+        the surface itself, from outside (an open cylinder's rim: its outside on one side, the
+        bore's wall on the other: one primitive on both sides); such a shape gives
+        :meth:`rim_margin` (``edges=True``)."""
+        return False
+
+    def rim_margin(self, o: Float[Array, "3"], d: Float[Array, "3"]) -> Float[Array, ""]:
+        """A smooth function of a line whose zero is where it passes through an edge of the surface
+        (:meth:`shows_inside`), near the line: the boundary term's margin there."""
+        raise NotImplementedError(f"{self.kind} shows no inside")
+
     def items_are_faces(self) -> bool:
         """Whether the shading may jump between neighbouring items (a flat mesh's triangles: the
         normal is each one's own), so that the boundary term sees a change of the item seen on the

@@ -187,6 +187,26 @@ def _frustum_margin(base, base_radius, cap, cap_radius, o, d, open_):
     return jnp.where(proper, jnp.where(jnp.asarray(open_), opened, closed), jnp.nan)
 
 
+def _frustum_rim_margin(base, base_radius, cap, cap_radius, o, d):
+    """``AbstractShape.rim_margin`` of an open frustum: the side's inside where the line crosses the
+    plane of the end whose rim it passes nearer (zero where it passes through that rim: the bore's
+    wall seen past it on one side, the side's outside on the other). NaN for a line parallel to the
+    ends' planes or a degenerate frustum."""
+    a_hat, length, proper = _frame(base, cap)
+    slope = safe_div(cap_radius - base_radius, length)
+    l = o - base
+    h0, hd = jnp.dot(l, a_hat), jnp.dot(d, a_hat)
+    tiny = jnp.finfo(o.dtype).tiny
+    ok = proper & (jnp.abs(hd) > tiny)
+    t = jnp.stack([-h0, length - h0]) / jnp.where(ok, hd, 1.0)
+    p = l[None, :] + t[:, None] * d[None, :]
+    h = jnp.stack([0.0 * length, length])
+    radius = base_radius + slope * h
+    inside = radius * radius - jnp.sum((p - h[:, None] * a_hat[None, :]) ** 2, axis=-1)
+    nearer = jnp.argmin(jax.lax.stop_gradient(jnp.abs(inside)))
+    return jnp.where(ok, inside[nearer], jnp.nan)
+
+
 def frustum_form_hits(arrays, o, d):
     """The kernel of cylinders and cones alike (``AbstractShape.kernel_form``): the crossings of
     the frustum ``arrays`` = (base, base radius, cap, cap radius, open) (one
@@ -302,6 +322,13 @@ class Cylinder(AbstractShape):
         base, cap, radius, o, d = as_float_arrays(self.base, self.cap, self.radius, o, d)
         return _frustum_margin(base, radius, cap, radius, o, d, self.open)
 
+    def shows_inside(self):
+        return self.open
+
+    def rim_margin(self, o, d):
+        base, cap, radius, o, d = as_float_arrays(self.base, self.cap, self.radius, o, d)
+        return _frustum_rim_margin(base, radius, cap, radius, o, d)
+
     faces: ClassVar[int] = FRUSTUM_FACES
 
     def face(self, p):
@@ -366,6 +393,14 @@ class Cone(AbstractShape):
         base, r0, cap, r1, o, d = as_float_arrays(self.base, self.base_radius, self.cap, self.cap_radius,
                                                   o, d)
         return _frustum_margin(base, r0, cap, r1, o, d, self.open)
+
+    def shows_inside(self):
+        return self.open
+
+    def rim_margin(self, o, d):
+        base, r0, cap, r1, o, d = as_float_arrays(self.base, self.base_radius, self.cap, self.cap_radius,
+                                                  o, d)
+        return _frustum_rim_margin(base, r0, cap, r1, o, d)
 
     faces: ClassVar[int] = FRUSTUM_FACES
 
