@@ -9,14 +9,18 @@ then the static values.
 With the native library (``raytracer/_native/notice.cc``) this is a custom call that returns at once
 while every count is zero, and a program holding it is kept by JAX's persistent compilation cache
 and serialised by ``_programs`` like any other: a JAX host callback (``jax.debug.callback``) would
-make every such program compile again in every process — a fit's first step with edges took 9.8 s
-where the cached program loads in 3.9 s. Without the library (or off the CPU) the warning falls
-back to ``jax.debug.callback``, called only when a count is positive.
+make every such program compile again in every process (a sphere fit's first call with the
+boundary term: 19.6 s in every process, 5.1 s once the cache holds it; ``benchmarks.inverse
+--new-processes``). Without the library (or off the CPU) the warning falls back to
+``jax.debug.callback``, called only when a count is positive.
 
-The custom call has no result, so it is an effect: it carries ``jax.debug.callback``'s unordered
-effect, which JAX keeps under ``jit``, ``vmap``, ``grad``, ``cond``/``while``/``scan``, ``checkpoint``
-and custom derivatives. Under SPMD partitioning it runs on the first device (a whole program's
-counts) or on every device (inside ``shard_map``), as a host callback would.
+What the call returns is unused, so the primitive is an effect: it carries
+``jax.debug.callback``'s unordered effect, which JAX keeps under ``jit``, ``vmap`` (the counts
+summed over the batch), ``grad``, ``cond``/``while``/``scan``, ``checkpoint`` and custom
+derivatives. XLA's partitioner wants a sharding on every side-effecting instruction and keeps
+one only on its own custom calls, so in a program over several devices the call runs in a fully
+manual region on each, the counts on the first and zeros on the others: one warning a run, the
+whole program's count (inside the caller's own ``shard_map``, each device reports its own).
 """
 
 from __future__ import annotations
