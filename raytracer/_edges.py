@@ -175,20 +175,18 @@ def _prim_tables(geo, n_prims: int):
     for i, (g, j) in geo.where.items():
         group[i], index[i] = g, j
 
-    def of_class(test):  # (P,): ``test`` of each primitive's shape class
-        per_group = np.array([test(type(s)) for s in geo.shapes], bool)
+    def of_shape(test):  # (P,): ``test`` of each primitive's group of shapes
+        per_group = np.array([bool(test(s)) for s in geo.shapes], bool)
         return np.where(group >= 0, per_group[np.maximum(group, 0)] if len(per_group) else False, False)
+
+    def of_class(test):  # (P,): ``test`` of each primitive's shape class
+        return of_shape(lambda s: test(type(s)))
 
     # (a shape whose margin is its items' (a mesh) casts a term where the shadow entries carry the
     # item a shadow ray crosses: ``_first_caster``'s ``items``)
-    items_are_faces = np.array([bool(s.items_are_faces()) for s in geo.shapes], bool)
-    items_are_faces = np.where(group >= 0, items_are_faces[np.maximum(group, 0)] if len(items_are_faces)
-                               else False, False)
-    shows_inside = np.array([bool(s.shows_inside()) for s in geo.shapes], bool)
-    shows_inside = np.where(group >= 0, shows_inside[np.maximum(group, 0)] if len(shows_inside) else False,
-                            False)
     return (group, index, of_class(lambda c: c.has_margin()), of_class(lambda c: c.faces > 1),
-            of_class(_whole_margin), items_are_faces, shows_inside)
+            of_class(_whole_margin), of_shape(lambda s: s.items_are_faces()),
+            of_shape(lambda s: s.shows_inside()))
 
 
 def _whole_margin(cls) -> bool:
@@ -839,11 +837,10 @@ def boundary_term(dynamic, tangent, static, width: int, height: int, k: int,
     rims = bool(np.any(leaves >= 0))
     conditioned = jnp.asarray(np.any(leaves >= 0, axis=1)) if rims else None
     # primitives seen from inside and outside across a rim of their own (an open cylinder's): the
-    # side seen is part of the signature, and the rim's margin is the shape's own
+    # side seen is part of the signature (as a conditioned one's), the rim's margin the shape's own
     open_rims = bool(np.any(tables[6]))
-    sided = jnp.asarray(np.any(leaves >= 0, axis=1) | tables[6][:leaves.shape[0]]) \
-        if (rims or open_rims) else None
     shows_inside = jnp.asarray(tables[6]) if open_rims else None
+    sided = jnp.asarray(np.any(leaves >= 0, axis=1) | tables[6]) if (rims or open_rims) else None
     # crossings of a line a rim's margin compares (the most any shape class but meshes gives)
     rim_k = max([type(g).crossings for g in geo.shapes if g.kind != "mesh"] + [1])
     # lights whose shadow is one ray: the first caster on it is part of what a sample sees; and

@@ -178,13 +178,26 @@ def _frustum_margin(base, base_radius, cap, cap_radius, o, d, open_):
     # open: the side's inside where the line crosses each end's plane (positive: through that
     # end's opening). Through one opening only, the line crosses the side between the ends; through
     # both it passes down the bore; through neither it crosses the side where it crosses the solid
-    along = jnp.abs(hd) > tiny
-    ends = jnp.where(along, side(jnp.stack([-h0, length - h0]) / safe(hd)), -1.0)
-    through = ends > 0
+    ends, along = _ends_insides(base, base_radius, cap, cap_radius, o, d)
+    through = along & (ends > 0)
     # (through neither, a line that meets no candidate, along the axis, misses the side)
     neither = jnp.where(jnp.any(ok), closed, -1.0)
-    opened = jnp.where(through[0] | through[1], -ends[0] * ends[1], neither)
+    opened = jnp.where(through[0] | through[1], -ends[0] * ends[1], neither)  # (both finite there)
     return jnp.where(proper, jnp.where(jnp.asarray(open_), opened, closed), jnp.nan)
+
+
+def _ends_insides(base, base_radius, cap, cap_radius, o, d):
+    """``(inside (2,), ok)``: the side's inside ``r(h)² − |p⊥|²`` where the line crosses the base's
+    and the cap's planes (positive: through that end's opening; zero: through its rim), and whether
+    the line crosses them (not parallel to them, the frustum not degenerate)."""
+    a_hat, length, proper = _frame(base, cap)
+    l = o - base
+    h0, hd = jnp.dot(l, a_hat), jnp.dot(d, a_hat)
+    ok = proper & (jnp.abs(hd) > jnp.finfo(o.dtype).tiny)
+    h = jnp.stack([jnp.zeros_like(length), length])
+    p = l[None, :] + ((h - h0) / jnp.where(ok, hd, 1.0))[:, None] * d[None, :]
+    radius = jnp.stack([base_radius, cap_radius])
+    return radius * radius - jnp.sum((p - h[:, None] * a_hat[None, :]) ** 2, axis=-1), ok
 
 
 def _frustum_rim_margin(base, base_radius, cap, cap_radius, o, d):
@@ -192,17 +205,7 @@ def _frustum_rim_margin(base, base_radius, cap, cap_radius, o, d):
     plane of the end whose rim it passes nearer (zero where it passes through that rim: the bore's
     wall seen past it on one side, the side's outside on the other). NaN for a line parallel to the
     ends' planes or a degenerate frustum."""
-    a_hat, length, proper = _frame(base, cap)
-    slope = safe_div(cap_radius - base_radius, length)
-    l = o - base
-    h0, hd = jnp.dot(l, a_hat), jnp.dot(d, a_hat)
-    tiny = jnp.finfo(o.dtype).tiny
-    ok = proper & (jnp.abs(hd) > tiny)
-    t = jnp.stack([-h0, length - h0]) / jnp.where(ok, hd, 1.0)
-    p = l[None, :] + t[:, None] * d[None, :]
-    h = jnp.stack([0.0 * length, length])
-    radius = base_radius + slope * h
-    inside = radius * radius - jnp.sum((p - h[:, None] * a_hat[None, :]) ** 2, axis=-1)
+    inside, ok = _ends_insides(base, base_radius, cap, cap_radius, o, d)
     nearer = jnp.argmin(jax.lax.stop_gradient(jnp.abs(inside)))
     return jnp.where(ok, inside[nearer], jnp.nan)
 
