@@ -38,6 +38,7 @@ from .scene import Interior as Interior
 from .scene import Layer as Layer
 from .scene import Light as Light
 from .scene import Mesh as Mesh
+from .scene import Normal as Normal
 from .scene import Object as Object
 from .scene import Pigment as Pigment
 from .scene import Plane as Plane

@@ -39,6 +39,9 @@ EXACT_STRAIGHT_PASSES = 16  # more are rounded up to a ``_packing.bucket`` size
 MEDIA_SLOTS = 16  # at most this many interiors in a ray's list (POV-Ray's list has no bound)
 
 SUPPORTED_PATTERNS = patterns.RENDERED  # registered patterns the renderer evaluates
+# patterns a ``normal {}`` perturbs with: the continuous ones (a discrete pattern's normal lists are
+# not rendered)
+NORMAL_PATTERNS = frozenset(n for n in patterns.RENDERED if not patterns.REGISTRY[n].discrete) - {"solid"}
 
 
 # ---------------------------------------------------------------- inside-test trees (static)
@@ -193,6 +196,8 @@ class Effects:
                         names, in its order: ``sky_sphere``, rays that hit nothing see it, its
                         pigments' patterns in ``patterns`` too; ``fog``, rays outside objects go
                         through it, and with transmission keep their interior list to know).
+        normals:        the patterns of the layers' ``normal {}`` perturbations (none: the shading
+                        normal is the surface's).
     """
 
     kinds: tuple[str, ...]
@@ -216,6 +221,7 @@ class Effects:
     depth: int
     media_slots: int = 0
     environment: tuple[str, ...] = ()
+    normals: tuple[str, ...] = ()
 
     @property
     def sky_sphere(self) -> bool:
@@ -235,7 +241,9 @@ class Effects:
                                 "fresnel", "fade", "spotlights", "area_lights", "parallel_lights",
                                 "csg", "interior_fade") if getattr(self, name)] + list(self.environment)
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
-                f"patterns: {', '.join(self.patterns) or 'none'}; depth: {self.depth}"
+                f"patterns: {', '.join(self.patterns) or 'none'}; "
+                + (f"normals: {', '.join(self.normals)}; " if self.normals else "")
+                + f"depth: {self.depth}"
                 + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
 
 
@@ -462,6 +470,11 @@ def make_plan(scene: Scene) -> Plan:
     for pig in [*pigments, *sky]:
         if pig.pattern not in SUPPORTED_PATTERNS:
             warnings.append(SceneWarning(pig.pattern, f"pattern {pig.pattern!r} is not rendered"))
+    bumps = list({id(layer.normal): layer.normal for layer in layers if layer.normal is not None}.values())
+    for bump in bumps:
+        if bump.pattern.pattern not in NORMAL_PATTERNS:
+            warnings.append(SceneWarning("normal", f"normal pattern {bump.pattern.pattern!r} is not "
+                                         "rendered; the surface's normal is used"))
     lights = scene.lights
     shadow_lights = [lt for lt in lights if not lt.shadowless]
     reflection = any(f.reflection is not None for f in finishes)
@@ -507,6 +520,7 @@ def make_plan(scene: Scene) -> Plan:
         media_slots=(_media_slots(prims, rendered)
                      if refraction or (transmission and any(e.needs_media for e, _ in environment)) else 0),
         environment=tuple(e.name for e, _ in environment),
+        normals=tuple(sorted({b.pattern.pattern for b in bumps if b.pattern.pattern in NORMAL_PATTERNS})),
     )
     units, prim_unit = bounding_units(scene.objects, roots, len(prims), fl.bounds)
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),

@@ -141,6 +141,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("area_light", povray=POV_BAR),
     _example("layered_texture", povray=POV_BAR),
     _example("straight_transmission", povray=POV_BAR),
+    _example("normals", povray=POV_BAR),
 )
 
 

@@ -79,6 +79,13 @@ class Pattern:
         cell:         with ``face``: ``cell(q) → int32``, an id of the cell of pattern-space point
                       ``q`` that differs between any two cells sharing a face (two cells of one
                       colour too, so that a corner's two faces are told apart).
+        normal_gain:  POV-Ray's own normal patterns (``bumps``, ``dents``, ``wrinkles``,
+                      ``ripples``, ``waves``), which POV-Ray perturbs with by rules of their own and
+                      ignores ``accuracy`` for: the gain that gives our perturbation POV-Ray's
+                      standard deviation (``shading/_normals.py``). 0 for every other pattern, which
+                      perturbs through its value as POV-Ray measures.
+        normal_bias:  with ``normal_gain``: the tilt POV-Ray's pattern gives every point, per unit
+                      of amount, along (1, 1, 1) of pattern space (its ``wrinkles``: 0.444).
     """
 
     name: str
@@ -93,6 +100,8 @@ class Pattern:
     noise: bool = False
     face: Callable | None = None
     cell: Callable | None = None
+    normal_gain: float = 0.0
+    normal_bias: float = 0.0
 
     def __post_init__(self):
         if self.colours and len(self.default_map) != self.colours:

@@ -37,6 +37,7 @@ from ._texture import WAVES as WAVES
 from ._texture import Finish as Finish
 from ._texture import Interior as Interior
 from ._texture import Layer as Layer
+from ._texture import Normal as Normal
 from ._texture import Pigment as Pigment
 from ._texture import Reflection as Reflection
 from ._texture import Texture as Texture

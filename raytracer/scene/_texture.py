@@ -134,11 +134,39 @@ class Interior(Record):
     fade_color: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
 
 
+class Normal(Record):
+    """``normal { pattern amount … }``: a perturbation of the surface normal (semantics §5.5).
+
+    Attributes:
+        pattern:  the pattern, its space and its value as a pigment holds them (``pattern``,
+                  ``transform``, ``vector``, ``frequency``, ``phase``, ``wave``, turbulence); its
+                  colours play no part. The perturbation is computed in the pattern's space from the
+                  pattern's value at four points of a tetrahedron around the hit (``accuracy`` from
+                  it), as POV-Ray measures: ``bumps``, ``dents``, ``wrinkles``, ``ripples`` and
+                  ``waves`` use their raw value at a fixed spacing and their own gain.
+        amount:   the depth of the bumps (``bump_size``; POV-Ray's default 0.5); negative inverts.
+        accuracy: the tetrahedron's size in pattern space (POV-Ray's default 0.02).
+    """
+
+    pattern: Pigment
+    amount: Float[Array, ""] = eqx.field(converter=as_float, default=0.5)
+    accuracy: Float[Array, ""] = eqx.field(converter=as_float, default=0.02)
+
+    @classmethod
+    def of(cls, pattern: str, amount=0.5, **kwargs) -> Normal:
+        """A normal of pattern ``pattern`` with the pigment fields ``kwargs`` (``transform``,
+        ``vector``, ``frequency``, ``turbulence`` …) and ``accuracy``."""
+        accuracy = kwargs.pop("accuracy", 0.02)
+        black_to_white = [(0.0, (0.0, 0.0, 0.0)), (1.0, (1.0, 1.0, 1.0))]  # (unused by a normal)
+        return cls(Pigment.mapped(pattern, black_to_white, **kwargs), amount, accuracy)
+
+
 class Layer(Record):
-    """One texture layer: a pigment and a finish."""
+    """One texture layer: a pigment, a finish and, if it has one, a normal perturbation."""
 
     pigment: Pigment = eqx.field(default_factory=lambda: Pigment.solid((0.0, 0.0, 0.0)))
     finish: Finish = eqx.field(default_factory=Finish)
+    normal: Normal | None = None
 
 
 class Texture(Record):

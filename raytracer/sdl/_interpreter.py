@@ -22,6 +22,7 @@ from ._textures import (
     parse_finish,
     parse_interior,
     parse_material,
+    parse_normal,
     parse_pigment,
     parse_texture,
     parse_transform_value,
@@ -324,8 +325,7 @@ def _layered_texture(p):
 
 
 def _normal_value(p, t):
-    skip_braces(p)
-    return Opaque("normal", t.loc)
+    return parse_normal(p)
 
 
 def _array_handler(p, t):

@@ -14,7 +14,7 @@ from ..scene._lights import light_fields
 from ..scene._precision import precision_warnings
 from ..scene.environment import ENVIRONMENT
 from ..shapes import SDL_KEYWORDS
-from ._values import CameraRec, LayerRec, LightRec, ObjRec, PigRec
+from ._values import CameraRec, LayerRec, LightRec, NormRec, ObjRec, PigRec
 
 _FINISH_KEYS = ("ambient", "emission", "diffuse", "brilliance", "phong", "phong_size", "specular",
                 "roughness", "metallic", "conserve_energy")
@@ -44,6 +44,14 @@ def lower_pigment(pig: PigRec, world: np.ndarray | None, fit_zero_terms: bool = 
                  vector=np.asarray(pig.vector, dtype=np.float64), frequency=pig.frequency,
                  phase=pig.phase, turbulence=pig.turbulence, omega=pig.omega,
                  lambda_=pig.lambda_, octaves=pig.octaves, wave=wave, transparent=transparent)
+
+
+def lower_normal(nrm: NormRec | None, world: np.ndarray | None) -> S.Normal | None:
+    """A layer's normal; None where it has none or its pattern perturbs nothing we render."""
+    if nrm is None or nrm.pigment.pattern == "solid":
+        return None
+    return build(S.Normal, pattern=lower_pigment(nrm.pigment, world), amount=nrm.amount,
+                 accuracy=nrm.accuracy)
 
 
 # optional finish terms that add nothing at 0: the highlights and their metallic tint
@@ -99,7 +107,7 @@ class Lowerer:
             # the renderer wants the top layer first; records keep them bottom first
             tex = build(S.Texture, layers=tuple(
                 build(S.Layer, pigment=lower_pigment(layer.pigment, world, self.fit_zero_terms),
-                        finish=self.finish(layer.finish))
+                        finish=self.finish(layer.finish), normal=lower_normal(layer.normal, world))
                 for layer in reversed(layers)))
             self._tex_cache[key] = (tex, layers)  # keep layers alive so ids stay unique
             return tex

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..scene._lights import (
@@ -38,6 +40,7 @@ from ._textures import (
     parse_texture,
     parse_transform_item,
     skip_braces,
+    skip_camera_normal,
     vector3,
     warn_noise_generator,
 )
@@ -173,7 +176,7 @@ def object_modifiers(p, rec: ObjRec, csg: bool = False) -> None:
 def _layers(p, rec):
     if rec.layers is None:
         d = p.default_layer
-        rec.layers = [LayerRec(d.pigment, dict(d.finish))]
+        rec.layers = [LayerRec(d.pigment, dict(d.finish), d.normal)]
     return rec.layers
 
 
@@ -189,13 +192,15 @@ def _modifier(p, rec: ObjRec, t) -> None:
     elif kw == "pigment":
         layers = _layers(p, rec)
         top = layers[-1]
-        layers[-1] = LayerRec(parse_pigment(p, top.pigment), top.finish)
+        layers[-1] = dataclasses.replace(top, pigment=parse_pigment(p, top.pigment))
     elif kw == "finish":
         layers = _layers(p, rec)
         top = layers[-1]
-        layers[-1] = LayerRec(top.pigment, parse_finish(p, top.finish))
+        layers[-1] = dataclasses.replace(top, finish=parse_finish(p, top.finish))
     elif kw == "normal":
-        parse_normal(p, t)
+        layers = _layers(p, rec)
+        top = layers[-1]
+        layers[-1] = dataclasses.replace(top, normal=parse_normal(p, top.normal))
     elif kw == "interior":
         rec.interior = parse_interior(p, rec.interior)
     elif kw == "material":
@@ -540,7 +545,7 @@ def _camera_item(p, cam, k):
     elif kw == "bokeh":
         skip_braces(p)
     elif kw == "normal":
-        parse_normal(p, k)
+        skip_camera_normal(p, k)
     else:
         raise p.error(f"expected a camera item, found '{kw}'", k.loc)
 
@@ -608,11 +613,11 @@ def parse_default(p, tok) -> None:
             tex = parse_texture(p, d)
             p.default_layer = tex.layers[-1]
         elif k.kind == ID and k.value == "pigment":
-            p.default_layer = LayerRec(parse_pigment(p, d.pigment), d.finish)
+            p.default_layer = dataclasses.replace(d, pigment=parse_pigment(p, d.pigment))
         elif k.kind == ID and k.value == "finish":
-            p.default_layer = LayerRec(d.pigment, parse_finish(p, d.finish))
+            p.default_layer = dataclasses.replace(d, finish=parse_finish(p, d.finish))
         elif k.kind == ID and k.value == "normal":
-            parse_normal(p, k)
+            p.default_layer = dataclasses.replace(d, normal=parse_normal(p, d.normal))
         elif k.kind == ID and k.value in ("camera", "light_source", "interior", "media"):
             p.warn("#default", f"#default {k.value} is not supported; ignored", k.loc)
             skip_braces(p)

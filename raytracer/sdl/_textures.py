@@ -11,7 +11,7 @@ from ..scene._transform import pov_matrix, rotation_matrix, scale_matrix, transl
 from ._convert import fmt_number
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
 from ._lexer import ID, NUM, OP
-from ._values import InteriorRec, LayerRec, MaterialRec, PigRec, TextureRec, TransformRec, Vec
+from ._values import InteriorRec, LayerRec, MaterialRec, NormRec, PigRec, TextureRec, TransformRec, Vec
 
 TRANSFORM_KEYWORDS = ("translate", "rotate", "scale", "matrix", "transform")
 # Pattern keywords, arguments, default maps and waves come from ``raytracer.patterns.REGISTRY``.
@@ -554,7 +554,7 @@ def parse_interior(p, base: InteriorRec | None = None) -> InteriorRec:
 def parse_texture(p, default: LayerRec) -> TextureRec:
     """``texture { [Ident] pigment finish normal transforms … }`` → a TextureRec (layers)."""
     p.expect_op("{", "'{' after texture")
-    layers = [LayerRec(default.pigment, dict(default.finish))]
+    layers = [LayerRec(default.pigment, dict(default.finish), default.normal)]
     while not p.accept_op("}"):
         t = p.peek()
         if declared(p, t):
@@ -572,12 +572,11 @@ def texture_item(p, t, layers, default):
     kw = t.value if t.kind == ID else None
     top = layers[-1]
     if kw == "pigment":
-        return layers[:-1] + [LayerRec(parse_pigment(p, top.pigment), top.finish)]
+        return layers[:-1] + [dataclasses.replace(top, pigment=parse_pigment(p, top.pigment))]
     if kw == "finish":
-        return layers[:-1] + [LayerRec(top.pigment, parse_finish(p, top.finish))]
+        return layers[:-1] + [dataclasses.replace(top, finish=parse_finish(p, top.finish))]
     if kw == "normal":
-        parse_normal(p, t)
-        return layers
+        return layers[:-1] + [dataclasses.replace(top, normal=parse_normal(p, top.normal))]
     if kw in TRANSFORM_KEYWORDS:
         m = parse_transform_item(p, t)
         return [layer.transformed(m) for layer in layers]
@@ -630,8 +629,82 @@ def _patterned_texture(p, t, layers, default):
     return list(first.layers) if first is not None else layers
 
 
-def parse_normal(p, t) -> None:
-    p.warn("normal", "normal perturbation is not supported; ignored", t.loc)
+def parse_normal(p, base: NormRec | None = None) -> NormRec:
+    """``normal { [Ident] PATTERN [amount] modifiers… }``; ``base`` is the normal being modified
+    (a layer's current one). A pattern we do not perturb with is warned and perturbs nothing."""
+    p.expect_op("{", "'{' after normal")
+    nrm = dataclasses.replace(base) if base is not None else NormRec()
+    while not p.accept_op("}"):
+        t = p.peek()
+        if declared(p, t):
+            nrm = dataclasses.replace(_declared_value(p, t, NormRec, "normal"))
+            continue
+        kw = t.value if t.kind == ID else None
+        if kw in patterns.SDL_KEYWORDS:
+            p.next()
+            record = patterns.REGISTRY[kw]
+            if record.rendered and not record.discrete:
+                nrm.pigment = _pattern(p, record, nrm.pigment, t.loc)
+                if p.accept_op(",") or _starts_value(p):  # ``gradient x, 5.6`` as ``gradient x 5.6``
+                    nrm.amount = float_(p)
+            else:
+                nrm.pigment = _unrendered_normal(p, record, nrm.pigment, t.loc)
+        elif kw == "bump_size":
+            p.next()
+            nrm.amount = float_(p)
+        elif kw == "accuracy":
+            p.next()
+            nrm.accuracy = float_(p)
+        elif kw == "no_bump_scale":
+            p.next()
+            if _opt_bool(p):
+                p.warn("no_bump_scale", "no_bump_scale is not rendered: the bumps scale with their space",
+                       t.loc)
+        elif kw in ("slope_map", "normal_map"):
+            p.next()
+            if kw == "slope_map":
+                p.warn("slope_map", "slope_map is not rendered; the pattern's value is the height", t.loc)
+            else:
+                p.warn("normal_map", "normal_map is not rendered; the surface's own normal is used", t.loc)
+                nrm.pigment = PigRec("solid", transform=nrm.pigment.transform)
+            p.expect_op("{", f"'{{' after {kw}")
+            _refuse_empty_map(p, t)
+            _skip_to(p, "}")
+            p.expect_op("}")
+        elif kw == "bump_map":
+            p.next()
+            p.warn("bump_map", "bump_map is not rendered; ignored", t.loc)
+            skip_braces(p)
+        elif kw is None:
+            raise p.error(f"expected a normal item, found {t.describe()}", t.loc)
+        else:
+            nrm.pigment = pigment_item(p, nrm.pigment)
+    return nrm
+
+
+def _unrendered_normal(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:
+    """A normal pattern we do not perturb with (a block pattern and its normal list, a pattern we do
+    not render): its arguments are skipped; the normal perturbs nothing."""
+    what = "a block pattern's normal" if record.rendered else "normal pattern"
+    p.warn(record.name, f"{what} '{record.name}' is not rendered; the surface's own normal is used", loc)
+    if record.discrete:
+        while p.accept_id("normal"):
+            skip_braces(p)
+            opt_comma(p)
+    elif record.argument == "file":
+        p.next()  # the file type (df3)
+        parse_expr(p)
+    elif p.is_op("{"):  # pigment_pattern { … }, function { … }
+        skip_braces(p)
+    while p.accept_op(",") or _starts_value(p) or p.peek().kind == "str":  # arguments, the amount
+        if not p.is_op(","):
+            parse_expr(p)
+    return PigRec("solid", transform=pig.transform)
+
+
+def skip_camera_normal(p, t) -> None:
+    """A camera's ``normal { }`` (its rays perturbed): not rendered."""
+    p.warn("camera normal", "a camera's normal {} is not rendered; ignored", t.loc)
     skip_braces(p)
 
 

@@ -176,6 +176,19 @@ class PigRec:
 
 
 @dataclasses.dataclass
+class NormRec:
+    """A ``normal { }`` as parsed: its pattern as a pigment holds one (``PigRec``; "solid" for a
+    normal that perturbs nothing we render), ``bump_size`` and ``accuracy``."""
+
+    pigment: PigRec = dataclasses.field(default_factory=PigRec)
+    amount: float = 0.5
+    accuracy: float = 0.02
+
+    def transformed(self, m: np.ndarray) -> NormRec:
+        return dataclasses.replace(self, pigment=self.pigment.transformed(m))
+
+
+@dataclasses.dataclass
 class EnvRec:
     """An environment statement as read (and as ``#declare`` keeps it): its entry, the entry's parse
     state, and where it stands."""
@@ -192,13 +205,15 @@ class EnvRec:
 
 @dataclasses.dataclass
 class LayerRec:
-    """One texture layer: pigment, finish (a dict of the keywords given) and whether a normal was given."""
+    """One texture layer: pigment, finish (a dict of the keywords given) and its normal, if given."""
 
     pigment: PigRec = dataclasses.field(default_factory=PigRec)
     finish: dict = dataclasses.field(default_factory=dict)
+    normal: NormRec | None = None
 
     def transformed(self, m: np.ndarray) -> LayerRec:
-        return LayerRec(self.pigment.transformed(m), self.finish)
+        return LayerRec(self.pigment.transformed(m), self.finish,
+                        None if self.normal is None else self.normal.transformed(m))
 
 
 @dataclasses.dataclass

@@ -24,7 +24,7 @@ from .._packing import (
     stack,
     traced_op,
 )
-from .._plan import Plan
+from .._plan import NORMAL_PATTERNS, Plan
 from ..kernels import matvec
 from ..scene import WAVES, Finish, Interior, Layer, Pigment, Reflection, Texture
 
@@ -77,6 +77,8 @@ class PackedMaterials:
     # the static tables above as arrays (a traced row's lookups): layer_present, pattern_id, waves,
     # fresnel, conserve_energy, transparent; and exact_space
     tables: dict[str, jax.Array] = dataclasses.field(default_factory=dict)
+    # the layers' ``normal {}`` perturbations by row, None without any
+    normals: PackedNormals | None = None
 
 
 class FinishArrays(NamedTuple):
@@ -191,7 +193,48 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         transparent=np.array([p.transparent for p in plan.prims]),
         exact_space=_exact_spaces(world_from_pattern),
     )
-    return _padded_to_bucket(mats, len(plan.prims))
+    mats = _padded_to_bucket(mats, len(plan.prims))
+    if any(layer.normal is not None and layer.normal.pattern.pattern in NORMAL_PATTERNS for layer in layers):
+        mats.normals = pack_normals(layers, bucket(len(plan.prims)) * n_layers, dtype)
+    return mats
+
+
+@dataclasses.dataclass
+class PackedNormals:
+    """The layers' ``normal {}`` by material row (``PackedMaterials``' rows; ``_normals.perturbed``
+    reads them): their patterns as pigment rows (colours unused), amount (0 where a layer has
+    none), accuracy, the linear part of world_from_pattern, and the gain of POV-Ray's own normal
+    patterns (``Pattern.normal_gain``, ``normal_bias``; 0 for the others)."""
+
+    patterns: PackedMaterials
+    amount: jax.Array  # (R,)
+    accuracy: jax.Array  # (R,)
+    world_from_pattern: jax.Array  # (R, 3, 3)
+    gain: jax.Array  # (R,)
+    bias: jax.Array  # (R,) ``Pattern.normal_bias``
+
+
+register_packed(PackedNormals, ("patterns", "amount", "accuracy", "world_from_pattern", "gain", "bias"))
+
+_FLAT = Pigment.solid((0.0, 0.0, 0.0))
+
+
+def pack_normals(layers: list[Layer], n_rows: int, dtype) -> PackedNormals:
+    """``layers`` (one per material row) → their normals, padded to ``n_rows`` rows. A layer
+    without a normal, or whose pattern does not perturb (``NORMAL_PATTERNS``), has amount 0."""
+    bumps = [layer.normal if layer.normal is not None and layer.normal.pattern.pattern in NORMAL_PATTERNS
+             else None for layer in layers]
+    pigments = [_FLAT if b is None else b.pattern for b in bumps]
+    eye = np.eye(3)
+    return PackedNormals(
+        patterns=pack_pigments(pigments, dtype),
+        amount=pad_rows(stack([0.0 if b is None else b.amount for b in bumps], dtype), n_rows),
+        accuracy=pad_rows(stack([0.02 if b is None else b.accuracy for b in bumps], dtype), n_rows),
+        world_from_pattern=pad_rows(stack([eye if pg.transform is None else pg.transform.matrix[:3, :3]
+                                           for pg in pigments], dtype), n_rows),
+        gain=pad_rows(stack([patterns.REGISTRY[pg.pattern].normal_gain for pg in pigments], dtype), n_rows),
+        bias=pad_rows(stack([patterns.REGISTRY[pg.pattern].normal_bias for pg in pigments], dtype), n_rows),
+    )
 
 
 def _structural_colors(pg: dict):
@@ -274,7 +317,7 @@ def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
 
 register_packed(PackedMaterials, ("values", "colors", "pattern_from_world", "vector", "frequency", "phase",
                                   "turbulence", "omega", "lambda_", "finish", "ior", "fade_distance",
-                                  "fade_power", "fade_color", "tables"))
+                                  "fade_power", "fade_color", "tables", "normals"))
 
 
 def pat_wave_index(pg: Pigment) -> int:

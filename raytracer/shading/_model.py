@@ -71,6 +71,7 @@ from ._geometry import (
     solo_prims,
 )
 from ._materials import PackedMaterials, costly_patterns, pack_pigments, pigment_at, pigments_at, solid_rows
+from ._normals import perturbed
 
 
 class Rays(NamedTuple):
@@ -788,8 +789,12 @@ def _light_arrival(ctx: TraceContext, light: Light, p, p_spawn, n, visibility=No
 
 
 def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, att, d, n):
-    """Diffuse and highlight terms of one texture layer (material ``row``) for one light."""
+    """Diffuse and highlight terms of one texture layer (material ``row``) for one light; ``n`` is
+    the layer's shading normal (perturbed by its ``normal {}``, which then decides ``n·l``)."""
     l, c, cos_nl, lit = arrival
+    if ctx.plan.effects.normals:
+        cos_nl = jnp.dot(n, l)
+        lit = cos_nl > lighting.NL_EPSILON
     fin = ctx.mats.finish
     out = lighting.diffuse(att, fin.diffuse[row], fin.brilliance[row], cos_nl, rgb) * c
     eff = ctx.plan.effects
@@ -861,6 +866,7 @@ class _Layers(NamedTuple):
     trans: jax.Array  # () grey of ``fil``, at most 1
     reflec: jax.Array  # (3,) summed reflection colour
     r_weight: jax.Array  # () weight of the mirror ray relative to this ray's
+    normal: jax.Array  # (3,) the top layer's shading normal: what the mirror and refracted rays use
 
 
 class _Lights(NamedTuple):
@@ -917,25 +923,29 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
 
     def one_layer(k):
         # what a layer contributes by itself: its local colour (before the layers above filter
-        # it), its filter, and its reflection colour and weight
+        # it), its filter, its reflection colour and weight, and its shading normal
         row = prim * n_layers + k
+        n_k, cos_i_k = n, cos_i
+        if ctx.plan.effects.normals:  # the layer's normal {} (semantics §5.5)
+            n_k = perturbed(mats.normals, row, s.p, n)
+            cos_i_k = -jnp.dot(d, n_k)
         pig = pigment_at(mats, row, s.p) if pigments is None else pigments[k]
         rgb, f, t = pig[:3], pig[3], pig[4]
         att = 1.0 - f - t
         tmp = att * rgb * (fin.ambient[row] * ctx.settings.ambient_light + fin.emission[row])
         for (_, lights, _), arrival in zip(classes, arrivals, strict=True):
-            terms = _batched(lambda lt, a: _layer_light(ctx, lt, a, row, rgb, att, d, n), lights, arrival)
+            terms = _batched(lambda lt, a: _layer_light(ctx, lt, a, row, rgb, att, d, n_k), lights, arrival)
             tmp = tmp + (terms if lights.count == 1 else jnp.sum(terms, axis=0))
         layer_fil = f * rgb + t
         if not reflection:
-            return tmp, layer_fil, None, None
-        reflec_k, w_k = _reflectivity(ctx, row, cos_i, eta_rel, rgb)
+            return tmp, layer_fil, None, None, n_k
+        reflec_k, w_k = _reflectivity(ctx, row, cos_i_k, eta_rel, rgb)
         conserve = jnp.asarray(mats.tables["conserve_energy"])[row]
         # 1 - reflection, at most 1 (POV-Ray's, measured: a negative reflection passes all); at a
         # reflection of exactly 0 (a Fresnel exit, min 0) the derivative is the physical side's, -1
         kept = jnp.where(reflec_k < 0, 1.0, 1.0 - reflec_k)
         layer_fil = jnp.where(conserve, layer_fil * kept, layer_fil)
-        return tmp, layer_fil, reflec_k, w_k
+        return tmp, layer_fil, reflec_k, w_k, n_k
 
     # every layer in one vmapped evaluation: the program holds a layer's pigments, lights and
     # reflectivity once, not once per layer (noise patterns are large programs)
@@ -943,7 +953,7 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
         per_layer = jax.tree_util.tree_map(lambda x: x[None], one_layer(0))
     else:
         per_layer = jax.vmap(one_layer)(jnp.arange(n_layers))
-    tmps, layer_fils, reflecs, weights = per_layer
+    tmps, layer_fils, reflecs, weights, normals = per_layer
     fil = jnp.ones(3, ctx.dtype)
     trans = jnp.ones((), ctx.dtype)
     local = jnp.zeros(3, ctx.dtype)
@@ -960,7 +970,7 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
             r_weight = jnp.maximum(r_weight, jnp.where(active, trans * weights[k], 0.0))
         fil = jnp.where(active, fil * layer_fils[k], fil)
         trans = jnp.minimum(1.0, jnp.abs(lighting.grey(fil)))
-    return _Layers(local, fil, trans, reflec, r_weight)
+    return _Layers(local, fil, trans, reflec, r_weight, normals[0])
 
 
 # ---------------------------------------------------------------- children
@@ -1005,13 +1015,17 @@ def _transmitted(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers,
     return Child(ray=child, coef=jnp.where(tir, att_col, att_col * fil), power=None), tir
 
 
-def _mirror(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers, tir) -> Child:
-    """The mirror ray, with the layers' summed reflection colour and the top layer's exponent."""
+def _mirror(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers, tir, surface_normal=None) -> Child:
+    """The mirror ray, with the layers' summed reflection colour and the top layer's exponent.
+    ``surface_normal``: the unperturbed normal where ``s.n`` is a layer's perturbed one."""
     settings = ctx.settings
     w = jax.lax.stop_gradient(ray.weight * layers.r_weight)
     r_alive = s.found & jnp.any(layers.reflec != 0) & ~tir & (w >= settings.adc_bailout)
     expo = ctx.mats.finish.refl_exponent[s.prim * ctx.mats.n_layers]  # top layer's
-    child = Rays(origin=s.p_out, direction=lighting.reflect(ray.direction, s.n), weight=w,
+    direction = lighting.reflect(ray.direction, s.n)
+    if surface_normal is not None:
+        direction = lighting.above_surface(direction, surface_normal)
+    child = Rays(origin=s.p_out, direction=direction, weight=w,
                  alive=r_alive & (ray.level < settings.max_trace_level), reflection=jnp.asarray(True),
                  level=ray.level + 1, media=ray.media)
     return Child(ray=child, coef=layers.reflec, power=1.0 / expo)
@@ -1080,12 +1094,15 @@ def shade(ctx: TraceContext, ray: Rays, s: _Surface | None = None, visibility=No
     if (eff.reflection or eff.transmission) and jax.default_backend() == "cpu":
         # (a CPU fusion workaround: elsewhere a conditional may cost a device-to-host sync)
         layers = _materialised(ctx, layers)
+    surface_normal = None
+    if eff.normals:  # the mirror and refracted rays leave about the top layer's shading normal
+        surface_normal, s = s.n, s._replace(n=layers.normal)
     children = []
     transmitted, tir = None, jnp.asarray(False)
     if eff.transmission:
         transmitted, tir = _transmitted(ctx, ray, s, layers, eta_rel)
     if eff.reflection:
-        children.append(_mirror(ctx, ray, s, layers, tir))
+        children.append(_mirror(ctx, ray, s, layers, tir, surface_normal))
     if transmitted is not None:
         children.append(transmitted)
     local = jnp.where(s.found, layers.local,
@@ -1199,8 +1216,9 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list, layers: boo
         def shadow_rays(light, p, p_spawn, n, types=types):
             l, c, cos_nl, shadow_len = _unshadowed(ctx, light, p, n)
             weights, fl = _light_filters(ctx, light, types, p_spawn, l, shadow_len)
-            # (not masked where the light's colour is 0: its derivative still sees the shadow)
-            lit = cos_nl > lighting.NL_EPSILON
+            # (not masked where the light's colour is 0: its derivative still sees the shadow);
+            # a layer's normal {} can turn a point to a light its surface faces away from
+            lit = (cos_nl > lighting.NL_EPSILON) | bool(ctx.plan.effects.normals)
             return weights, fl, lit
 
         def per_ray(p, p_spawn, n, lights=lights):
@@ -1254,7 +1272,8 @@ def _batch_visibility(ctx: TraceContext, s: _Surface, adaptive: list[bool], full
             return _unshadowed(ctx, light, p, n)
 
         _, c, cos_nl, _ = jax.vmap(unshadowed)(s.p, s.n)
-        return s.found & (cos_nl > lighting.NL_EPSILON) & jnp.any(c != 0, axis=-1), c
+        faces = (cos_nl > lighting.NL_EPSILON) | bool(ctx.plan.effects.normals)  # (normal {}: any side)
+        return s.found & faces & jnp.any(c != 0, axis=-1), c
 
     def samples(light):
         return _shadow_sampler(light_types(light, ctx.plan.effects))(light, ctx.dtype)

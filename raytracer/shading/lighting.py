@@ -108,5 +108,12 @@ def reflect(d, n):
     return d - 2.0 * jnp.dot(d, n) * n
 
 
+def above_surface(r, n):
+    """A mirror direction ``r`` about a perturbed normal, kept on the viewer's side of the surface
+    whose normal (facing the viewer) is ``n``: below it, it is mirrored about the surface."""
+    along = jnp.dot(r, n)
+    return jnp.where(along < 0, r - 2.0 * along * n, r)
+
+
 def grey(rgb):
     return GREY[0] * rgb[..., 0] + GREY[1] * rgb[..., 1] + GREY[2] * rgb[..., 2]
