@@ -34,15 +34,16 @@ def _bumped_plane(normal, light_direction, camera_z=-5.0):
 
 def test_a_gradient_normal_tilts_a_plane_as_povrays_rule_in_closed_form(x64):
     # gradient x's value rises by 1 per unit of pattern x, so on the tetrahedron the perturbation
-    # is exactly -(2/15)·amount·x̂ in pattern space, for any accuracy; the normal goes there by Wᵀ
-    # (normalised) and back by Aᵀ, A = W⁻¹ — so a non-uniform scale changes the depth
+    # is exactly -(2/15)·amount·x̂ in pattern space, for any accuracy, and with turbulence too (it
+    # moves the tetrahedron's centre, here by less than the 0.3 to the nearest wrap); the normal
+    # goes there by Wᵀ (normalised) and back by Aᵀ, A = W⁻¹ — so a non-uniform scale changes the depth
     world_from_pattern = rotation_matrix((0, 0, 20)) @ scale_matrix((2.0, 1.0, 0.5)) @ translation_matrix(
         (0.3, 0, 0))
     amount = 2.0
     light = np.array([0.8, -0.3, -1.0]) / np.linalg.norm([0.8, -0.3, -1.0])
-    for accuracy in (0.02, 0.1):
+    for accuracy, turbulence in ((0.02, None), (0.1, (0.1, 0.1, 0.1))):
         normal = rt.Normal.of("gradient", amount, vector=(1.0, 0.0, 0.0), accuracy=accuracy,
-                              transform=rt.Transform(world_from_pattern))
+                              turbulence=turbulence, transform=rt.Transform(world_from_pattern))
         got = np.asarray(rt.render(_bumped_plane(normal, light), width=1, height=1))[0, 0]
         w = world_from_pattern[:3, :3]
         n_p = w.T @ np.array([0.0, 0.0, -1.0])

@@ -372,11 +372,14 @@ def _pattern_point(mats: PackedMaterials, row, p):
 _FACE_ULPS = 4
 
 
-def _raw_value(mats: PackedMaterials, k: int, row, q):
+def _raw_value(mats: PackedMaterials, k: int, row, q, warp: bool = True):
     """The raw value of the scene's pattern ``k`` (static) with row ``row``'s parameters at
-    pattern-space point ``q``."""
+    pattern-space point ``q``; ``warp`` False: ``q`` is already displaced by the row's turbulence
+    (a pattern that uses its turbulence itself, as marble, still does)."""
     name = mats.pattern_names[k]
     turb = mats.turbulence[row] if mats.turbulent[k] else None
+    if not warp and patterns.REGISTRY[name].turbulence == "warp":
+        turb = None
     face_nudge = discrete_face_nudge(mats, row, q) if patterns.REGISTRY[name].discrete else None
     return patterns.pattern_value(name, q, mats.vector[row], turb, mats.octaves[name], mats.omega[row],
                                   mats.lambda_[row], face_nudge=face_nudge)

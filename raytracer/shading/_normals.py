@@ -30,6 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import patterns
 from ..kernels import safe_normalize
 from ._materials import PackedNormals, _evaluated_patterns, _pattern_point, _raw_value, waved_value
 
@@ -52,11 +53,18 @@ def perturbed(nm: PackedNormals, row, p, n):
     h = jnp.where(own, jnp.asarray(SPECIAL_SPACING, p.dtype), nm.accuracy[row])
     corners = jnp.asarray(TETRAHEDRON, p.dtype)
     q = _pattern_point(pats, row, p)
-    points = q[None, :] + h * corners
     pid = jnp.asarray(pats.tables["pattern_id"])[row]
     v = jnp.zeros((4,), p.dtype)
     for k in _evaluated_patterns(pats):
-        v = jnp.where(pid == k, jax.vmap(lambda x, k=k: _raw_value(pats, k, row, x))(points), v)
+        centre = q
+        if pats.turbulent[k] and patterns.REGISTRY[pats.pattern_names[k]].turbulence == "warp":
+            # the turbulence moves the tetrahedron's centre, not its corners one by one (POV-Ray's
+            # measured: gradient x with turbulence tilts by the closed form away from its wraps)
+            centre = q + patterns.dturbulence(q, pats.octaves[pats.pattern_names[k]], pats.omega[row],
+                                              pats.lambda_[row]) * pats.turbulence[row]
+        points = centre[None, :] + h * corners
+        values = jax.vmap(lambda x, k=k: _raw_value(pats, k, row, x, warp=False))(points)
+        v = jnp.where(pid == k, values, v)
     w = jax.vmap(lambda x: waved_value(pats, row, x))(v)
     gain = jnp.where(own, own_gain, 1.0) * nm.amount[row] / (10.0 * h)
     perturbation = -gain * jnp.sum(w[:, None] * corners, axis=0) + nm.bias[row] * nm.amount[row]
