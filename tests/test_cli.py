@@ -403,12 +403,12 @@ def test_long_lists_of_lights_and_warnings_are_counted_by_kind_and_shown_in_part
     scene = tmp_path / "many.pov"
     scene.write_text("camera { location -5 * z look_at 0 }\n"
                      + "".join(f"light_source {{ <{i}, 5, -5> rgb 0.1 }}\n" for i in range(10))
-                     + "sphere { 0, 1 normal { crackle 0.5 } }\n" * 3)
+                     + "sphere { 0, 1 normal { quilted 0.5 } }\n" * 3)
     assert main(["info", str(scene)]) == 0
     out = capsys.readouterr().out
     assert "lights: 10 (10 point), the first 8:\n" in out and "\n  … 2 more\n" in out
     assert out.count("\n  point at") == 8
-    assert "warnings: 3\n" in out and out.count("[crackle]") == 3  # a short list: whole
+    assert "warnings: 3\n" in out and out.count("[quilted]") == 3  # a short list: whole
 
 
 def test_progress_shows_each_phases_time_and_the_traces_eta_only_on_a_terminal(monkeypatch):

@@ -84,11 +84,11 @@ def test_the_sdl_reads_normals_as_povray_writes_them():
 
 def test_normals_we_do_not_render_are_warned_at_their_place_and_perturb_nothing():
     s = load_scene("sphere { 0, 1 normal { checker normal { bumps } normal { dents } } }\n"
-                   "sphere { 0, 1 normal { crackle 0.5 } }\n"
+                   "sphere { 0, 1 normal { quilted 0.5 } }\n"
                    "sphere { 0, 1 normal { gradient x slope_map { [0 <0, 1>] [1 <1, 1>] } } }\n"
                    "camera { location -5*z look_at 0 normal { bumps 0.5 } }\n")
     assert [(w.feature, w.location.line) for w in s.warnings] == [
-        ("checker", 1), ("crackle", 2), ("slope_map", 3), ("camera normal", 4)]
+        ("checker", 1), ("quilted", 2), ("slope_map", 3), ("camera normal", 4)]
     assert s.objects[0].texture.layers[0].normal is None
     assert s.objects[1].texture.layers[0].normal is None
     assert s.objects[2].texture.layers[0].normal.pattern.pattern == "gradient"

@@ -6,6 +6,7 @@ Each pattern is a :class:`Pattern` record (``_record.py``) declared in the modul
 * ``_tilings.py``     discrete patterns that choose a list entry (checker, hexagon, brick), exact POV-Ray;
 * ``_noisy.py``       noise patterns on our own lattice noise (``_noise.py``): POV-Ray's look and
                       statistics, not its pixels;
+* ``_cellular.py``    crackle and cells on our own random points: POV-Ray's look and statistics;
 * ``_parsed_only.py`` POV-Ray patterns we parse (with a warning) but do not render.
 
 The scene model validates ``Pigment.pattern`` against :data:`REGISTRY`, the render plan warns about
@@ -33,7 +34,7 @@ import types
 
 import jax.numpy as jnp
 
-from . import _fields, _noisy, _parsed_only, _tilings
+from . import _cellular, _fields, _noisy, _parsed_only, _tilings
 from ._noise import NUMBER_OF_WAVES as NUMBER_OF_WAVES
 from ._noise import dnoise as dnoise
 from ._noise import dturbulence as dturbulence
@@ -44,7 +45,7 @@ from ._record import PatternInputs as PatternInputs
 from ._waves import WAVES as WAVES
 from ._waves import apply_wave as apply_wave
 
-_FAMILIES = (_fields, _tilings, _noisy, _parsed_only)
+_FAMILIES = (_fields, _tilings, _noisy, _cellular, _parsed_only)
 
 
 def _index(records) -> types.MappingProxyType:

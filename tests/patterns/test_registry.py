@@ -77,8 +77,8 @@ def test_a_parsed_only_pattern_warns_where_it_is_written_and_renders_a_neutral_c
 
 
 def test_strict_loading_turns_a_parsed_only_pattern_into_an_error():
-    with pytest.raises(SceneError, match="crackle"):
-        load_scene("plane { y, 0 pigment { crackle } }", strict=True)
+    with pytest.raises(SceneError, match="quilted"):
+        load_scene("plane { y, 0 pigment { quilted } }", strict=True)
 
 
 def test_a_parsed_only_pattern_built_through_the_api_is_a_plan_warning_and_its_first_colour():
@@ -98,7 +98,7 @@ def test_an_unregistered_pattern_is_an_error_in_the_model_the_evaluator_and_the_
     with pytest.raises(ValueError, match="unknown pattern 'swirl'"):
         P.pattern_value("swirl", jnp.zeros(3), jnp.ones(3), None)
     with pytest.raises(ValueError, match="not rendered"):
-        P.pattern_value("crackle", jnp.zeros(3), jnp.ones(3), None)
+        P.pattern_value("quilted", jnp.zeros(3), jnp.ones(3), None)
     with pytest.raises(SceneError, match="swirl"):
         load_scene("plane { y, 0 pigment { swirl } }")
 

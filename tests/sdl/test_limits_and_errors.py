@@ -76,10 +76,10 @@ def test_a_guarded_self_include_recurses_and_an_unguarded_cycle_stops_at_the_dep
 
 
 def test_unsupported_feature_warns_and_strict_raises():
-    text = "sphere { 0, 1 normal { crackle 0.5 } }\nrainbow { angle 42 width 5 }\n" \
+    text = "sphere { 0, 1 normal { quilted 0.5 } }\nrainbow { angle 42 width 5 }\n" \
            "text { ttf \"timrom.ttf\" \"Hi\" 1, 0 }"
     s = load_scene(text)
-    assert [w.feature for w in s.warnings] == ["crackle", "rainbow", "text"]
+    assert [w.feature for w in s.warnings] == ["quilted", "rainbow", "text"]
     assert [w.location.line for w in s.warnings] == [1, 2, 3]
     assert len(s.objects) == 1
     e = error_of(text, strict=True)
@@ -87,13 +87,13 @@ def test_unsupported_feature_warns_and_strict_raises():
 
 
 def test_warnings_of_a_declared_value_wait_until_it_is_used():
-    declare = ("#declare Bumpy = texture { pigment { rgb 1 } normal { crackle 0.5 } }\n"
+    declare = ("#declare Bumpy = texture { pigment { rgb 1 } normal { quilted 0.5 } }\n"
                "#declare Copy = Bumpy\n")
     s = load_scene(declare + "sphere { 0, 1 }")
     assert s.warnings == ()  # declared, never used: nothing of it reaches the scene
     load_scene(declare + "sphere { 0, 1 }", strict=True)
     s = load_scene(declare + "sphere { 0, 1 texture { Copy } }\nbox { 0, 1 texture { Bumpy } }")
-    assert [(w.feature, w.location.line) for w in s.warnings] == [("crackle", 1)]  # once, at its source
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("quilted", 1)]  # once, at its source
     e = error_of(declare + "sphere { 0, 1 texture { Copy } }", strict=True)
     assert e.location == SourceLoc("<string>", 1, 55)
 
@@ -101,18 +101,18 @@ def test_warnings_of_a_declared_value_wait_until_it_is_used():
 def test_a_warning_read_into_a_value_never_used_is_reported_where_its_source_is_used():
     """``#declare P = f(Land)`` holds Land's warnings for P; when P is never used and Land is,
     they are reported once, at their source (``language/trace2.pov`` lost its isosurface's)."""
-    text = ("#declare Bumpy = texture { pigment { rgb 1 } normal { crackle 0.5 } }\n"
+    text = ("#declare Bumpy = texture { pigment { rgb 1 } normal { quilted 0.5 } }\n"
             "#declare Unused = texture { Bumpy }\n"
             "#declare Also = texture { Bumpy }\n")
     s = load_scene(text + "sphere { 0, 1 texture { Bumpy } }")
-    assert [(w.feature, w.location.line) for w in s.warnings] == [("crackle", 1)]
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("quilted", 1)]
     s = load_scene(text + "sphere { 0, 1 texture { Unused } } box { 0, 1 texture { Bumpy } }")
-    assert [(w.feature, w.location.line) for w in s.warnings] == [("crackle", 1)]  # once
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("quilted", 1)]  # once
 
 
 def test_a_macro_local_value_reports_its_warning_when_returned_and_forgets_it_otherwise():
     text = """#macro Bumpy(Used)
-        #local T = texture { pigment { rgb 1 } normal { crackle 0.5 } }
+        #local T = texture { pigment { rgb 1 } normal { quilted 0.5 } }
         #if (Used) T #else texture { pigment { rgb 1 } } #end
     #end
     #declare I = 0; #while (I < 50) #declare Unused = Bumpy(0); #declare I = I + 1; #end
@@ -120,7 +120,7 @@ def test_a_macro_local_value_reports_its_warning_when_returned_and_forgets_it_ot
     s = load_scene(text + "sphere { 0, 1 texture { Unused } }")
     assert s.warnings == ()
     s = load_scene(text + "sphere { 0, 1 texture { Bumpy(1) } }")
-    assert [(w.feature, w.location.line) for w in s.warnings] == [("crackle", 2)]
+    assert [(w.feature, w.location.line) for w in s.warnings] == [("quilted", 2)]
 
 
 def test_standard_textures_include_is_quiet_until_a_texture_with_a_missing_feature_is_used():

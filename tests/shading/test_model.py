@@ -55,11 +55,11 @@ sphere { 4, 1 pigment { bozo phase 0.5 color_map { [0 rgb 1] [1 rgb <0, 0.5, 1>]
     # the plan warns, and its value is 0)
     obj = scene.objects[4]
     layer = obj.texture.layers[0]
-    layer = with_field(layer, "pigment", with_field(layer.pigment, "pattern", "crackle"))
+    layer = with_field(layer, "pigment", with_field(layer.pigment, "pattern", "quilted"))
     obj = with_field(obj, "texture", with_field(obj.texture, "layers", (layer,)))
     scene = with_field(scene, "objects", (*scene.objects[:4], obj))
     plan = make_plan(scene)
-    assert "crackle" in [w.feature for w in plan.warnings]
+    assert "quilted" in [w.feature for w in plan.warnings]
     mats = jax.tree_util.tree_map(jnp.asarray, pack_materials(plan, jnp.float64))
     assert _materials.costly_patterns(mats)
     rng = np.random.default_rng(3)
@@ -80,9 +80,9 @@ sphere { 4, 1 pigment { bozo phase 0.5 color_map { [0 rgb 1] [1 rgb <0, 0.5, 1>]
     keep = np.asarray(needed)
     np.testing.assert_allclose(np.asarray(got)[keep], np.asarray(want)[keep], rtol=1e-12, atol=1e-12)
     # only the unrendered pattern's entries needed: blocks of nothing else are computed too
-    crackle = np.asarray(rows) // mats.n_layers == 4
-    alone = np.asarray(pigments_at(mats, rows, points, jnp.asarray(crackle)))
-    np.testing.assert_allclose(alone[crackle], np.asarray(want)[crackle], rtol=1e-12, atol=1e-12)
+    quilted = np.asarray(rows) // mats.n_layers == 4
+    alone = np.asarray(pigments_at(mats, rows, points, jnp.asarray(quilted)))
+    np.testing.assert_allclose(alone[quilted], np.asarray(want)[quilted], rtol=1e-12, atol=1e-12)
     tangents = (jnp.asarray(rng.normal(size=(m, 3)), jnp.float64),
                 jax.tree_util.tree_map(lambda x: jnp.asarray(rng.normal(size=x.shape), x.dtype)
                                        if jnp.issubdtype(x.dtype, jnp.floating)

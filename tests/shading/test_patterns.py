@@ -253,7 +253,7 @@ def test_values_and_gradients_are_finite_for_every_pattern_and_turbulence(name, 
 
 FD_FAST = ["spherical", "leopard", "radial", "gradient"]
 FD_SLOW = ["wood", "cylindrical", "onion", "bozo", "granite", "marble", "agate", "wrinkles", "ripples",
-           "waves"]
+           "waves", "crackle"]
 
 
 @pytest.mark.parametrize("name", FD_FAST + [pytest.param(n, marks=pytest.mark.slow) for n in FD_SLOW])
@@ -396,6 +396,10 @@ STAT_CASES = [
     ("bozo", "bozo turbulence 0.8", (0.8, 0.8, 0.8), (0.02, 0.10, 0.10)),
     ("ripples", "ripples", None, (0.02, 0.10, 0.15)),
     ("waves", "waves", None, (0.02, 0.15, 0.15)),
+    # one random point per unit cube (ours) gives POV-Ray's Voronoi distances: at 320×240 mean 0.191
+    # against 0.186, std 0.152 against 0.147
+    ("crackle", "crackle", None, (0.02, 0.10, 0.06)),
+    ("cells", "cells", None, (0.03, 0.10, 0.10)),
 ]
 
 
