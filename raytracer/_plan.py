@@ -458,7 +458,8 @@ def make_plan(scene: Scene) -> Plan:
     textures = list({id(p.texture): p.texture for p in rendered}.values())
     layers = [layer for tex in textures for layer in tex.layers]
     finishes = list({id(layer.finish): layer.finish for layer in layers}.values())
-    pigments = list({id(layer.pigment): layer.pigment for layer in layers}.values())
+    # (a pigment map's pigments too: their patterns are evaluated as well)
+    pigments = list({id(pg): pg for layer in layers for pg in layer.pigment.pigments()}.values())
     if any(len(tex.layers) > 1 and sum(layer.finish.reflection is not None for layer in tex.layers) > 1
            for tex in textures):
         warnings.append(SceneWarning("layered texture", "layered textures: lower layers' reflections "
@@ -466,7 +467,8 @@ def make_plan(scene: Scene) -> Plan:
     if any("double_illuminate" in p.flags for p in rendered):
         warnings.append(SceneWarning("double_illuminate", "double_illuminate is not rendered"))
     environment = environment_of(scene)
-    sky = [pig for e, v in environment if e.pigments is not None for pig in e.pigments(v)]
+    sky = [pg for e, v in environment if e.pigments is not None
+           for pig in e.pigments(v) for pg in pig.pigments()]
     for pig in [*pigments, *sky]:
         if pig.pattern not in SUPPORTED_PATTERNS:
             warnings.append(SceneWarning(pig.pattern, f"pattern {pig.pattern!r} is not rendered"))

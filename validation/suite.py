@@ -142,6 +142,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("layered_texture", povray=POV_BAR),
     _example("straight_transmission", povray=POV_BAR),
     _example("normals", povray=POV_BAR),
+    _example("pigment_maps", povray=POV_BAR),
 )
 
 

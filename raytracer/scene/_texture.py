@@ -44,6 +44,10 @@ class Pigment(Record):
         turbulence:  (3,) amount, or None; ``octaves`` (static), ``omega``, ``lambda_``.
         wave:        static wave function name.
         transparent: static: whether any colour carries filter or transmit (enables transmission).
+        entries:     a ``pigment_map`` (or a discrete pattern's pigment list): the pigments at the
+                     map's positions ``values``, each evaluated at the hit and blended as a colour
+                     map blends colours (``colors`` are then unused); None for a colour map.
+                     Their transforms are world_from_pattern, the outer pigment's included.
     """
 
     pattern: str = eqx.field(static=True)
@@ -59,10 +63,13 @@ class Pigment(Record):
     octaves: int = eqx.field(static=True, default=6)
     wave: str = eqx.field(static=True, default="ramp")
     transparent: bool = eqx.field(static=True, default=False)
+    entries: tuple[Pigment, ...] | None = None
 
     def __check_init__(self):
         if self.pattern not in PATTERNS:
             raise ValueError(f"unknown pattern {self.pattern!r}")
+        if self.entries is not None and len(self.entries) != self.values.shape[0]:
+            raise ValueError("a pigment map has one pigment per position in values")
         if self.wave not in WAVES:
             raise ValueError(f"unknown wave {self.wave!r}")
         if self.colors.ndim != 2 or self.colors.shape[-1] != 5 or self.values.shape != self.colors.shape[:1]:
@@ -87,6 +94,21 @@ class Pigment(Record):
         c = np.stack([_rgbft(color1), _rgbft(color2)])
         return cls("checker", values=[0.0, 1.0], colors=c, transform=transform, frequency=0.0,
                    transparent=bool(np.any(c[:, 3:] != 0)))
+
+    @classmethod
+    def of_map(cls, pattern: str, pigment_map, **kwargs) -> Pigment:
+        """A pattern with a pigment map given as ``[(value, Pigment), ...]`` (a discrete pattern:
+        its list, at the positions 0, 1, …)."""
+        values = np.array([v for v, _ in pigment_map], dtype=np.float64)
+        entries = tuple(pg for _, pg in pigment_map)
+        kwargs.setdefault("transparent", any(pg.transparent for pg in entries))
+        return cls(pattern, values=values, colors=np.zeros((len(entries), 5)), entries=entries, **kwargs)
+
+    def pigments(self):
+        """This pigment and, for a map, every pigment in it (depth first)."""
+        yield self
+        for entry in self.entries or ():
+            yield from entry.pigments()
 
     @classmethod
     def mapped(cls, pattern: str, color_map, **kwargs) -> Pigment:

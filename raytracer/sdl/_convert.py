@@ -30,7 +30,8 @@ def type_name(v) -> str:
     return _TYPE_NAMES.get(type(v).__name__) or type(v).__name__.replace("Value", "").lower()
 
 
-_TYPE_NAMES = {"PigRec": "pigment", "NormRec": "normal", "LayerRec": "texture layer", "TextureRec": "texture",
+_TYPE_NAMES = {"PigRec": "pigment", "NormRec": "normal", "PigmentMapRec": "pigment_map",
+               "LayerRec": "texture layer", "TextureRec": "texture",
                "InteriorRec": "interior", "MaterialRec": "material", "LightRec": "light_source",
                "ObjRec": "object", "CameraRec": "camera", "TransformRec": "transform",
                "ArrayValue": "array", "MacroDef": "macro",

@@ -40,6 +40,13 @@ def lower_pigment(pig: PigRec, world: np.ndarray | None, fit_zero_terms: bool = 
     if world is not None:
         m = world if m is None else world @ m
     wave = pig.wave or "ramp"
+    if pig.entries is not None:  # a pigment map: its pigments live in the map's space
+        entries = tuple(lower_pigment(e, m, fit_zero_terms) for _, e in pig.entries)
+        return build(S.Pigment, pattern=pig.pattern, values=values, colors=np.zeros((len(entries), 5)),
+                     transform=_transform(m), vector=np.asarray(pig.vector, dtype=np.float64),
+                     frequency=pig.frequency, phase=pig.phase, turbulence=pig.turbulence, omega=pig.omega,
+                     lambda_=pig.lambda_, octaves=pig.octaves, wave=wave, entries=entries,
+                     transparent=any(e.transparent for e in entries))
     return build(S.Pigment, pattern=pig.pattern, values=values, colors=colors, transform=_transform(m),
                  vector=np.asarray(pig.vector, dtype=np.float64), frequency=pig.frequency,
                  phase=pig.phase, turbulence=pig.turbulence, omega=pig.omega,

@@ -11,7 +11,17 @@ from ..scene._transform import pov_matrix, rotation_matrix, scale_matrix, transl
 from ._convert import fmt_number
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
 from ._lexer import ID, NUM, OP
-from ._values import InteriorRec, LayerRec, MaterialRec, NormRec, PigRec, TextureRec, TransformRec, Vec
+from ._values import (
+    InteriorRec,
+    LayerRec,
+    MaterialRec,
+    NormRec,
+    PigmentMapRec,
+    PigRec,
+    TextureRec,
+    TransformRec,
+    Vec,
+)
 
 TRANSFORM_KEYWORDS = ("translate", "rotate", "scale", "matrix", "transform")
 # Pattern keywords, arguments, default maps and waves come from ``raytracer.patterns.REGISTRY``.
@@ -250,9 +260,7 @@ def _pattern(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:
         n = record.colours
         while len(colors) < n and (_starts_color(p) or p.is_id("pigment")):
             if p.accept_id("pigment"):
-                p.warn("pigment list", f"{kw} with pigments is approximated by their first colours",
-                       p.here())
-                colors.append(parse_pigment(p).cmap[0][1])
+                colors.append(parse_pigment(p))
             else:
                 colors.append(parse_color(p))
             opt_comma(p)
@@ -260,9 +268,15 @@ def _pattern(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:
             defaults = [c for _, c in new.cmap]
             colors += defaults[len(colors):]
             # the value of a discrete pattern is the index of its colour
-            new.cmap = [(float(i), c) for i, c in enumerate(colors)]
+            if any(isinstance(c, PigRec) for c in colors):  # a list of pigments: a pigment map
+                pigments = [c if isinstance(c, PigRec) else _solid(c) for c in colors]
+                new.entries = [(float(i), pg) for i, pg in enumerate(pigments)]
+                new.cmap = [(float(i), Vec((0, 0, 0, 0, 0))) for i in range(len(pigments))]
+                new.ft = any(pg.ft for pg in pigments)
+            else:
+                new.cmap = [(float(i), c) for i, c in enumerate(colors)]
+                new.ft = _map_ft(new.cmap)
             new.cmap_given = True
-            new.ft = _map_ft(new.cmap)
     if record.argument == "vector":
         new.vector = vector3(p)
     return new
@@ -334,26 +348,45 @@ def _unsupported_pattern(p, record: patterns.Pattern, loc):
 
 
 def _pigment_map(p, kw, pig, loc):
+    if kw == "pigment_map":
+        entries = parse_pigment_map_body(p, loc)
+        return dataclasses.replace(pig, cmap=[(v, Vec((0, 0, 0, 0, 0))) for v, _ in entries], cmap_given=True,
+                                   ft=any(e.ft for _, e in entries), entries=entries)
     p.warn(kw, f"'{kw}' is approximated by the first colour of each entry", loc)
     p.expect_op("{")
     entries = []
     while p.accept_op("["):
-        v = float_(p) if _starts_value(p) else float(len(entries))
-        opt_comma(p)
-        if kw == "pigment_map":
-            sub = PigRec()
-            while not p.is_op("]"):
-                sub = pigment_item(p, sub)
-            entries.append((v, sub.cmap[0][1]))
-        else:
-            _skip_to(p, "]")
+        entries.append(float_(p) if _starts_value(p) else float(len(entries)))
+        _skip_to(p, "]")
         p.expect_op("]")
     if not entries:  # as POV-Ray: "Must have at least one entry in map"
         raise p.error(f"expected at least one [value …] entry in {kw}, found '}}'", loc)
     p.expect_op("}")
-    if kw == "pigment_map" and entries:
-        return dataclasses.replace(pig, cmap=entries, cmap_given=True, ft=pig.ft or _map_ft(entries))
     return pig
+
+
+def parse_pigment_map_body(p, loc) -> list:
+    """``{ [v PIGMENT_BODY] … }`` or ``{ Identifier }`` after ``pigment_map``: ``(v, PigRec)``
+    pairs in order."""
+    p.expect_op("{", "'{' after pigment_map")
+    t = p.peek()
+    if declared(p, t):
+        entries = list(_declared_value(p, t, PigmentMapRec, "pigment_map").entries)
+        p.expect_op("}")
+        return entries
+    entries = []
+    while p.accept_op("["):
+        v = float_(p) if _starts_value(p) else float(len(entries))
+        opt_comma(p)
+        sub = PigRec()
+        while not p.is_op("]"):
+            sub = pigment_item(p, sub)
+        entries.append((v, sub))
+        p.expect_op("]")
+    if not entries:  # as POV-Ray: "Must have at least one entry in map"
+        raise p.error("expected at least one [value …] entry in pigment_map, found '}'", loc)
+    p.expect_op("}")
+    return entries
 
 
 def _skip_to(p, op: str) -> None:

@@ -167,12 +167,20 @@ class PigRec:
     octaves: int = 6
     wave: str | None = None
     ft: bool = False
+    entries: list | None = None  # a pigment map's or list's pigments (PigRec), at cmap's positions
 
     def transformed(self, m: np.ndarray) -> PigRec:
         if self.pattern == "solid":
             return self
         t = m if self.transform is None else m @ self.transform
         return dataclasses.replace(self, transform=t)
+
+
+@dataclasses.dataclass
+class PigmentMapRec:
+    """A ``pigment_map`` value (``#declare M = pigment_map { … }``): ``(position, PigRec)`` pairs."""
+
+    entries: list
 
 
 @dataclasses.dataclass

@@ -79,6 +79,10 @@ class PackedMaterials:
     tables: dict[str, jax.Array] = dataclasses.field(default_factory=dict)
     # the layers' ``normal {}`` perturbations by row, None without any
     normals: PackedNormals | None = None
+    # the pigments of the rows' pigment maps (``Pigment.entries``), row ``map_start[r] + i`` the
+    # i-th of row r's (``tables["map_start"]``, ``tables["map_size"]``: 0 for a colour map); None
+    # without any
+    entries: PackedMaterials | None = None
 
 
 class FinishArrays(NamedTuple):
@@ -194,9 +198,27 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         exact_space=_exact_spaces(world_from_pattern),
     )
     mats = _padded_to_bucket(mats, len(plan.prims))
+    if any(pg["entries"] is not None for pg in pg_):
+        _pack_entries(mats, pg_, dtype)
     if any(layer.normal is not None and layer.normal.pattern.pattern in NORMAL_PATTERNS for layer in layers):
         mats.normals = pack_normals(layers, bucket(len(plan.prims)) * n_layers, dtype)
     return mats
+
+
+def _pack_entries(mats: PackedMaterials, pg_: list[dict], dtype) -> None:
+    """``mats.entries``: every row's pigment-map pigments in one pack, and each row's first and
+    count of them in ``mats.tables``."""
+    flat: list[Pigment] = []
+    start = np.zeros(len(pg_), np.int32)
+    size = np.zeros(len(pg_), np.int32)
+    for r, pg in enumerate(pg_):
+        if pg["entries"] is not None:
+            start[r], size[r] = len(flat), len(pg["entries"])
+            flat.extend(pg["entries"])
+    mats.entries = pack_pigments(flat, dtype)
+    rows = mats.tables["pattern_id"].shape[0]
+    mats.tables["map_start"] = pad_rows(start, rows)
+    mats.tables["map_size"] = pad_rows(size, rows)
 
 
 @dataclasses.dataclass
@@ -317,7 +339,7 @@ def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
 
 register_packed(PackedMaterials, ("values", "colors", "pattern_from_world", "vector", "frequency", "phase",
                                   "turbulence", "omega", "lambda_", "finish", "ior", "fade_distance",
-                                  "fade_power", "fade_color", "tables", "normals"))
+                                  "fade_power", "fade_color", "tables", "normals", "entries"))
 
 
 def pat_wave_index(pg: Pigment) -> int:
@@ -348,7 +370,45 @@ def pigment_at(mats: PackedMaterials, prim, p):
     v = jnp.zeros((), p.dtype)
     for k in _evaluated_patterns(mats):
         v = jnp.where(pid == k, _raw_value(mats, k, prim, q), v)
-    return _pigment_of_value(mats, prim, v)
+    return _colour(mats, prim, p, v)
+
+
+def _colour(mats: PackedMaterials, row, p, v):
+    """RGBFT (5,) of row ``row`` at world point ``p`` whose pattern has raw value ``v``: its colour
+    map's, or its pigment map's pigments at ``p`` blended."""
+    c = _pigment_of_value(mats, row, v)
+    if mats.entries is None:
+        return c
+    size = jnp.asarray(mats.tables["map_size"])[row]
+    return jnp.where(size > 0, _entries_at(mats, row, p, waved_value(mats, row, v), size), c)
+
+
+def _entries_at(mats: PackedMaterials, row, p, w, size):
+    """Row ``row``'s pigment map at ``p`` for its waved value ``w``: the two pigments around ``w``
+    blended as ``_color_map`` blends colours (a discrete pattern: its list entries by index, as
+    ``_list_entry``)."""
+    values = mats.values[row]
+    last = jnp.maximum(size - 1, 1)
+    pid = jnp.asarray(mats.tables["pattern_id"])[row]
+    discrete = jnp.asarray([patterns.REGISTRY[name].discrete for name in mats.pattern_names])[pid]
+    # a colour map's blend: the bracket [i - 1, i], clamped at the ends
+    i = jnp.clip(jnp.searchsorted(values, w, side="right"), 1, last)
+    v0, v1 = values[i - 1], values[i]
+    span = v1 - v0
+    ok = span > 0
+    s = jnp.clip(jnp.where(ok, (w - v0) / jnp.where(ok, span, 1.0), 1.0), 0.0, 1.0)
+    s = jnp.where(w <= values[0], 0.0, jnp.where(w >= values[last], 1.0, s))
+    i = jnp.where(w <= values[0], 1, i)
+    # a list: entry floor(w) and the next, by the fraction
+    x = jnp.clip(w, 0, size - 1)
+    j = jnp.minimum(jnp.floor(x).astype(jnp.int32), size - 1)
+    lo = jnp.minimum(jnp.where(discrete, j, i - 1), size - 1)
+    hi = jnp.minimum(jnp.where(discrete, j + 1, i), size - 1)
+    s = jnp.where(discrete, x - j, s)
+    start = jnp.asarray(mats.tables["map_start"])[row]
+    # the two pigments in one vmapped evaluation: the program holds the entries' patterns once
+    c = jax.vmap(lambda r: pigment_at(mats.entries, r, p))(start + jnp.stack([lo, hi]))
+    return c[0] * (1 - s) + c[1] * s
 
 
 def _all_solid(mats: PackedMaterials) -> bool:
@@ -483,7 +543,7 @@ def pigments_at(mats: PackedMaterials, rows, points, needed):
                              lambda v, j=j, k=k: jnp.where(key_b == j, jax.vmap(
                                  lambda r_, q_: _raw_value(mats, k, r_, q_))(r, q), v),
                              lambda v: v, v)
-        return jax.vmap(lambda r_, v_: _pigment_of_value(mats, r_, v_))(r, v)
+        return jax.vmap(lambda r_, p_, v_: _colour(mats, r_, p_, v_))(r, p, v)
 
     def block_or_first_colours(args):
         idx, key_b = args
