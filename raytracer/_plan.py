@@ -41,7 +41,8 @@ MEDIA_SLOTS = 16  # at most this many interiors in a ray's list (POV-Ray's list 
 SUPPORTED_PATTERNS = patterns.RENDERED  # registered patterns the renderer evaluates
 # patterns a ``normal {}`` perturbs with: the continuous ones (a discrete pattern's normal lists are
 # not rendered)
-NORMAL_PATTERNS = frozenset(n for n in patterns.RENDERED if not patterns.REGISTRY[n].discrete) - {"solid"}
+NORMAL_PATTERNS = frozenset(n for n in patterns.RENDERED if not patterns.REGISTRY[n].discrete
+                            and not patterns.REGISTRY[n].averaged) - {"solid"}
 
 
 # ---------------------------------------------------------------- inside-test trees (static)
@@ -151,7 +152,8 @@ class Prim:
         """Some layer's pigment is a discrete pattern (checker, brick, hexagon …): a face at an
         exact coordinate decides its colour, so its hit points are computed at the surface
         (``shading._geometry.closest_hit``'s ``refine``)."""
-        return any(patterns.REGISTRY[layer.pigment.pattern].discrete for layer in self.texture.layers)
+        return any(patterns.REGISTRY[pg.pattern].discrete for layer in self.texture.layers
+                   for pg in layer.pigment.pigments())  # (a pigment map's pigments too)
 
     @property
     def fades(self) -> bool:

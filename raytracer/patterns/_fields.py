@@ -62,6 +62,7 @@ def leopard(p, inputs):
 
 PATTERNS = (
     Pattern("solid", solid, keyword=False, default_map=((0.0, BLACK),)),
+    Pattern("average", solid, averaged=True),
     Pattern("gradient", gradient, argument="vector"),
     Pattern("radial", radial),
     Pattern("onion", onion),

@@ -9,7 +9,7 @@ from ._record import parsed_only
 PATTERNS = (
     *(parsed_only(name) for name in (
         "spiral1", "spiral2", "quilted", "mandel", "julia", "magnet", "facets",
-        "average", "tiling", "pavement", "slope", "aoi", "image_pattern", "object", "function",
+        "tiling", "pavement", "slope", "aoi", "image_pattern", "object", "function",
         "pigment_pattern", "fractal", "cubic", "square", "triangular", "noise_pigment", "image_map",
         "bump_map", "material_map")),
     parsed_only("density_file", argument="file"),

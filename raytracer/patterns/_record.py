@@ -84,6 +84,8 @@ class Pattern:
                       ignores ``accuracy`` for: the gain that gives our perturbation POV-Ray's
                       standard deviation (``shading/_normals.py``). 0 for every other pattern, which
                       perturbs through its value as POV-Ray measures.
+        averaged:     its colour is the mean of its ``pigment_map``'s pigments weighted by their
+                      map positions (``average``), not a lookup by its value (which is 0).
         normal_bias:  with ``normal_gain``: the tilt POV-Ray's pattern gives every point, per unit
                       of amount, along (1, 1, 1) of pattern space (its ``wrinkles``: 0.444).
     """
@@ -102,6 +104,7 @@ class Pattern:
     cell: Callable | None = None
     normal_gain: float = 0.0
     normal_bias: float = 0.0
+    averaged: bool = False
 
     def __post_init__(self):
         if self.colours and len(self.default_map) != self.colours:

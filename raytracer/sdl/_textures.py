@@ -349,7 +349,8 @@ def _unsupported_pattern(p, record: patterns.Pattern, loc):
 
 def _pigment_map(p, kw, pig, loc):
     if kw == "pigment_map":
-        entries = parse_pigment_map_body(p, loc)
+        # an average's entries weigh 1 unless given, a map's sit at 0, 1, … unless given
+        entries = parse_pigment_map_body(p, loc, 1.0 if patterns.REGISTRY[pig.pattern].averaged else None)
         return dataclasses.replace(pig, cmap=[(v, Vec((0, 0, 0, 0, 0))) for v, _ in entries], cmap_given=True,
                                    ft=any(e.ft for _, e in entries), entries=entries)
     p.warn(kw, f"'{kw}' is approximated by the first colour of each entry", loc)
@@ -365,9 +366,9 @@ def _pigment_map(p, kw, pig, loc):
     return pig
 
 
-def parse_pigment_map_body(p, loc) -> list:
+def parse_pigment_map_body(p, loc, unwritten: float | None = None) -> list:
     """``{ [v PIGMENT_BODY] … }`` or ``{ Identifier }`` after ``pigment_map``: ``(v, PigRec)``
-    pairs in order."""
+    pairs in order; an entry without ``v`` has ``unwritten`` (None: its index)."""
     p.expect_op("{", "'{' after pigment_map")
     t = p.peek()
     if declared(p, t):
@@ -376,7 +377,7 @@ def parse_pigment_map_body(p, loc) -> list:
         return entries
     entries = []
     while p.accept_op("["):
-        v = float_(p) if _starts_value(p) else float(len(entries))
+        v = float_(p) if _starts_value(p) else (float(len(entries)) if unwritten is None else unwritten)
         opt_comma(p)
         sub = PigRec()
         while not p.is_op("]"):

@@ -380,7 +380,23 @@ def _colour(mats: PackedMaterials, row, p, v):
     if mats.entries is None:
         return c
     size = jnp.asarray(mats.tables["map_size"])[row]
-    return jnp.where(size > 0, _entries_at(mats, row, p, waved_value(mats, row, v), size), c)
+    c = jnp.where(size > 0, _entries_at(mats, row, p, waved_value(mats, row, v), size), c)
+    averaged = [k for k, name in enumerate(mats.pattern_names) if patterns.REGISTRY[name].averaged]
+    if averaged:
+        pid = jnp.asarray(mats.tables["pattern_id"])[row]
+        c = jnp.where(jnp.isin(pid, jnp.asarray(averaged)) & (size > 0), _entries_mean(mats, row, p, size), c)
+    return c
+
+
+def _entries_mean(mats: PackedMaterials, row, p, size):
+    """Row ``row``'s pigment map at ``p`` as ``average`` takes it: its pigments' mean weighted by
+    their map positions (every pigment of the row in one vmapped evaluation)."""
+    slots = jnp.arange(mats.values.shape[-1])
+    weights = jnp.where(slots < size, mats.values[row], 0.0)
+    rows = jnp.asarray(mats.tables["map_start"])[row] + jnp.minimum(slots, size - 1)
+    c = jax.vmap(lambda r: pigment_at(mats.entries, r, p))(rows)
+    total = jnp.sum(weights)
+    return jnp.sum(weights[:, None] * c, axis=0) / jnp.where(total != 0, total, 1.0)
 
 
 def _entries_at(mats: PackedMaterials, row, p, w, size):

@@ -93,3 +93,12 @@ def test_the_gradient_reaches_a_map_entrys_colour_and_its_transform(x64):
         e = jnp.zeros(4).at[i].set(step)
         np.testing.assert_allclose(jac[:, i], (colour(params + e) - colour(params - e)) / (2 * step),
                                    rtol=1e-6, atol=1e-9)
+
+
+def test_average_is_the_mean_of_its_pigments_weighted_by_their_positions(x64):
+    averaged = rt.Pigment.of_map("average", [(1.0, rt.Pigment.solid(RED)), (3.0, _stripes(BLUE, RED))])
+    got = _at(averaged, [(0.25, 0.0, 0.0)])[0, :3]
+    np.testing.assert_allclose(got, (np.array(RED) + 3 * (0.75 * np.array(BLUE) + 0.25 * np.array(RED))) / 4,
+                               atol=1e-12)
+    s = load_scene("sphere { 0, 1 pigment { average pigment_map { [2 rgb 1] [bozo] } } }")
+    assert [float(v) for v in s.objects[0].texture.layers[0].pigment.values] == [2.0, 1.0]  # unwritten: 1
