@@ -34,6 +34,7 @@ from .scene import Cylinder as Cylinder
 from .scene import Disc as Disc
 from .scene import Finish as Finish
 from .scene import Fog as Fog
+from .scene import ImageMap as ImageMap
 from .scene import Interior as Interior
 from .scene import Layer as Layer
 from .scene import Light as Light

@@ -41,8 +41,8 @@ MEDIA_SLOTS = 16  # at most this many interiors in a ray's list (POV-Ray's list 
 SUPPORTED_PATTERNS = patterns.RENDERED  # registered patterns the renderer evaluates
 # patterns a ``normal {}`` perturbs with: the continuous ones (a discrete pattern's normal lists are
 # not rendered)
-NORMAL_PATTERNS = frozenset(n for n in patterns.RENDERED if not patterns.REGISTRY[n].discrete
-                            and not patterns.REGISTRY[n].averaged) - {"solid"}
+NORMAL_PATTERNS = frozenset(n for n, r in patterns.REGISTRY.items()
+                            if r.rendered and not (r.discrete or r.averaged or r.imaged)) - {"solid"}
 
 
 # ---------------------------------------------------------------- inside-test trees (static)

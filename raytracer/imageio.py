@@ -174,3 +174,40 @@ def read_image(path) -> np.ndarray:
             arr = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
         return srgb_decode(arr).astype(np.float32)
     raise ValueError(f"unsupported image format {suffix!r}: use .exr or .png")
+
+
+def load_image_map(path, gamma=None, filter_all: float = 0.0, transmit_all: float = 0.0) -> np.ndarray:
+    """An ``image_map``'s image as linear RGBFT float64 (H, W, 5), its top row first (semantics
+    §5.6). ``gamma``: None, the file's default (EXR and HDR linear; 8-bit formats sRGB-decoded, as
+    POV-Ray 3.7 decodes a PNG, measured); "srgb"; or a power. An alpha channel is transmit
+    ``1 − alpha`` (straight alpha); ``filter_all`` and ``transmit_all`` are added to every pixel."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".exr":
+        import OpenEXR
+
+        with OpenEXR.File(str(path)) as f:
+            ch = f.channels()
+            key = "RGBA" if "RGBA" in ch else "RGB" if "RGB" in ch else None
+            if key is None:
+                rgba = np.stack([np.asarray(ch[c].pixels, np.float64) for c in "RGB"], axis=-1)
+            else:
+                rgba = np.asarray(ch[key].pixels, np.float64)
+        linear = gamma is None
+    else:
+        from PIL import Image
+
+        with Image.open(path) as im:
+            im.load()
+            rgba = np.asarray(im.convert("RGBA"), np.float64) / 255.0
+        linear = suffix == ".hdr" and gamma is None
+    rgb, alpha = rgba[..., :3], (rgba[..., 3] if rgba.shape[-1] == 4 else np.ones(rgba.shape[:2]))
+    if not linear:
+        if gamma is None or gamma == "srgb":
+            rgb = srgb_decode(rgb)
+        else:
+            rgb = np.clip(rgb, 0.0, None) ** float(gamma)
+    out = np.zeros(rgb.shape[:2] + (5,))
+    out[..., :3] = rgb
+    out[..., 3] = filter_all
+    out[..., 4] = (1.0 - alpha) + transmit_all
+    return out

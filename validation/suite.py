@@ -143,6 +143,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("straight_transmission", povray=POV_BAR),
     _example("normals", povray=POV_BAR),
     _example("pigment_maps", povray=POV_BAR),
+    _example("image_map", povray=POV_BAR),
 )
 
 

@@ -63,6 +63,7 @@ def leopard(p, inputs):
 PATTERNS = (
     Pattern("solid", solid, keyword=False, default_map=((0.0, BLACK),)),
     Pattern("average", solid, averaged=True),
+    Pattern("image_map", solid, imaged=True),
     Pattern("gradient", gradient, argument="vector"),
     Pattern("radial", radial),
     Pattern("onion", onion),

@@ -10,7 +10,7 @@ PATTERNS = (
     *(parsed_only(name) for name in (
         "spiral1", "spiral2", "quilted", "mandel", "julia", "magnet", "facets",
         "tiling", "pavement", "slope", "aoi", "image_pattern", "object", "function",
-        "pigment_pattern", "fractal", "cubic", "square", "triangular", "noise_pigment", "image_map",
+        "pigment_pattern", "fractal", "cubic", "square", "triangular", "noise_pigment",
         "bump_map", "material_map")),
     parsed_only("density_file", argument="file"),
 )

@@ -84,6 +84,8 @@ class Pattern:
                       ignores ``accuracy`` for: the gain that gives our perturbation POV-Ray's
                       standard deviation (``shading/_normals.py``). 0 for every other pattern, which
                       perturbs through its value as POV-Ray measures.
+        imaged:       its colour is its pigment's image at the point (``Pigment.image``:
+                      ``image_map``), not a lookup by its value (which is 0).
         averaged:     its colour is the mean of its ``pigment_map``'s pigments weighted by their
                       map positions (``average``), not a lookup by its value (which is 0).
         normal_bias:  with ``normal_gain``: the tilt POV-Ray's pattern gives every point, per unit
@@ -105,6 +107,7 @@ class Pattern:
     normal_gain: float = 0.0
     normal_bias: float = 0.0
     averaged: bool = False
+    imaged: bool = False
 
     def __post_init__(self):
         if self.colours and len(self.default_map) != self.colours:

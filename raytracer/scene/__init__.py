@@ -35,6 +35,7 @@ from ._scene import Settings as Settings
 from ._texture import PATTERNS as PATTERNS
 from ._texture import WAVES as WAVES
 from ._texture import Finish as Finish
+from ._texture import ImageMap as ImageMap
 from ._texture import Interior as Interior
 from ._texture import Layer as Layer
 from ._texture import Normal as Normal

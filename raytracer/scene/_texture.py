@@ -28,6 +28,32 @@ def _rgbft(c) -> np.ndarray:
     return c
 
 
+MAP_TYPES = {0: "planar", 1: "spherical", 2: "cylindrical"}  # image_map's map_type: those we render
+
+
+class ImageMap(Record):
+    """``image_map``'s image and how it wraps the pattern space (semantics §5.6).
+
+    Attributes:
+        pixels:      (H, W, 5) linear RGBFT, the image's top row first.
+        map_type:    static: 0 planar (the unit square of x-y, repeated), 1 spherical, 2 cylindrical.
+        once:        static: outside the unit square (planar, cylindrical's height) the pigment is
+                     clear (transmit 1).
+        interpolate: static: 0 the nearest pixel, 2 bilinear between pixel centres.
+    """
+
+    pixels: Float[Array, "H W 5"] = eqx.field(converter=as_float)
+    map_type: int = eqx.field(static=True, default=0)
+    once: bool = eqx.field(static=True, default=False)
+    interpolate: int = eqx.field(static=True, default=0)
+
+    def __check_init__(self):
+        if self.pixels.ndim != 3 or self.pixels.shape[-1] != 5:
+            raise ValueError("an image map's pixels are (H, W, 5) RGBFT")
+        if self.map_type not in MAP_TYPES:
+            raise ValueError(f"map_type {self.map_type} is not one of {sorted(MAP_TYPES)}")
+
+
 class Pigment(Record):
     """A pattern evaluated at the hit point and mapped through a colour map (semantics §5.2).
 
@@ -48,6 +74,7 @@ class Pigment(Record):
                      map's positions ``values``, each evaluated at the hit and blended as a colour
                      map blends colours (``colors`` are then unused); None for a colour map.
                      Their transforms are world_from_pattern, the outer pigment's included.
+        image:       the ``image_map`` pattern's image (``ImageMap``); None for other patterns.
     """
 
     pattern: str = eqx.field(static=True)
@@ -64,10 +91,13 @@ class Pigment(Record):
     wave: str = eqx.field(static=True, default="ramp")
     transparent: bool = eqx.field(static=True, default=False)
     entries: tuple[Pigment, ...] | None = None
+    image: ImageMap | None = None
 
     def __check_init__(self):
         if self.pattern not in PATTERNS:
             raise ValueError(f"unknown pattern {self.pattern!r}")
+        if patterns.REGISTRY[self.pattern].imaged != (self.image is not None):
+            raise ValueError("an image_map pigment, and only one, has an image")
         if self.entries is not None and len(self.entries) != self.values.shape[0]:
             raise ValueError("a pigment map has one pigment per position in values")
         if self.wave not in WAVES:

@@ -40,6 +40,12 @@ def lower_pigment(pig: PigRec, world: np.ndarray | None, fit_zero_terms: bool = 
     if world is not None:
         m = world if m is None else world @ m
     wave = pig.wave or "ramp"
+    if pig.image is not None:
+        im = pig.image
+        image = build(S.ImageMap, pixels=im["pixels"], map_type=im["map_type"], once=im["once"],
+                      interpolate=im["interpolate"])
+        return build(S.Pigment, pattern=pig.pattern, values=values, colors=colors, transform=_transform(m),
+                     image=image, transparent=bool(im["once"] or np.any(im["pixels"][..., 3:] != 0)))
     if pig.entries is not None:  # a pigment map: its pigments live in the map's space
         entries = tuple(lower_pigment(e, m, fit_zero_terms) for _, e in pig.entries)
         return build(S.Pigment, pattern=pig.pattern, values=values, colors=np.zeros((len(entries), 5)),

@@ -268,13 +268,13 @@ class Stream:
             roots.append(STANDARD_INCLUDE)
         return roots
 
-    def resolve_include(self, name: str, loc: SourceLoc) -> str:
+    def resolve_include(self, name: str, loc: SourceLoc, what: str = "an include file") -> str:
         """Search order: including file's folder, include_paths, $RAYTRACER_INCLUDE_PATH, POV's folder.
         The file found must lie (symbolic links resolved) inside one of :meth:`read_roots`."""
         roots = self.read_roots()
         if os.path.isabs(name):
             if not os.path.isfile(name):
-                raise self.error(f'expected an include file, found no file "{name}"', loc)
+                raise self.error(f'expected {what}, found no file "{name}"', loc)
             return self._confined(name, name, roots, loc)
         dirs = []
         for f in reversed(self.frames):
@@ -288,7 +288,7 @@ class Stream:
                 if os.path.isfile(p):  # (Path.is_file raises for a name too long)
                     return self._confined(str(p), name, roots, loc)
         where = ", ".join(str(d) for d in dirs)
-        raise self.error(f'expected an include file, found no "{name}" in {where}', loc)
+        raise self.error(f'expected {what}, found no "{name}" in {where}', loc)
 
     def _confined(self, path: str, name: str, roots: list[Path], loc: SourceLoc) -> str:
         real = Path(os.path.realpath(path))

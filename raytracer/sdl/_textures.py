@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 
 from .. import patterns
+from ..errors import SceneError
 from ..scene._transform import pov_matrix, rotation_matrix, scale_matrix, translation_matrix
 from ._convert import fmt_number
 from ._expr import COLOR_KEYWORDS, as_color, as_float, as_vector, parse_color, parse_expr, type_name
@@ -252,6 +254,9 @@ def _pattern(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:
     kw = record.name
     if not record.rendered:
         return _unsupported_pattern(p, record, loc)
+    if record.imaged:
+        return PigRec(kw, [(0.0, Vec((0, 0, 0, 0, 0)))], cmap_given=True, transform=pig.transform,
+                      image=parse_image_map(p, loc), ft=True)
     new = PigRec(kw, _default_map(record), transform=pig.transform, turbulence=pig.turbulence,
                  wave=record.default_wave if record.default_wave != "ramp" else None)
     if record.discrete:
@@ -280,6 +285,80 @@ def _pattern(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:
     if record.argument == "vector":
         new.vector = vector3(p)
     return new
+
+
+IMAGE_TYPES = ("exr", "gif", "hdr", "iff", "jpeg", "pgm", "png", "ppm", "sys", "tga", "tiff")
+
+
+def parse_image_map(p, loc) -> dict:
+    """``image_map { [type] "file" [gamma G|srgb] [premultiplied B] modifiers… }``: the image read
+    (Pillow; OpenEXR for ``exr``) into linear RGBFT and how it wraps (semantics §5.6)."""
+    from ..imageio import load_image_map
+
+    p.expect_op("{", "'{' after image_map")
+    kind = p.next().value if p.peek().kind == ID and p.peek().value in IMAGE_TYPES else None
+    t = p.peek()
+    name = parse_expr(p)
+    if not isinstance(name, str):
+        raise p.error(f"expected an image file name, found {type_name(name)}", t.loc)
+    path = _image_file(p, name, kind, t.loc)
+    gamma = None
+    image = {"map_type": 0, "once": False, "interpolate": 0, "filter": 0.0, "transmit": 0.0}
+    while not p.accept_op("}"):
+        k = p.next()
+        kw = k.value if k.kind == ID else None
+        if kw == "gamma":
+            gamma = "srgb" if p.accept_id("srgb") else float_(p)
+        elif kw == "premultiplied":
+            _opt_bool(p)
+        elif kw == "map_type":
+            mt = int(float_(p))
+            if mt not in (0, 1, 2):
+                p.warn("map_type", f"map_type {mt} is not rendered; the planar map (0) is used", k.loc)
+                mt = 0
+            image["map_type"] = mt
+        elif kw == "once":
+            image["once"] = True
+        elif kw == "interpolate":
+            n = int(float_(p))
+            if n not in (0, 2):
+                p.warn("interpolate", f"interpolate {n} is rendered as bilinear (2)", k.loc)
+            image["interpolate"] = 2 if n else 0
+        elif kw in ("filter", "transmit"):
+            if p.accept_id("all"):
+                image[kw] = float_(p)
+            else:
+                float_(p)
+                opt_comma(p)
+                float_(p)
+                p.warn("image palette", f"{kw} of a palette entry is not rendered; ignored", k.loc)
+        elif kw == "use_alpha":
+            pass
+        else:
+            raise p.error(f"expected an image_map item, found {k.describe()}", k.loc)
+    try:
+        image["pixels"] = load_image_map(path, gamma, image.pop("filter"), image.pop("transmit"))
+    except (OSError, ValueError) as e:
+        raise p.error(f'cannot read the image "{name}": {e}', t.loc) from None
+    return image
+
+
+_SUFFIXES = {"jpeg": ("jpg", "jpeg"), "tiff": ("tif", "tiff")}
+
+
+def _image_file(p, name: str, kind: str | None, loc) -> str:
+    """The image file ``name`` names, found as an include is; as POV-Ray, a name without a suffix
+    is tried with its type's too."""
+    tries = [name]
+    if kind is not None and not os.path.splitext(name)[1]:
+        tries += [f"{name}.{s}" for s in _SUFFIXES.get(kind, (kind,))]
+    for i, candidate in enumerate(tries):
+        try:
+            return p.resolve_include(candidate, loc, what="an image file")
+        except SceneError:
+            if i == len(tries) - 1:
+                raise
+    raise AssertionError("unreachable")
 
 
 def _starts_color(p) -> bool:

@@ -168,6 +168,7 @@ class PigRec:
     wave: str | None = None
     ft: bool = False
     entries: list | None = None  # a pigment map's or list's pigments (PigRec), at cmap's positions
+    image: dict | None = None  # image_map: pixels (H, W, 5) linear RGBFT, map_type, once, interpolate
 
     def transformed(self, m: np.ndarray) -> PigRec:
         if self.pattern == "solid":

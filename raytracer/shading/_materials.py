@@ -25,7 +25,7 @@ from .._packing import (
     traced_op,
 )
 from .._plan import NORMAL_PATTERNS, Plan
-from ..kernels import matvec
+from ..kernels import matvec, safe_sqrt
 from ..scene import WAVES, Finish, Interior, Layer, Pigment, Reflection, Texture
 
 
@@ -83,6 +83,11 @@ class PackedMaterials:
     # i-th of row r's (``tables["map_start"]``, ``tables["map_size"]``: 0 for a colour map); None
     # without any
     entries: PackedMaterials | None = None
+    # the rows' image maps: every image padded to the largest (n, H, W, 5) and its own (n, 2) size;
+    # row r's is ``tables["image"][r]`` (-1: none); how each wraps is static (``image_modes``)
+    images: jax.Array | None = None
+    image_sizes: np.ndarray | None = None
+    image_modes: tuple = ()
 
 
 class FinishArrays(NamedTuple):
@@ -200,6 +205,8 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
     mats = _padded_to_bucket(mats, len(plan.prims))
     if any(pg["entries"] is not None for pg in pg_):
         _pack_entries(mats, pg_, dtype)
+    if any(pg["image"] is not None for pg in pg_):
+        _pack_images(mats, pg_, dtype)
     if any(layer.normal is not None and layer.normal.pattern.pattern in NORMAL_PATTERNS for layer in layers):
         mats.normals = pack_normals(layers, bucket(len(plan.prims)) * n_layers, dtype)
     return mats
@@ -219,6 +226,79 @@ def _pack_entries(mats: PackedMaterials, pg_: list[dict], dtype) -> None:
     rows = mats.tables["pattern_id"].shape[0]
     mats.tables["map_start"] = pad_rows(start, rows)
     mats.tables["map_size"] = pad_rows(size, rows)
+
+
+def _pack_images(mats: PackedMaterials, pg_: list[dict], dtype) -> None:
+    """``mats.images``: the rows' images (each once), padded to the largest, and ``tables["image"]``."""
+    by_id: dict[int, int] = {}
+    images = []
+    index = np.full(len(pg_), -1, np.int32)
+    for r, pg in enumerate(pg_):
+        im = pg["image"]
+        if im is not None:
+            if id(im) not in by_id:
+                by_id[id(im)] = len(images)
+                images.append(im)
+            index[r] = by_id[id(im)]
+    h = max(im.pixels.shape[0] for im in images)
+    w = max(im.pixels.shape[1] for im in images)
+    padded = [jnp.pad(im.pixels, ((0, h - im.pixels.shape[0]), (0, w - im.pixels.shape[1]), (0, 0)))
+              if is_traced(im.pixels) else np.pad(np.asarray(im.pixels), ((0, h - im.pixels.shape[0]),
+                                                                         (0, w - im.pixels.shape[1]), (0, 0)))
+              for im in images]
+    mats.images = stack(padded, dtype)
+    mats.image_sizes = np.array([im.pixels.shape[:2] for im in images], np.int32)
+    mats.image_modes = tuple((im.map_type, im.once, im.interpolate) for im in images)
+    mats.tables["image"] = pad_rows(index, mats.tables["pattern_id"].shape[0])
+
+
+def _image_at(mats: PackedMaterials, row, p):
+    """RGBFT (5,) of row ``row``'s image map at world point ``p`` (semantics §5.6, measured with
+    povray: u = frac(x), v = frac(y) planar; the nearest pixel ``floor(u W)``, ``floor((1 − v) H)``
+    from the top; bilinear between pixel centres, wrapping)."""
+    q = _pattern_point(mats, row, p)
+    which = jnp.asarray(mats.tables["image"])[row]
+    out = jnp.zeros(5, p.dtype)
+    for i, (map_type, once, interpolate) in enumerate(mats.image_modes):
+        h, w = (int(n) for n in mats.image_sizes[i])
+        u, v, outside = _image_uv(q, map_type, once)
+        pixels = mats.images[i, :h, :w]
+        if interpolate:
+            x, y = u * w - 0.5, (1.0 - v) * h - 0.5
+            x0, y0 = jnp.floor(x), jnp.floor(y)
+            fx, fy = x - x0, y - y0
+            c0, r0 = x0.astype(jnp.int32), y0.astype(jnp.int32)
+            r1, c1 = (r0 + 1) % h, (c0 + 1) % w
+            r0, c0 = r0 % h, c0 % w
+            c = ((pixels[r0, c0] * (1 - fx) + pixels[r0, c1] * fx) * (1 - fy)
+                 + (pixels[r1, c0] * (1 - fx) + pixels[r1, c1] * fx) * fy)
+        else:
+            col = jnp.clip(jnp.floor(u * w).astype(jnp.int32), 0, w - 1)
+            r = jnp.clip(jnp.floor((1.0 - v) * h).astype(jnp.int32), 0, h - 1)
+            c = pixels[r, col]
+        c = jnp.where(outside, jnp.asarray([0.0, 0.0, 0.0, 0.0, 1.0], p.dtype), c)
+        out = jnp.where(which == i, c, out)
+    return out
+
+
+def _image_uv(q, map_type: int, once: bool):
+    """The image coordinates (u, v) in [0, 1) of pattern-space point ``q`` and whether it lies
+    outside a ``once`` image."""
+    if map_type == 0:
+        u, v = q[0], q[1]
+        outside = ((u < 0) | (u >= 1) | (v < 0) | (v >= 1)) if once else jnp.asarray(False)
+        return u - jnp.floor(u), v - jnp.floor(v), outside
+    # spherical, cylindrical: around y from +x
+    ring = q[0] * q[0] + q[2] * q[2]
+    ok = ring > 0
+    u = jnp.where(ok, jnp.arctan2(jnp.where(ok, q[2], 0.0), jnp.where(ok, q[0], 1.0)), 0.0) / (2 * np.pi)
+    if map_type == 1:  # the latitude, from the south pole
+        s = safe_sqrt(ring)
+        v = 0.5 + jnp.where(ok | (q[1] != 0), jnp.arctan2(q[1], jnp.where(ok, s, 1.0)), 0.0) / np.pi
+        return u - jnp.floor(u), jnp.clip(v, 0.0, 1.0 - 1e-7), jnp.asarray(False)
+    v = q[1]
+    outside = ((v < 0) | (v >= 1)) if once else jnp.asarray(False)
+    return u - jnp.floor(u), v - jnp.floor(v), outside
 
 
 @dataclasses.dataclass
@@ -339,7 +419,7 @@ def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
 
 register_packed(PackedMaterials, ("values", "colors", "pattern_from_world", "vector", "frequency", "phase",
                                   "turbulence", "omega", "lambda_", "finish", "ior", "fade_distance",
-                                  "fade_power", "fade_color", "tables", "normals", "entries"))
+                                  "fade_power", "fade_color", "tables", "normals", "entries", "images"))
 
 
 def pat_wave_index(pg: Pigment) -> int:
@@ -377,6 +457,8 @@ def _colour(mats: PackedMaterials, row, p, v):
     """RGBFT (5,) of row ``row`` at world point ``p`` whose pattern has raw value ``v``: its colour
     map's, or its pigment map's pigments at ``p`` blended."""
     c = _pigment_of_value(mats, row, v)
+    if mats.images is not None:
+        c = jnp.where(jnp.asarray(mats.tables["image"])[row] >= 0, _image_at(mats, row, p), c)
     if mats.entries is None:
         return c
     size = jnp.asarray(mats.tables["map_size"])[row]
