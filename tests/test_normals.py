@@ -54,6 +54,27 @@ def test_a_gradient_normal_tilts_a_plane_as_povrays_rule_in_closed_form(x64):
         assert abs(expected - light @ np.array([0.0, 0.0, -1.0])) > 0.02  # the normal did move
 
 
+def test_a_slope_map_is_a_hermite_curve_in_each_segments_own_parameter(x64):
+    # POV-Ray's, measured: the manual's triangle wave ([0 <0,1>] [0.5 <1,1>] [0.5 <1,-1>] [1 <0,-1>])
+    # is straight (its slopes are tangents in t, not per unit of value); [0 <0,0>] [1 <1,0>] is
+    # 3t² − 2t³; past the ends, the end heights
+    from raytracer.shading._normals import _slope_height
+
+    def height(rows, w):
+        return float(_slope_height(jnp.asarray(rows, jnp.float64), len(rows), jnp.asarray(w)))
+
+    triangle = [[0, 0, 1], [0.5, 1, 1], [0.5, 1, -1], [1, 0, -1]]
+    for w, h in ((0.1, 0.2), (0.4, 0.8), (0.6, 0.8), (0.95, 0.1)):
+        assert height(triangle, w) == pytest.approx(h, abs=1e-12)
+    for t in (0.0, 0.3, 0.5, 1.0):
+        assert height([[0, 0, 0], [1, 1, 0]], t) == pytest.approx(3 * t**2 - 2 * t**3, abs=1e-12)
+    ends = [[0.2, 0.3, 1], [0.8, 0.7, 1]]
+    assert height(ends, 0.1) == 0.3 and height(ends, 0.9) == 0.7
+    s = load_scene("#declare S = slope_map { [0 <0, 1>] [1, <1, 0>] }\n"
+                   "sphere { 0, 1 normal { gradient x slope_map { S } } }")
+    np.testing.assert_allclose(s.objects[0].texture.layers[0].normal.slope_map, [[0, 0, 1], [1, 1, 0]])
+
+
 def test_a_layer_without_a_normal_compiles_no_normal_code():
     plain = load_scene("camera { location -5*z look_at 0 } sphere { 0, 1 pigment { rgb 1 } }")
     bumped = load_scene("camera { location -5*z look_at 0 } sphere { 0, 1 pigment { rgb 1 } "
@@ -85,13 +106,13 @@ def test_the_sdl_reads_normals_as_povray_writes_them():
 def test_normals_we_do_not_render_are_warned_at_their_place_and_perturb_nothing():
     s = load_scene("sphere { 0, 1 normal { checker normal { bumps } normal { dents } } }\n"
                    "sphere { 0, 1 normal { quilted 0.5 } }\n"
-                   "sphere { 0, 1 normal { gradient x slope_map { [0 <0, 1>] [1 <1, 1>] } } }\n"
+                   "sphere { 0, 1 normal { gradient x normal_map { [0 bumps] [1 dents] } } }\n"
                    "camera { location -5*z look_at 0 normal { bumps 0.5 } }\n")
     assert [(w.feature, w.location.line) for w in s.warnings] == [
-        ("checker", 1), ("quilted", 2), ("slope_map", 3), ("camera normal", 4)]
+        ("checker", 1), ("quilted", 2), ("normal_map", 3), ("camera normal", 4)]
     assert s.objects[0].texture.layers[0].normal is None
     assert s.objects[1].texture.layers[0].normal is None
-    assert s.objects[2].texture.layers[0].normal.pattern.pattern == "gradient"
+    assert s.objects[2].texture.layers[0].normal is None
 
 
 def test_a_normal_that_is_not_one_is_an_error_at_its_place():

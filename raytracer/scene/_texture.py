@@ -198,19 +198,25 @@ class Normal(Record):
                   ``waves`` use their raw value at a fixed spacing and their own gain.
         amount:   the depth of the bumps (``bump_size``; POV-Ray's default 0.5); negative inverts.
         accuracy: the tetrahedron's size in pattern space (POV-Ray's default 0.02).
+        slope_map: (K, 3) ``[value, height, slope]`` rows, ascending in value: the height of the
+                  pattern's value, a cubic Hermite curve through each entry's height whose tangent
+                  in each segment's own parameter is the entry's slope (POV-Ray's, measured); None:
+                  the value is the height.
     """
 
     pattern: Pigment
     amount: Float[Array, ""] = eqx.field(converter=as_float, default=0.5)
     accuracy: Float[Array, ""] = eqx.field(converter=as_float, default=0.02)
+    slope_map: Float[Array, "K 3"] | None = eqx.field(converter=as_float_or_none, default=None)
 
     @classmethod
     def of(cls, pattern: str, amount=0.5, **kwargs) -> Normal:
         """A normal of pattern ``pattern`` with the pigment fields ``kwargs`` (``transform``,
         ``vector``, ``frequency``, ``turbulence`` …) and ``accuracy``."""
         accuracy = kwargs.pop("accuracy", 0.02)
+        slope_map = kwargs.pop("slope_map", None)
         black_to_white = [(0.0, (0.0, 0.0, 0.0)), (1.0, (1.0, 1.0, 1.0))]  # (unused by a normal)
-        return cls(Pigment.mapped(pattern, black_to_white, **kwargs), amount, accuracy)
+        return cls(Pigment.mapped(pattern, black_to_white, **kwargs), amount, accuracy, slope_map)
 
 
 class Layer(Record):

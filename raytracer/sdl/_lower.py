@@ -63,8 +63,9 @@ def lower_normal(nrm: NormRec | None, world: np.ndarray | None) -> S.Normal | No
     """A layer's normal; None where it has none or its pattern perturbs nothing we render."""
     if nrm is None or nrm.pigment.pattern == "solid":
         return None
+    slope = None if nrm.slope_map is None else np.array(sorted(nrm.slope_map, key=lambda r: r[0]), np.float64)
     return build(S.Normal, pattern=lower_pigment(nrm.pigment, world), amount=nrm.amount,
-                 accuracy=nrm.accuracy)
+                 accuracy=nrm.accuracy, slope_map=slope)
 
 
 # optional finish terms that add nothing at 0: the highlights and their metallic tint

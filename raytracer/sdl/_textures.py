@@ -20,6 +20,7 @@ from ._values import (
     NormRec,
     PigmentMapRec,
     PigRec,
+    SlopeMapRec,
     TextureRec,
     TransformRec,
     Vec,
@@ -776,7 +777,8 @@ def parse_normal(p, base: NormRec | None = None) -> NormRec:
         elif kw in ("slope_map", "normal_map"):
             p.next()
             if kw == "slope_map":
-                p.warn("slope_map", "slope_map is not rendered; the pattern's value is the height", t.loc)
+                nrm.slope_map = parse_slope_map_body(p, t.loc)
+                continue
             else:
                 p.warn("normal_map", "normal_map is not rendered; the surface's own normal is used", t.loc)
                 nrm.pigment = PigRec("solid", transform=nrm.pigment.transform)
@@ -793,6 +795,30 @@ def parse_normal(p, base: NormRec | None = None) -> NormRec:
         else:
             nrm.pigment = pigment_item(p, nrm.pigment)
     return nrm
+
+
+def parse_slope_map_body(p, loc) -> list:
+    """``{ [v, <height, slope>] … }`` or ``{ Identifier }`` after ``slope_map``."""
+    p.expect_op("{", "'{' after slope_map")
+    t = p.peek()
+    if declared(p, t):
+        rows = list(_declared_value(p, t, SlopeMapRec, "slope_map").rows)
+        p.expect_op("}")
+        return rows
+    rows = []
+    while p.accept_op("["):
+        v = float_(p)
+        opt_comma(p)
+        e = p.peek()
+        hs = as_vector(p, parse_expr(p), 2)
+        if len(hs) != 2:
+            raise p.error("expected <height, slope> in a slope_map entry", e.loc)
+        rows.append([v, float(hs[0]), float(hs[1])])
+        p.expect_op("]")
+    if not rows:  # as POV-Ray: "Must have at least one entry in map"
+        raise p.error("expected at least one [value …] entry in slope_map, found '}'", loc)
+    p.expect_op("}")
+    return rows
 
 
 def _unrendered_normal(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:

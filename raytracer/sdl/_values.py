@@ -192,9 +192,17 @@ class NormRec:
     pigment: PigRec = dataclasses.field(default_factory=PigRec)
     amount: float = 0.5
     accuracy: float = 0.02
+    slope_map: list | None = None  # [value, height, slope] rows
 
     def transformed(self, m: np.ndarray) -> NormRec:
         return dataclasses.replace(self, pigment=self.pigment.transformed(m))
+
+
+@dataclasses.dataclass
+class SlopeMapRec:
+    """A ``slope_map`` value (``#declare S = slope_map { … }``): ``[value, height, slope]`` rows."""
+
+    rows: list
 
 
 @dataclasses.dataclass

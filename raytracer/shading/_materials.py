@@ -314,9 +314,14 @@ class PackedNormals:
     world_from_pattern: jax.Array  # (R, 3, 3)
     gain: jax.Array  # (R,)
     bias: jax.Array  # (R,) ``Pattern.normal_bias``
+    # slope maps (``Normal.slope_map``) padded by their last entry to (R, K, 3), and their lengths
+    # (R,) (0: none); None where no layer has one
+    slope: jax.Array | None = None
+    slope_size: jax.Array | None = None
 
 
-register_packed(PackedNormals, ("patterns", "amount", "accuracy", "world_from_pattern", "gain", "bias"))
+register_packed(PackedNormals, ("patterns", "amount", "accuracy", "world_from_pattern", "gain", "bias",
+                                "slope", "slope_size"))
 
 _FLAT = Pigment.solid((0.0, 0.0, 0.0))
 
@@ -336,7 +341,20 @@ def pack_normals(layers: list[Layer], n_rows: int, dtype) -> PackedNormals:
                                            for pg in pigments], dtype), n_rows),
         gain=pad_rows(stack([patterns.REGISTRY[pg.pattern].normal_gain for pg in pigments], dtype), n_rows),
         bias=pad_rows(stack([patterns.REGISTRY[pg.pattern].normal_bias for pg in pigments], dtype), n_rows),
+        **_slope_maps(bumps, n_rows, dtype),
     )
+
+
+def _slope_maps(bumps, n_rows: int, dtype) -> dict:
+    """``PackedNormals``' slope maps: each padded by its last entry (an identity map where none)."""
+    maps = [None if b is None else b.slope_map for b in bumps]
+    if all(m is None for m in maps):
+        return {}
+    identity = np.array([[0.0, 0.0, 1.0], [1.0, 1.0, 1.0]])
+    tables = [identity if m is None else m for m in maps]
+    return {"slope": pad_rows(_padded(tables, max(t.shape[0] for t in tables), dtype), n_rows),
+            "slope_size": pad_rows(np.array([0 if m is None else m.shape[0] for m in maps], np.int32),
+                                   n_rows)}
 
 
 def _structural_colors(pg: dict):

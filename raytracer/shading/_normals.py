@@ -44,6 +44,24 @@ TETRAHEDRON = np.array([[math.sqrt(8 / 9), -1 / 3, 0.0],
 SPECIAL_SPACING = 0.02
 
 
+def _slope_height(table, size, w):
+    """The height a slope map ``table`` (K, 3: value, height, slope; ``size`` entries, padded by
+    the last) gives value ``w``: the cubic Hermite curve of the segment around ``w`` in its own
+    parameter t, with the entries' slopes as its tangents; the end heights beyond the ends."""
+    values = table[:, 0]
+    last = jnp.maximum(size - 1, 1)
+    i = jnp.clip(jnp.searchsorted(values, w, side="right"), 1, last)
+    i0, i1 = jnp.minimum(i - 1, size - 1), jnp.minimum(i, size - 1)
+    v0, v1 = values[i0], values[i1]
+    span = v1 - v0
+    ok = span > 0
+    t = jnp.clip(jnp.where(ok, (w - v0) / jnp.where(ok, span, 1.0), 1.0), 0.0, 1.0)
+    h0, s0, h1, s1 = table[i0, 1], table[i0, 2], table[i1, 1], table[i1, 2]
+    t2, t3 = t * t, t * t * t
+    h = (2 * t3 - 3 * t2 + 1) * h0 + (t3 - 2 * t2 + t) * s0 + (3 * t2 - 2 * t3) * h1 + (t3 - t2) * s1
+    return jnp.where(w <= values[0], table[0, 1], jnp.where(w >= values[size - 1], table[size - 1, 1], h))
+
+
 def perturbed(nm: PackedNormals, row, p, n):
     """The unit shading normal of material row ``row`` at world point ``p`` whose surface normal
     ``n`` (unit, facing the incoming ray): ``n`` itself where the row has no normal."""
@@ -66,6 +84,9 @@ def perturbed(nm: PackedNormals, row, p, n):
         values = jax.vmap(lambda x, k=k: _raw_value(pats, k, row, x, warp=False))(points)
         v = jnp.where(pid == k, values, v)
     w = jax.vmap(lambda x: waved_value(pats, row, x))(v)
+    if nm.slope is not None:  # the slope map's height of each value
+        heights = jax.vmap(lambda x: _slope_height(nm.slope[row], nm.slope_size[row], x))(w)
+        w = jnp.where(nm.slope_size[row] > 0, heights, w)
     gain = jnp.where(own, own_gain, 1.0) * nm.amount[row] / (10.0 * h)
     perturbation = -gain * jnp.sum(w[:, None] * corners, axis=0) + nm.bias[row] * nm.amount[row]
     a = pats.pattern_from_world[row][:3, :3]
