@@ -770,7 +770,8 @@ def _spread(contribution, in_rows, at, across, low, high, slope, span, width: in
 
 def _left_out(plan, mats, ctx, item_casters: bool) -> list[str]:
     """What the scene has whose edges the term does not see (static): shapes without a margin,
-    discrete patterns without cell faces, the shadows of rims, adaptive area lights' shadows."""
+    discrete patterns without cell faces, pigment maps, image maps and normal {} patterns, the
+    shadows of rims, adaptive area lights' shadows."""
     out = []
     shapes = sorted({prim.obj.shape.kind for prim in plan.prims
                      if prim.rendered and not type(prim.obj.shape).has_margin()})
@@ -786,6 +787,12 @@ def _left_out(plan, mats, ctx, item_casters: bool) -> list[str]:
     cells = sorted(mats.pattern_names[k] for k, face in _discrete(mats) if face is None or mats.turbulent[k])
     if cells:
         out.append("the cell edges of " + ", ".join(cells) + " (turbulent, or without a face)")
+    if mats.entries is not None:
+        out.append("the pattern edges of pigment maps and pigment lists")
+    if mats.images is not None:
+        out.append("the pixel edges of image maps")
+    if mats.normals is not None:
+        out.append("the pattern edges of normal {} perturbations")
     if adaptive_shadow_lights(ctx):
         out.append(f"the shadows of area lights with adaptive sampling (lights "
                    f"{', '.join(map(str, adaptive_shadow_lights(ctx)))}: their samples change with the "

@@ -838,3 +838,24 @@ def test_the_term_split_over_two_devices_is_the_term_of_one(tmp_path, x64, two_d
     assert np.abs(image).max() > 0
     np.testing.assert_allclose(np.asarray(got["image"]), image, rtol=1e-9, atol=1e-12 * np.abs(image).max())
     np.testing.assert_allclose(np.asarray(got["placed"]), image, rtol=1e-9, atol=1e-12 * np.abs(image).max())
+
+
+def test_pigment_maps_image_maps_and_normals_are_said_to_have_no_term():
+    # their pattern edges are not among the lattice's jumps: the warning names each (static: from the
+    # packed scene, no program traced)
+    from raytracer._edges import _left_out
+    from raytracer._packed import pack
+    from raytracer._plan import make_plan
+    from raytracer.scene import environment_of
+    from raytracer.shading._model import make_context
+
+    scene = rt.load_scene("camera { location -5*z look_at 0 } light_source { <0, 5, -5> rgb 1 }\n"
+                          "sphere { 0, 1 pigment { checker pigment { rgb 1 } pigment { bozo } } "
+                          "normal { onion 0.5 } }")
+    plan = make_plan(scene)
+    packed = pack(scene, plan)
+    ctx = make_context(plan, packed.geo, packed.mats, scene.lights, scene.settings, scene.background,
+                       jnp.float32, environment_of(scene))
+    said = _left_out(plan, packed.mats, ctx, False)
+    assert said == ["the pattern edges of pigment maps and pigment lists",
+                    "the pattern edges of normal {} perturbations"]
