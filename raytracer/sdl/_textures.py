@@ -449,23 +449,33 @@ def _pigment_map(p, kw, pig, loc):
 def parse_pigment_map_body(p, loc, unwritten: float | None = None) -> list:
     """``{ [v PIGMENT_BODY] … }`` or ``{ Identifier }`` after ``pigment_map``: ``(v, PigRec)``
     pairs in order; an entry without ``v`` has ``unwritten`` (None: its index)."""
-    p.expect_op("{", "'{' after pigment_map")
-    t = p.peek()
-    if declared(p, t):
-        entries = list(_declared_value(p, t, PigmentMapRec, "pigment_map").entries)
-        p.expect_op("}")
-        return entries
-    entries = []
-    while p.accept_op("["):
+
+    def entry(p, entries):
         v = float_(p) if _starts_value(p) else (float(len(entries)) if unwritten is None else unwritten)
         opt_comma(p)
         sub = PigRec()
         while not p.is_op("]"):
             sub = pigment_item(p, sub)
-        entries.append((v, sub))
+        return v, sub
+
+    return _map_body(p, loc, "pigment_map", PigmentMapRec, entry)
+
+
+def _map_body(p, loc, kw: str, declared_type, entry) -> list:
+    """``{ [ … ] … }`` or ``{ Identifier }`` after map keyword ``kw``: what ``entry(p, entries so
+    far)`` reads between each pair of brackets, or the declared map's (a ``declared_type``)."""
+    p.expect_op("{", f"'{{' after {kw}")
+    t = p.peek()
+    if declared(p, t):
+        entries = list(_declared_value(p, t, declared_type, kw).entries)
+        p.expect_op("}")
+        return entries
+    entries = []
+    while p.accept_op("["):
+        entries.append(entry(p, entries))
         p.expect_op("]")
     if not entries:  # as POV-Ray: "Must have at least one entry in map"
-        raise p.error("expected at least one [value …] entry in pigment_map, found '}'", loc)
+        raise p.error(f"expected at least one [value …] entry in {kw}, found '}}'", loc)
     p.expect_op("}")
     return entries
 
@@ -799,26 +809,17 @@ def parse_normal(p, base: NormRec | None = None) -> NormRec:
 
 def parse_slope_map_body(p, loc) -> list:
     """``{ [v, <height, slope>] … }`` or ``{ Identifier }`` after ``slope_map``."""
-    p.expect_op("{", "'{' after slope_map")
-    t = p.peek()
-    if declared(p, t):
-        rows = list(_declared_value(p, t, SlopeMapRec, "slope_map").rows)
-        p.expect_op("}")
-        return rows
-    rows = []
-    while p.accept_op("["):
+
+    def entry(p, entries):
         v = float_(p)
         opt_comma(p)
         e = p.peek()
         hs = as_vector(p, parse_expr(p), 2)
         if len(hs) != 2:
             raise p.error("expected <height, slope> in a slope_map entry", e.loc)
-        rows.append([v, float(hs[0]), float(hs[1])])
-        p.expect_op("]")
-    if not rows:  # as POV-Ray: "Must have at least one entry in map"
-        raise p.error("expected at least one [value …] entry in slope_map, found '}'", loc)
-    p.expect_op("}")
-    return rows
+        return [v, float(hs[0]), float(hs[1])]
+
+    return _map_body(p, loc, "slope_map", SlopeMapRec, entry)
 
 
 def _unrendered_normal(p, record: patterns.Pattern, pig: PigRec, loc) -> PigRec:

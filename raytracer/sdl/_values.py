@@ -202,7 +202,7 @@ class NormRec:
 class SlopeMapRec:
     """A ``slope_map`` value (``#declare S = slope_map { … }``): ``[value, height, slope]`` rows."""
 
-    rows: list
+    entries: list
 
 
 @dataclasses.dataclass
