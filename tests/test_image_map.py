@@ -27,7 +27,8 @@ def _image_pigment(pixels=PIXELS, **kwargs):
 
 def _at(pigment, points):
     mats = jax.tree_util.tree_map(jnp.asarray, pack_pigments([pigment], jnp.float64))
-    return np.asarray(jax.vmap(lambda q: pigment_at(mats, 0, q))(jnp.asarray(points, jnp.float64)))
+    evaluate = jax.jit(jax.vmap(lambda m, q: pigment_at(m, 0, q), in_axes=(None, 0)))
+    return np.asarray(evaluate(mats, jnp.asarray(points, jnp.float64)))
 
 
 def test_a_planar_image_tiles_the_xy_plane_from_its_top_row_down(x64):

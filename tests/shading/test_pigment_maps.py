@@ -27,8 +27,8 @@ def _packed(pigment):
 
 
 def _at(pigment, points):
-    mats = _packed(pigment)
-    return np.asarray(jax.vmap(lambda q: pigment_at(mats, 0, q))(jnp.asarray(points, jnp.float64)))
+    evaluate = jax.jit(jax.vmap(lambda m, q: pigment_at(m, 0, q), in_axes=(None, 0)))
+    return np.asarray(evaluate(_packed(pigment), jnp.asarray(points, jnp.float64)))
 
 
 def test_a_pigment_map_blends_the_pigments_around_the_value_each_at_the_point(x64):
@@ -85,8 +85,9 @@ def test_the_gradient_reaches_a_map_entrys_colour_and_its_transform(x64):
         mats = _packed(mapped)
         return pigment_at(mats, 0, jnp.array([0.7, 0.45, 0.0]))[:3]
 
+    colour = jax.jit(colour)
     params = jnp.array([0.2, 0.4, 0.6, 1.3])
-    jac = jax.jacfwd(colour)(params)
+    jac = jax.jit(jax.jacfwd(colour))(params)
     assert np.all(np.isfinite(jac)) and np.all(np.abs(jac[:, 3]) > 0)
     step = 1e-6
     for i in range(4):
