@@ -866,7 +866,8 @@ class _Layers(NamedTuple):
     trans: jax.Array  # () grey of ``fil``, at most 1
     reflec: jax.Array  # (3,) summed reflection colour
     r_weight: jax.Array  # () weight of the mirror ray relative to this ray's
-    normal: jax.Array  # (3,) the top layer's shading normal: what the mirror and refracted rays use
+    normal: jax.Array | None  # (3,) the top layer's shading normal (normal {}), which the mirror
+    #                           and refracted rays use; None without normals (the surface's)
 
 
 class _Lights(NamedTuple):
@@ -970,7 +971,9 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
             r_weight = jnp.maximum(r_weight, jnp.where(active, trans * weights[k], 0.0))
         fil = jnp.where(active, fil * layer_fils[k], fil)
         trans = jnp.minimum(1.0, jnp.abs(lighting.grey(fil)))
-    return _Layers(local, fil, trans, reflec, r_weight, normals[0])
+    # (the shading normal only where a layer perturbs it: otherwise the conditional that
+    # materialises the layers would carry the surface normal through as one more buffer)
+    return _Layers(local, fil, trans, reflec, r_weight, normals[0] if ctx.plan.effects.normals else None)
 
 
 # ---------------------------------------------------------------- children
