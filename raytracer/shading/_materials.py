@@ -83,10 +83,10 @@ class PackedMaterials:
     # i-th of row r's (``tables["map_start"]``, ``tables["map_size"]``: 0 for a colour map); None
     # without any
     entries: PackedMaterials | None = None
-    # the rows' image maps: every image padded to the largest (n, H, W, 5) and its own (n, 2) size;
-    # row r's is ``tables["image"][r]`` (-1: none); how each wraps is static (``image_modes``)
+    # the rows' image maps: every image padded to the largest (n, H, W, 5); row r's is
+    # ``tables["image"][r]`` (-1: none), image i's size ``tables["image_size"][i]`` and its way of
+    # wrapping ``image_modes[tables["image_mode"][i]]`` (the scene's distinct ones, static)
     images: jax.Array | None = None
-    image_sizes: np.ndarray | None = None
     image_modes: tuple = ()
 
 
@@ -247,22 +247,26 @@ def _pack_images(mats: PackedMaterials, pg_: list[dict], dtype) -> None:
                                                                          (0, w - im.pixels.shape[1]), (0, 0)))
               for im in images]
     mats.images = stack(padded, dtype)
-    mats.image_sizes = np.array([im.pixels.shape[:2] for im in images], np.int32)
-    mats.image_modes = tuple((im.map_type, im.once, im.interpolate) for im in images)
+    modes = [(im.map_type, im.once, im.interpolate) for im in images]
+    mats.image_modes = tuple(sorted(set(modes)))
     mats.tables["image"] = pad_rows(index, mats.tables["pattern_id"].shape[0])
+    mats.tables["image_size"] = np.array([im.pixels.shape[:2] for im in images], np.int32)
+    mats.tables["image_mode"] = np.array([mats.image_modes.index(m) for m in modes], np.int32)
 
 
 def _image_at(mats: PackedMaterials, row, p):
     """RGBFT (5,) of row ``row``'s image map at world point ``p`` (semantics §5.6, measured with
     povray: u = frac(x), v = frac(y) planar; the nearest pixel ``floor(u W)``, ``floor((1 − v) H)``
-    from the top; bilinear between pixel centres, wrapping)."""
+    from the top; bilinear between pixel centres, wrapping). One lookup per way of wrapping the
+    scene's images use, the image and its size read by index: the program does not grow with the
+    number of images."""
     q = _pattern_point(mats, row, p)
-    which = jnp.asarray(mats.tables["image"])[row]
+    i = jnp.maximum(jnp.asarray(mats.tables["image"])[row], 0)
+    h, w = jnp.asarray(mats.tables["image_size"])[i, 0], jnp.asarray(mats.tables["image_size"])[i, 1]
+    mode = jnp.asarray(mats.tables["image_mode"])[i]
     out = jnp.zeros(5, p.dtype)
-    for i, (map_type, once, interpolate) in enumerate(mats.image_modes):
-        h, w = (int(n) for n in mats.image_sizes[i])
+    for m, (map_type, once, interpolate) in enumerate(mats.image_modes):
         u, v, outside = _image_uv(q, map_type, once)
-        pixels = mats.images[i, :h, :w]
         if interpolate:
             x, y = u * w - 0.5, (1.0 - v) * h - 0.5
             x0, y0 = jnp.floor(x), jnp.floor(y)
@@ -270,14 +274,14 @@ def _image_at(mats: PackedMaterials, row, p):
             c0, r0 = x0.astype(jnp.int32), y0.astype(jnp.int32)
             r1, c1 = (r0 + 1) % h, (c0 + 1) % w
             r0, c0 = r0 % h, c0 % w
-            c = ((pixels[r0, c0] * (1 - fx) + pixels[r0, c1] * fx) * (1 - fy)
-                 + (pixels[r1, c0] * (1 - fx) + pixels[r1, c1] * fx) * fy)
+            c = ((mats.images[i, r0, c0] * (1 - fx) + mats.images[i, r0, c1] * fx) * (1 - fy)
+                 + (mats.images[i, r1, c0] * (1 - fx) + mats.images[i, r1, c1] * fx) * fy)
         else:
             col = jnp.clip(jnp.floor(u * w).astype(jnp.int32), 0, w - 1)
             r = jnp.clip(jnp.floor((1.0 - v) * h).astype(jnp.int32), 0, h - 1)
-            c = pixels[r, col]
+            c = mats.images[i, r, col]
         c = jnp.where(outside, jnp.asarray([0.0, 0.0, 0.0, 0.0, 1.0], p.dtype), c)
-        out = jnp.where(which == i, c, out)
+        out = jnp.where(mode == m, c, out)
     return out
 
 
@@ -499,27 +503,34 @@ def _entries_mean(mats: PackedMaterials, row, p, size):
     return jnp.sum(weights[:, None] * c, axis=0) / jnp.where(total != 0, total, 1.0)
 
 
+def map_bracket(values, w, size):
+    """The two entries of a map around value ``w`` — ascending positions ``values``, of which the
+    first ``size`` are the map's (the padding repeats the last) — and the fraction between them, as
+    a colour map blends (semantics §5.2): ``(lo, hi, t)``, t 0 at or below the first position and
+    1 at or above the last."""
+    last = jnp.maximum(size - 1, 1)
+    i = jnp.clip(jnp.searchsorted(values, w, side="right"), 1, last)
+    lo, hi = jnp.minimum(i - 1, size - 1), jnp.minimum(i, size - 1)
+    span = values[hi] - values[lo]
+    ok = span > 0
+    t = jnp.clip(jnp.where(ok, (w - values[lo]) / jnp.where(ok, span, 1.0), 1.0), 0.0, 1.0)
+    below = w <= values[0]
+    return jnp.where(below, 0, lo), jnp.where(below, jnp.minimum(1, size - 1), hi), jnp.where(
+        below, 0.0, jnp.where(w >= values[size - 1], 1.0, t))
+
+
 def _entries_at(mats: PackedMaterials, row, p, w, size):
     """Row ``row``'s pigment map at ``p`` for its waved value ``w``: the two pigments around ``w``
     blended as ``_color_map`` blends colours (a discrete pattern: its list entries by index, as
     ``_list_entry``)."""
-    values = mats.values[row]
-    last = jnp.maximum(size - 1, 1)
     pid = jnp.asarray(mats.tables["pattern_id"])[row]
     discrete = jnp.asarray([patterns.REGISTRY[name].discrete for name in mats.pattern_names])[pid]
-    # a colour map's blend: the bracket [i - 1, i], clamped at the ends
-    i = jnp.clip(jnp.searchsorted(values, w, side="right"), 1, last)
-    v0, v1 = values[i - 1], values[i]
-    span = v1 - v0
-    ok = span > 0
-    s = jnp.clip(jnp.where(ok, (w - v0) / jnp.where(ok, span, 1.0), 1.0), 0.0, 1.0)
-    s = jnp.where(w <= values[0], 0.0, jnp.where(w >= values[last], 1.0, s))
-    i = jnp.where(w <= values[0], 1, i)
+    lo, hi, s = map_bracket(mats.values[row], w, size)
     # a list: entry floor(w) and the next, by the fraction
     x = jnp.clip(w, 0, size - 1)
     j = jnp.minimum(jnp.floor(x).astype(jnp.int32), size - 1)
-    lo = jnp.minimum(jnp.where(discrete, j, i - 1), size - 1)
-    hi = jnp.minimum(jnp.where(discrete, j + 1, i), size - 1)
+    lo = jnp.where(discrete, j, lo)
+    hi = jnp.where(discrete, jnp.minimum(j + 1, size - 1), hi)
     s = jnp.where(discrete, x - j, s)
     start = jnp.asarray(mats.tables["map_start"])[row]
     # the two pigments in one vmapped evaluation: the program holds the entries' patterns once

@@ -32,7 +32,14 @@ import numpy as np
 
 from .. import patterns
 from ..kernels import safe_normalize
-from ._materials import PackedNormals, _evaluated_patterns, _pattern_point, _raw_value, waved_value
+from ._materials import (
+    PackedNormals,
+    _evaluated_patterns,
+    _pattern_point,
+    _raw_value,
+    map_bracket,
+    waved_value,
+)
 
 # the tetrahedron's corners (unit vectors, summing to 0; Σ V Vᵀ = 4/3 I)
 TETRAHEDRON = np.array([[math.sqrt(8 / 9), -1 / 3, 0.0],
@@ -48,18 +55,10 @@ def _slope_height(table, size, w):
     """The height a slope map ``table`` (K, 3: value, height, slope; ``size`` entries, padded by
     the last) gives value ``w``: the cubic Hermite curve of the segment around ``w`` in its own
     parameter t, with the entries' slopes as its tangents; the end heights beyond the ends."""
-    values = table[:, 0]
-    last = jnp.maximum(size - 1, 1)
-    i = jnp.clip(jnp.searchsorted(values, w, side="right"), 1, last)
-    i0, i1 = jnp.minimum(i - 1, size - 1), jnp.minimum(i, size - 1)
-    v0, v1 = values[i0], values[i1]
-    span = v1 - v0
-    ok = span > 0
-    t = jnp.clip(jnp.where(ok, (w - v0) / jnp.where(ok, span, 1.0), 1.0), 0.0, 1.0)
+    i0, i1, t = map_bracket(table[:, 0], w, size)  # (t 0 and 1 past the ends: the end heights)
     h0, s0, h1, s1 = table[i0, 1], table[i0, 2], table[i1, 1], table[i1, 2]
     t2, t3 = t * t, t * t * t
-    h = (2 * t3 - 3 * t2 + 1) * h0 + (t3 - 2 * t2 + t) * s0 + (3 * t2 - 2 * t3) * h1 + (t3 - t2) * s1
-    return jnp.where(w <= values[0], table[0, 1], jnp.where(w >= values[size - 1], table[size - 1, 1], h))
+    return (2 * t3 - 3 * t2 + 1) * h0 + (t3 - 2 * t2 + t) * s0 + (3 * t2 - 2 * t3) * h1 + (t3 - t2) * s1
 
 
 def perturbed(nm: PackedNormals, row, p, n):
