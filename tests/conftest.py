@@ -17,6 +17,10 @@ float64 fixture, and the ``povray`` marker's skip.
   compile 49–51 → 41 CPU-s).
 * Reference images (POV-Ray, Mitsuba) of the validation suite are kept for the run in a folder of
   its own (``$RAYTRACER_REFERENCE_CACHE``), so a reference two tests need is rendered once.
+* ``$RAYTRACER_TEST_PROFILE=folder``: each worker writes one JSON line a test to a file in that
+  folder: its wall time and what its JAX programs cost (tracing, lowering, XLA's compile, each
+  summed and counted, and the persistent cache's hits). ``scripts/suite_profile.py`` sums them by
+  file and by test. Off unless asked.
 * JAX's persistent compilation cache points at a folder made for this run and shared by its xdist
   workers (``$RAYTRACER_TEST_JAX_CACHE`` overrides it and is then kept), so a program that two
   workers or two tests build compiles once. A fresh clone starts with an empty cache. The
@@ -69,6 +73,46 @@ def pytest_configure(config):
 def pytest_unconfigure(config):
     for env in getattr(config, "_raytracer_owned", ()):
         shutil.rmtree(os.environ.pop(env), ignore_errors=True)
+
+
+_PROFILE_ENV = "RAYTRACER_TEST_PROFILE"
+_PROFILED_EVENTS = {"/jax/core/compile/jaxpr_trace_duration": "trace",
+                    "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
+                    "/jax/core/compile/backend_compile_duration": "compile"}
+_profile_now: dict = {}
+
+
+def _on_duration(event: str, seconds: float, **_) -> None:
+    key = _PROFILED_EVENTS.get(event)
+    if key is not None and _profile_now:
+        _profile_now[key] = _profile_now.get(key, 0.0) + seconds
+        _profile_now[key + "_n"] = _profile_now.get(key + "_n", 0) + 1
+
+
+def _on_event(event: str, **_) -> None:
+    if event == "/jax/compilation_cache/cache_hits" and _profile_now:
+        _profile_now["cache_hits"] = _profile_now.get("cache_hits", 0) + 1
+
+
+if os.environ.get(_PROFILE_ENV):
+    jax.monitoring.register_event_duration_secs_listener(_on_duration)
+    jax.monitoring.register_event_listener(_on_event)
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        import json
+        import time
+
+        _profile_now.clear()
+        _profile_now["test"] = item.nodeid
+        start = time.perf_counter()
+        yield
+        _profile_now["wall"] = time.perf_counter() - start
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        os.makedirs(os.environ[_PROFILE_ENV], exist_ok=True)
+        with open(os.path.join(os.environ[_PROFILE_ENV], f"{worker}.jsonl"), "a") as f:
+            f.write(json.dumps(_profile_now) + "\n")
+        _profile_now.clear()
 
 
 _SLOW_LIST = os.path.join(os.path.dirname(__file__), "slow_tests.txt")
