@@ -144,6 +144,8 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("normals", povray=POV_BAR),
     _example("pigment_maps", povray=POV_BAR),
     _example("image_map", povray=POV_BAR),
+    _example("prism", povray=POV_BAR),
+    _example("text", povray=POV_BAR),
 )
 
 

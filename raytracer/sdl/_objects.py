@@ -379,6 +379,9 @@ class _ShapeArgs:
     def warn(self, feature: str, message: str, loc=None) -> None:
         self._p.warn(feature, message, loc or self._p.peek().loc)
 
+    def find_file(self, name: str, what: str) -> str:
+        return self._p.resolve_include(name, self.loc, what=what)
+
     def leave_out(self, message: str) -> None:
         self._rec.supported = False
         self._p.warn(self._rec.kind, message, self._rec.loc)

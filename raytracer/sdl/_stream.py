@@ -294,6 +294,10 @@ class Stream:
         real = Path(os.path.realpath(path))
         if any(real.is_relative_to(os.path.realpath(r)) for r in roots):
             return path
+        # POV-Ray's own include folder is the system's: Debian links its fonts there from
+        # /usr/share/fonts, and those links are the package's, not a scene's
+        if STANDARD_INCLUDE.is_dir() and os.path.realpath(Path(path).parent) == os.path.realpath(STANDARD_INCLUDE):
+            return path
         raise self.error(f'#include "{name}" is outside the folders a scene may read (the scene\'s '
                          f"folder, -L folders, $RAYTRACER_INCLUDE_PATH, POV-Ray's include folder); "
                          "add its folder with -L (include_paths=) to allow it", loc)

@@ -37,6 +37,7 @@ from ._poly import poly_value as poly_value
 from ._polygon import Polygon as Polygon
 from ._polygon import polygon_from_points as polygon_from_points
 from ._polygon import polygon_hits as polygon_hits
+from ._prism import Prism as Prism
 from ._quadric import Quadric as Quadric
 from ._quadric import quadric_hits as quadric_hits
 from ._quadric import quadric_inside as quadric_inside
@@ -45,6 +46,7 @@ from ._sphere import Sphere as Sphere
 from ._sphere import sphere_hits as sphere_hits
 from ._sphere import sphere_inside as sphere_inside
 from ._superellipsoid import Superellipsoid as Superellipsoid
+from ._text import Text as Text
 from ._torus import Torus as Torus
 from ._torus import torus_hits as torus_hits
 from ._torus import torus_inside as torus_inside
@@ -56,7 +58,7 @@ from ._triangle import triangle_hits as triangle_hits
 
 _SHAPES: tuple[type[AbstractShape], ...] = (
     Sphere, Plane, Box, Cylinder, Cone, Quadric, Torus, Disc, Triangle, SmoothTriangle, Polygon, Mesh,
-    Superellipsoid, Poly,
+    Superellipsoid, Poly, Prism, Text,
 )
 
 REGISTRY: dict[str, type[AbstractShape]] = {cls.kind: cls for cls in _SHAPES}

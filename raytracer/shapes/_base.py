@@ -135,6 +135,10 @@ class ShapeArgs(Protocol):
 
     def warn(self, feature: str, message: str, loc: Any = None) -> None: ...
 
+    def find_file(self, name: str, what: str) -> str:
+        """The path of the file ``name`` (a font), searched as an include file is; an error names
+        ``what`` where it is not found."""
+
     def leave_out(self, message: str) -> None:
         """The object is dropped from the scene (with a warning naming it)."""
 
