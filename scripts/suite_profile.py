@@ -19,7 +19,8 @@ KEYS = ("wall", "trace", "lower", "compile")
 
 
 def load(folder: Path) -> list[dict]:
-    return [json.loads(line) for f in sorted(folder.glob("*.jsonl")) for line in f.read_text().splitlines() if line]
+    lines = [line for f in sorted(folder.glob("*.jsonl")) for line in f.read_text().splitlines()]
+    return [json.loads(line) for line in lines if line]
 
 
 def main() -> None:
@@ -31,7 +32,8 @@ def main() -> None:
     total = {k: sum(r.get(k, 0.0) for r in rows) for k in KEYS}
     n_compile = sum(r.get("compile_n", 0) for r in rows)
     hits = sum(r.get("cache_hits", 0) for r in rows)
-    print(f"{len(rows)} tests, {total['wall']:.0f} worker-s: trace {total['trace']:.0f} s, lower {total['lower']:.0f} s, "
+    print(f"{len(rows)} tests, {total['wall']:.0f} worker-s: trace {total['trace']:.0f} s, "
+          f"lower {total['lower']:.0f} s, "
           f"XLA compile {total['compile']:.0f} s ({n_compile} programs, {hits} persistent-cache hits)")
     by_file: dict[str, dict] = defaultdict(lambda: defaultdict(float))
     for r in rows:
@@ -39,7 +41,8 @@ def main() -> None:
         for k in (*KEYS, "compile_n"):
             acc[k] += r.get(k, 0.0)
         acc["tests"] += 1
-    print(f"\n{'file':58s} {'tests':>5s} {'wall':>7s} {'trace':>7s} {'lower':>7s} {'compile':>7s} {'progs':>6s}")
+    heads = ("tests", "wall", "trace", "lower", "compile", "progs")
+    print(f"\n{'file':58s} " + " ".join(f"{h:>7s}" for h in heads))
     for name, acc in sorted(by_file.items(), key=lambda kv: -kv[1]["wall"])[: args.top]:
         print(f"{name:58s} {acc['tests']:5.0f} {acc['wall']:7.1f} {acc['trace']:7.1f} {acc['lower']:7.1f} "
               f"{acc['compile']:7.1f} {acc['compile_n']:6.0f}")

@@ -296,7 +296,8 @@ class Stream:
             return path
         # POV-Ray's own include folder is the system's: Debian links its fonts there from
         # /usr/share/fonts, and those links are the package's, not a scene's
-        if STANDARD_INCLUDE.is_dir() and os.path.realpath(Path(path).parent) == os.path.realpath(STANDARD_INCLUDE):
+        standard = os.path.realpath(STANDARD_INCLUDE)
+        if STANDARD_INCLUDE.is_dir() and os.path.realpath(Path(path).parent) == standard:
             return path
         raise self.error(f'#include "{name}" is outside the folders a scene may read (the scene\'s '
                          f"folder, -L folders, $RAYTRACER_INCLUDE_PATH, POV-Ray's include folder); "

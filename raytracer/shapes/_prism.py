@@ -345,7 +345,8 @@ def segment_senses(controls: np.ndarray) -> np.ndarray:
         q = probes[start:start + 256, None, :]
         straddle = (a[None, :, 1] > q[..., 1]) != (b[None, :, 1] > q[..., 1])
         with np.errstate(divide="ignore", invalid="ignore"):
-            x = a[None, :, 0] + (q[..., 1] - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (b[None, :, 1] - a[None, :, 1])
+            slope = (b[None, :, 0] - a[None, :, 0]) / (b[None, :, 1] - a[None, :, 1])
+            x = a[None, :, 0] + (q[..., 1] - a[None, :, 1]) * slope
         filled = np.sum(straddle & (x > q[..., 0]), axis=1) % 2 == 1
         out[start:start + 256] = np.where(filled, 1, -1)
     return np.where(live, out, 0).astype(np.int8)

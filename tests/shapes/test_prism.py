@@ -64,7 +64,10 @@ def _frame_case():
     def distance(p):
         return max(abs(p[1] - 0.1) - 0.5, outline_distance(segments, p[0], p[2]))
 
-    return Case("prism quadratic frame", lambda c, h1, h2: Prism(controls=c, sense=sense, height1=h1, height2=h2),
+    def make(c, h1, h2):
+        return Prism(controls=c, sense=sense, height1=h1, height2=h2)
+
+    return Case("prism quadratic frame", make,
                 (np.asarray(shape.controls, np.float64), np.float64(-0.4), np.float64(0.6)), distance,
                 np.array([0.0, 0.1, 0.0]), 1.3, convex=False)
 
@@ -76,9 +79,13 @@ def _pyramid_case():
     sense = np.asarray(shape.sense)
 
     def distance(p):
-        return max(abs(p[1] - 1.0) - 0.5, p[1] * outline_distance(segments, p[0] / p[1], p[2] / p[1]))
+        section = outline_distance(segments, p[0] / p[1], p[2] / p[1])
+        return max(abs(p[1] - 1.0) - 0.5, p[1] * section)
 
-    return Case("prism conic", lambda c, h1, h2: Prism(controls=c, sense=sense, height1=h1, height2=h2, conic=True),
+    def make(c, h1, h2):
+        return Prism(controls=c, sense=sense, height1=h1, height2=h2, conic=True)
+
+    return Case("prism conic", make,
                 (np.asarray(shape.controls, np.float64), np.float64(0.5), np.float64(1.5)), distance,
                 np.array([0.0, 1.0, 0.0]), 1.2)
 
@@ -98,7 +105,8 @@ def test_pov_splines_become_their_bernstein_segments():
     assert quad.shape == (4, 3, 2)
     for s in (0.0, 0.3, 1.0):
         p0, p1, p2 = np.array([0.0, 0]), np.array([1.0, 0]), np.array([1.0, 1])
-        np.testing.assert_allclose(_bernstein(quad[1], s), p1 + (p2 - p0) * s / 2 + (p2 - 2 * p1 + p0) * s * s / 2)
+        expected = p1 + (p2 - p0) * s / 2 + (p2 - 2 * p1 + p0) * s * s / 2
+        np.testing.assert_allclose(_bernstein(quad[1], s), expected)
     # cubic: the segment P1 -> P2 has tangents (P2 - P0)/2 and (P3 - P1)/2
     pts = np.array([(0, -1), (0, 0), (2, 0), (2, 2), (0, 2), (0, 0), (2, 0)], float)
     cub = spline_segments("cubic_spline", pts)
@@ -158,7 +166,7 @@ def test_fill_sides_follow_the_even_odd_rule_whatever_the_winding():
     for pts in (outer + hole, outer[::-1] + hole, outer + hole[::-1]):
         segs = spline_segments("linear_spline", pts)
         sense = segment_senses(segs)
-        for c, s in zip(segs, sense):
+        for c, s in zip(segs, sense, strict=True):
             mid, tangent = c.mean(0), c[1] - c[0]
             left = np.array([-tangent[1], tangent[0]])
             inward = np.array([1.0, 1.0]) - mid  # the centre (1, 1) is in the hole
@@ -179,9 +187,10 @@ def test_padding_makes_outlines_of_similar_size_one_variant():
 
 
 def test_a_cubic_prisms_crossings_have_the_implicit_functions_derivatives(x64):
-    """The bisected roots of a Bézier outline carry the implicit function theorem's derivatives:
-    d t / d(controls) against central differences (float64)."""
-    segs = spline_segments("bezier_spline", [(0, 0), (1, -1), (2, 1), (2, 2), (2, 2), (1, 3), (-1, 1), (0, 0)])
+    """The bisected roots of a Bézier outline carry the implicit function theorem's
+    derivatives: d t / d(controls) against central differences (float64)."""
+    points = [(0, 0), (1, -1), (2, 1), (2, 2), (2, 2), (1, 3), (-1, 1), (0, 0)]
+    segs = spline_segments("bezier_spline", points)
     shape = prism_from_segments(segs, 0.0, 1.0)
     o, d = jnp.array([-2.0, 0.5, 0.7]), jnp.array([1.0, 0.05, 0.1])
 
@@ -206,7 +215,8 @@ def test_the_sdl_reads_every_spline_and_sweep_and_refuses_too_few_points(tmp_pat
 
     head = "camera { location <0, 5, -5> look_at 0 } light_source { <0, 9, -9> rgb 1 }\n"
     body = ("prism { linear_spline 0, 1, 4, <0,0>, <1,0>, <0,1>, <0,0> }\n"
-            "prism { conic_sweep quadratic_spline 0.5, 1, 6, <1,-1>, <0,0>, <2,0>, <2,2>, <0,2>, <0,0> open }\n"
+            "prism { conic_sweep quadratic_spline 0.5, 1, 6,\n"
+            "  <1,-1>, <0,0>, <2,0>, <2,2>, <0,2>, <0,0> open }\n"
             "prism { bezier_spline 0, 1, 4, <0,0>, <1,1>, <2,1>, <0,0> }\n"
             "prism { cubic_spline 0, 1, 7, <0,-1>, <0,0>, <2,0>, <2,2>, <0,2>, <0,0>, <2,0> sturm }\n")
     path = tmp_path / "p.pov"

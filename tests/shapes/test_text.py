@@ -2,6 +2,8 @@
 the first glyph's left edge at the origin, advance widths, the font's kerning and the offset), its
 test case (a glyph with a hole) with an implicit function of its own, and the SDL."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -13,12 +15,10 @@ from ._case import Case
 from .test_prism import outline_distance
 
 TIMROM = "/usr/share/povray-3.7/include/timrom.ttf"
-needs_fonts = pytest.mark.skipif(not __import__("os").path.exists(TIMROM), reason="povray-includes is not installed")
+needs_fonts = pytest.mark.skipif(not os.path.exists(TIMROM), reason="povray-includes is not installed")
 
 
 def _o_case():
-    import os
-
     if not os.path.exists(TIMROM):  # the generic tests need a case: a square ring in its place
         ring = [[(0, 0), (0.5, 0), (1, 0)], [(1, 0), (1, 0.5), (1, 1)], [(1, 1), (0.5, 1), (0, 1)],
                 [(0, 1), (0, 0.5), (0, 0)]]
@@ -65,7 +65,8 @@ def test_the_sdl_reads_ttf_and_internal_fonts_and_locates_a_missing_font(tmp_pat
 
     head = "camera { location <0, 1, -5> look_at 0 } light_source { <0, 9, -9> rgb 1 }\n"
     path = tmp_path / "t.pov"
-    path.write_text(head + 'text { ttf "timrom.ttf" "Ab" 0.5, 0 }\n#declare S = "x";\ntext { internal 1 S 1, <0.1, 0, 0> }\n')
+    path.write_text(head + 'text { ttf "timrom.ttf" "Ab" 0.5, 0 }\n#declare S = "x";\n'
+                    "text { internal 1 S 1, <0.1, 0, 0> }\n")
     scene = load_scene(path)
     a, b = (o.shape for o in scene.objects)
     assert type(a) is Text and float(a.height2) == 0.5 and float(b.height2) == 1.0
