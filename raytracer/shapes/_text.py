@@ -113,6 +113,17 @@ def text_segments(path: str, string: str, offset=(0.0, 0.0)) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros((0, 3, 2))
 
 
+def _font_file(args, name: str) -> str:
+    """The font file ``name`` names, searched as an include file is; as POV-Ray, a name without a
+    suffix is tried with ``.ttf`` too."""
+    try:
+        return args.find_file(name, "a font file")
+    except Exception:
+        if "." in name.rsplit("/", 1)[-1]:
+            raise
+        return args.find_file(name + ".ttf", "a font file")
+
+
 class Text(Prism):
     """``text { ttf "font" "string" thickness, offset }``: the string's glyphs, filled by the
     even-odd rule, from z = 0 to z = ``height2`` (the thickness)."""
@@ -134,7 +145,8 @@ class Text(Prism):
                 raise args.error("expected a font file name after ttf", loc)
         else:
             raise args.error(f"expected ttf or internal in text, found {args.describe_next()}")
-        path = args.find_file(font, "a font file")
+        args.comma()
+        path = _font_file(args, font)
         s_loc = args.loc
         string = args.expr()
         if not isinstance(string, str):
