@@ -10,6 +10,8 @@ from __future__ import annotations
 import datetime
 import math
 
+import numpy as np
+
 from ._convert import as_float, as_int, as_vector, check_string_length, fmt_number, type_name
 from ._lexer import EOF, OP
 from ._values import ArrayValue, ObjRec, RandStream, Vec
@@ -233,10 +235,50 @@ def _trace(p, tok):
 
 
 def _extent(p, tok):
-    _args(p, tok, 1)
-    p.warn(tok.value, f"{tok.value}() is not implemented; the unit box <0,0,0>..<1,1,1> is used",
-           tok.loc)
-    return Vec((0.0, 0.0, 0.0) if tok.value == "min_extent" else (1.0, 1.0, 1.0))
+    """``min_extent(OBJECT)`` / ``max_extent(OBJECT)``: a corner of the object's world box, as
+    POV-Ray bounds it (measured): a union's box holds its children's, an intersection's is their
+    common part, a difference's is its first child's, ``clipped_by`` cuts it down; an unbounded
+    object (a plane) gives ±1e10."""
+    p.expect_op("(", f"'(' after {tok.value}")
+    rec = _object_arg(p, tok)
+    p.expect_op(")", f"')' to close {tok.value}(")
+    from ._lower import Lowerer
+
+    obj = Lowerer().obj(rec, None, True)
+    box = None if obj is None else _world_box(obj, np.eye(4))
+    if box is None:
+        box = (np.full(3, -UNBOUNDED_EXTENT), np.full(3, UNBOUNDED_EXTENT))
+    return Vec(tuple(float(v) for v in box[0 if tok.value == "min_extent" else 1]))
+
+
+UNBOUNDED_EXTENT = 1e10  # POV-Ray's min_extent/max_extent of a plane
+
+
+def _world_box(obj, parent: np.ndarray):
+    """``(lo, hi)`` world corners of a lowered object under ``parent`` (4×4), None if unbounded."""
+    from ..scene import CSG
+    from ..shapes import world_bounds
+
+    m = parent if obj.transform is None else parent @ np.asarray(obj.transform.matrix, np.float64)
+    if isinstance(obj, CSG):
+        boxes = [_world_box(c, m) for c in obj.children]
+        if obj.operation == "difference":
+            box = boxes[0]
+        elif obj.operation == "intersection":
+            bounded = [b for b in boxes if b is not None]
+            box = None if not bounded else (np.max([b[0] for b in bounded], 0), np.min([b[1] for b in bounded], 0))
+        else:
+            box = None if any(b is None for b in boxes) else (np.min([b[0] for b in boxes], 0),
+                                                              np.max([b[1] for b in boxes], 0))
+    else:
+        shape = obj.shape.absorb_transform(m)  # a sphere's own box, not its rotated one's
+        b = world_bounds(shape) if shape is not None else world_bounds(obj.shape, m)
+        box = None if b is None else (np.asarray(b[0], np.float64), np.asarray(b[1], np.float64))
+    for clip in obj.clipped_by:
+        c = _world_box(clip, m)
+        if c is not None:
+            box = c if box is None else (np.maximum(box[0], c[0]), np.minimum(box[1], c[1]))
+    return box
 
 
 def _inside(p, tok):

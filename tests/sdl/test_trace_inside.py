@@ -101,3 +101,27 @@ def test_trace_and_inside_say_at_the_call_that_they_cannot_see_an_unrendered_par
     assert "trace() cannot see the isosurface" in s.warnings[0].message
     s = load_scene("#declare S = sphere { 0, 1 } #declare P = trace(S, <0, 5, 0>, -y);")
     assert s.warnings == ()
+
+
+def test_min_and_max_extent_are_the_boxes_povray_prints():
+    """The corners povray 3.7 prints for these objects (``#debug vstr(min_extent(…))``): a rotated
+    sphere's own box, a difference's first child's, an intersection's common part, the text's
+    glyph box, ±1e10 for anything unbounded."""
+    p = run_sdl("""#declare S = sphere { <1,2,3>, 0.5 scale 2 rotate 30*y }
+        #declare D = difference { box { -1, 1 } sphere { 0, 1.2 } translate x }
+        #declare I = intersection { box { -1, 1 } sphere { <1,0,0>, 1.2 } }
+        #declare U = union { sphere { 0, 1 } plane { y, 0 } }
+        #declare T = text { ttf "timrom.ttf" "AV" 0.3, 0 }
+        #declare S0 = min_extent(S); #declare S1 = max_extent(S);
+        #declare D0 = min_extent(D); #declare D1 = max_extent(D);
+        #declare I0 = min_extent(I); #declare I1 = max_extent(I);
+        #declare U0 = min_extent(U); #declare U1 = max_extent(U);
+        #declare T0 = min_extent(T); #declare T1 = max_extent(T);""")
+    povray = {"S": ([3.732051, 3.0, 3.196152], [5.732051, 5.0, 5.196153]),
+              "D": ([0, -1, -1], [2, 1, 1]), "I": ([-0.2, -1, -1], [1, 1, 1]),
+              "U": ([-1e10] * 3, [1e10] * 3),
+              # povray pads a text's box by ~1e-5: -0.000012,-0.016005,-0.000024 / 1.278005,0.696022,0.300013
+              "T": ([0, -0.016, 0], [1.278, 0.696, 0.3])}
+    for name, (lo, hi) in povray.items():
+        np.testing.assert_allclose(vec(p, f"{name}0"), lo, atol=3e-5, err_msg=name)
+        np.testing.assert_allclose(vec(p, f"{name}1"), hi, atol=3e-5, err_msg=name)
