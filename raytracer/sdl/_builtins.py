@@ -266,7 +266,8 @@ def _world_box(obj, parent: np.ndarray):
             box = boxes[0]
         elif obj.operation == "intersection":
             bounded = [b for b in boxes if b is not None]
-            box = None if not bounded else (np.max([b[0] for b in bounded], 0), np.min([b[1] for b in bounded], 0))
+            box = None if not bounded else (np.max([b[0] for b in bounded], 0),
+                                            np.min([b[1] for b in bounded], 0))
         else:
             box = None if any(b is None for b in boxes) else (np.min([b[0] for b in boxes], 0),
                                                               np.max([b[1] for b in boxes], 0))
