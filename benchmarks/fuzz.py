@@ -30,8 +30,9 @@ case is reproducible from its seed and the campaign is a ``@given`` run without 
   * ``hang``: the case ran past the parse limit's backstop (3× ``Limits.max_parse_seconds`` of the
     process's CPU time);
   * ``read_outside``: the loader opened a file outside the scene's folder, the ``-L`` folders and
-    POV-Ray's include folder (seen by a ``sys.addaudithook`` hook on ``open``, independently of the
-    loader's own check).
+    POV-Ray's include folder (whose links, the fonts Debian keeps in /usr/share/fonts, are the
+    package's) (seen by a ``sys.addaudithook`` hook on ``open``, independently of the loader's own
+    check).
 """
 
 from __future__ import annotations
@@ -227,6 +228,9 @@ def _program_files() -> list[Path]:
 def _inside(path: str, folders: list[Path]) -> bool:
     try:
         p = Path(path).resolve()
+        # the package's links in POV-Ray's include folder (Debian's fonts live in /usr/share/fonts)
+        if Path(path).parent.resolve() == POVRAY_INCLUDE.resolve():
+            return True
     except (OSError, RuntimeError, ValueError):
         return False
     return any(p == f or f in p.parents for f in folders)

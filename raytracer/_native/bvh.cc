@@ -726,6 +726,168 @@ inline double poly_hit(const double* c, const RayD& r, double tmin, double tmax)
   return INFINITY;
 }
 
+// ------------------------------------------------------------------------------------ prism
+// A swept outline (shapes/_prism.py): S segments of Bernstein degree n (1-3) in the x-z plane,
+// swept along y between two heights, straight or conic (the outline scaled by the height). Its
+// item takes several rows: the map, then the header [S, n, conic, open, h1, h2, axis] (axis 2:
+// text, swept along z), then from params[24] each segment's n + 1 control points (x, z) and then
+// the S senses (0: a padding segment). The rows after the first are items of kind KIND_NONE.
+template <typename T>
+struct PrismD {
+  int S, n;
+  bool conic, open;
+  double lo, hi;
+  const T* c;      // S * (n + 1) * 2: segment k's control point j is (c[2 (m k + j)], c[… + 1])
+  const T* sense;  // S
+};
+
+// The Bernstein polynomial w[0..n] at s (de Casteljau).
+inline double bern(const double* w, int n, double s) {
+  double b[4];
+  for (int k = 0; k <= n; ++k) b[k] = w[k];
+  for (int m = n; m > 0; --m)
+    for (int k = 0; k < m; ++k) b[k] += s * (b[k + 1] - b[k]);
+  return b[0];
+}
+
+// The roots of w in [0, 1), half-open at the ends as the JAX kernel's (a zero at a joint counts
+// for one of the two segments): the pieces between the critical points, a sign change in each
+// found by bisection. Returns how many (at most n).
+inline int bern_roots(const double* w, int n, double* out) {
+  double split[4] = {0.0, 1.0, 1.0, 1.0};
+  int pieces = 1;
+  if (n >= 2) {  // the derivative's roots in (0, 1)
+    double dw[3];
+    for (int k = 0; k < n; ++k) dw[k] = n * (w[k + 1] - w[k]);
+    double cr[2];
+    int nc = 0;
+    if (n == 2) {
+      const double den = dw[0] - dw[1];
+      if (den != 0.0) cr[nc++] = dw[0] / den;
+    } else {  // a quadratic in power form
+      const double a = dw[0] - 2.0 * dw[1] + dw[2], b = 2.0 * (dw[1] - dw[0]), c = dw[0];
+      if (std::fabs(a) > 1e-300) {
+        const double disc = b * b - 4.0 * a * c;
+        if (disc >= 0.0) {
+          const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
+          if (q != 0.0) cr[nc++] = c / q;
+          cr[nc++] = q / a;
+        }
+      } else if (b != 0.0) {
+        cr[nc++] = -c / b;
+      }
+    }
+    std::sort(cr, cr + nc);
+    for (int k = 0; k < nc; ++k)
+      if (cr[k] > split[pieces - 1] && cr[k] < 1.0) split[pieces++] = cr[k];
+    split[pieces] = 1.0;
+  }
+  int count = 0;
+  double fa = w[0];
+  for (int k = 0; k < pieces; ++k) {
+    const double a = split[k], b = split[k + 1];
+    const double fb = (k == pieces - 1) ? w[n] : bern(w, n, b);
+    if ((fa > 0.0) != (fb > 0.0)) {
+      auto f = [&](double s) { return bern(w, n, s); };
+      out[count++] = bisect_sign(f, a, b, fa, 1e-15, 64);
+    }
+    fa = fb;
+  }
+  return count;
+}
+
+// Whether (x, z) is filled (even-odd: crossings of the half-line towards +x).
+template <typename T>
+inline bool prism_filled(const PrismD<T>& P, double x, double z) {
+  int crossings = 0;
+  const int m = P.n + 1;
+  for (int k = 0; k < P.S; ++k) {
+    if (P.sense[k] == 0) continue;
+    const T* c = P.c + 2 * m * k;
+    double gz[4], gx[4];
+    for (int j = 0; j < m; ++j) {
+      gx[j] = static_cast<double>(c[2 * j]);
+      gz[j] = static_cast<double>(c[2 * j + 1]) - z;
+    }
+    double s[3];
+    const int count = bern_roots(gz, P.n, s);
+    for (int j = 0; j < count; ++j)
+      if (bern(gx, P.n, s[j]) > x) ++crossings;
+  }
+  return crossings % 2 == 1;
+}
+
+template <typename T>
+inline PrismD<T> prism_of(const T* params) {
+  PrismD<T> P;
+  P.S = static_cast<int>(params[12]);
+  P.n = static_cast<int>(params[13]);
+  P.conic = params[14] != 0;
+  P.open = params[15] != 0;
+  P.lo = std::min<double>(params[16], params[17]);
+  P.hi = std::max<double>(params[16], params[17]);
+  P.c = params + 24;
+  P.sense = params + 24 + P.S * 2 * (P.n + 1);
+  return P;
+}
+
+// The first crossing of the prism with t in (tmin, tmax), the ray in object space (its axes
+// swapped for text).
+template <typename T>
+inline double prism_hit(const PrismD<T>& P, const RayD& r, double tmin, double tmax) {
+  double best = tmax;
+  const int m = P.n + 1;
+  for (int k = 0; k < P.S; ++k) {
+    if (P.sense[k] == 0) continue;
+    double cx[4], cz[4];
+    for (int i = 0; i < m; ++i) {
+      cx[i] = static_cast<double>(P.c[2 * (m * k + i)]);
+      cz[i] = static_cast<double>(P.c[2 * (m * k + i) + 1]);
+    }
+    double w[4];
+    double mx = 0, my = 0, mz = 0;
+    if (P.conic) {
+      mx = r.o[1] * r.d[2] - r.o[2] * r.d[1];
+      my = r.o[2] * r.d[0] - r.o[0] * r.d[2];
+      mz = r.o[0] * r.d[1] - r.o[1] * r.d[0];
+    }
+    for (int j = 0; j < m; ++j) {
+      const double x = cx[j], z = cz[j];
+      w[j] = P.conic ? mx * x + mz * z + my : r.d[0] * (z - r.o[2]) - r.d[2] * (x - r.o[0]);
+    }
+    double s[3];
+    const int count = bern_roots(w, P.n, s);
+    for (int j = 0; j < count; ++j) {
+      const double x = bern(cx, P.n, s[j]), z = bern(cz, P.n, s[j]);
+      double t;
+      if (P.conic) {
+        const double v[3] = {x, 1.0, z};
+        const double dv[3] = {r.d[1] * v[2] - r.d[2] * v[1], r.d[2] * v[0] - r.d[0] * v[2], r.d[0] * v[1] - r.d[1] * v[0]};
+        const double ov[3] = {r.o[1] * v[2] - r.o[2] * v[1], r.o[2] * v[0] - r.o[0] * v[2], r.o[0] * v[1] - r.o[1] * v[0]};
+        const double dd = dot3(dv, dv);
+        if (!(dd > 0.0)) continue;
+        t = -dot3(ov, dv) / dd;
+      } else {
+        const double dd = r.d[0] * r.d[0] + r.d[2] * r.d[2];
+        if (!(dd > 0.0)) continue;
+        t = ((x - r.o[0]) * r.d[0] + (z - r.o[2]) * r.d[2]) / dd;
+      }
+      const double y = r.o[1] + t * r.d[1];
+      if (y >= P.lo && y <= P.hi) keep_first(t, tmin, best);
+    }
+  }
+  if (!P.open && r.d[1] != 0.0) {
+    for (double h : {P.lo, P.hi}) {
+      const double t = (h - r.o[1]) / r.d[1];
+      if (!(t > tmin && t < best)) continue;
+      const double scale = P.conic ? h : 1.0;
+      if (scale == 0.0) continue;
+      if (prism_filled(P, (r.o[0] + t * r.d[0]) / scale, (r.o[2] + t * r.d[2]) / scale)) best = t;
+    }
+  }
+  return best < tmax ? best : INFINITY;
+}
+
 // The 35 coefficients of a polynomial item (its two rows: see above), in double.
 template <typename T>
 inline void poly_coefficients(const T* params, double* c) {
@@ -743,6 +905,14 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     double c[POLY_TERMS];
     poly_coefficients(params, c);
     return poly_hit(c, r, tmin, tmax);
+  }
+  if (kind == KIND_PRISM) {
+    const PrismD<T> P = prism_of(params);
+    if (static_cast<int>(params[18]) == 2) {
+      std::swap(r.o[1], r.o[2]);
+      std::swap(r.d[1], r.d[2]);
+    }
+    return prism_hit(P, r, tmin, tmax);
   }
   const double* q = p + 12;
   double t0 = INFINITY, t1 = INFINITY;
@@ -876,6 +1046,15 @@ inline bool item_inside(int32_t kind, const T* params, const double* pw) {
     double c[POLY_TERMS];
     poly_coefficients(params, c);
     return poly_at(c, x) < 0.0;
+  }
+  if (kind == KIND_PRISM) {
+    const PrismD<T> P = prism_of(params);
+    if (P.open) return false;
+    if (static_cast<int>(params[18]) == 2) std::swap(x[1], x[2]);
+    if (!(x[1] > P.lo && x[1] < P.hi)) return false;
+    const double scale = P.conic ? x[1] : 1.0;
+    if (scale == 0.0) return false;
+    return prism_filled(P, x[0] / scale, x[2] / scale);
   }
   return false;
 }

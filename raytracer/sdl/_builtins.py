@@ -238,14 +238,17 @@ def _extent(p, tok):
     """``min_extent(OBJECT)`` / ``max_extent(OBJECT)``: a corner of the object's world box, as
     POV-Ray bounds it (measured): a union's box holds its children's, an intersection's is their
     common part, a difference's is its first child's, ``clipped_by`` cuts it down; an unbounded
-    object (a plane) gives ±1e10."""
+    object (a plane) gives ±1e10. An object of which nothing is rendered (a blob) gives the
+    origin, with the warning that the call cannot see it."""
     p.expect_op("(", f"'(' after {tok.value}")
     rec = _object_arg(p, tok)
     p.expect_op(")", f"')' to close {tok.value}(")
     from ._lower import Lowerer
 
     obj = Lowerer().obj(rec, None, True)
-    box = None if obj is None else _world_box(obj, np.eye(4))
+    if obj is None:  # nothing of it is rendered (warned at the call): an empty box at the origin
+        return Vec((0.0, 0.0, 0.0))
+    box = _world_box(obj, np.eye(4))
     if box is None:
         box = (np.full(3, -UNBOUNDED_EXTENT), np.full(3, UNBOUNDED_EXTENT))
     return Vec(tuple(float(v) for v in box[0 if tok.value == "min_extent" else 1]))

@@ -60,6 +60,7 @@ T_MAX = 1e7  # crossings beyond are ignored (the hierarchy's queries and ``_geom
 MASK_CAMERA, MASK_REFLECT, MASK_SHADOW, MASK_FILTER = 1, 2, 4, 8
 JAX_TWIN_KERNELS = frozenset(range(5))  # the kernels ``_accel_jax`` has (sphere … disc: no torus)
 KIND_CSG = native_kinds()["CSG"]  # an item that is a CSG object (bvh.cc's CSG units: its members and program)
+KIND_NONE = native_kinds()["NONE"]  # a row that continues the item before it (a prism's outline)
 MEMBER_INTS = 4  # a CSG member's entry in its object's program (bvh.cc's CSG units)
 # the box of a CSG object without one (``_geometry.csg_units``): holds every point within T_MAX of
 # a ray's origin in any scene of sizes below ~1e7 (the build's centroids and areas stay finite)
@@ -249,7 +250,7 @@ def _items(shape, ofw, wfo):
     parts = [_group_items(*jax.tree_util.tree_map(lambda x, s=start: x[s:s + ITEMS_CHUNK], host))
              for start in range(0, total, ITEMS_CHUNK)]
     return (np.concatenate([np.asarray(b) for b, _ in parts])[:n],
-            np.concatenate([np.asarray(p) for _, p in parts])[:n * type(shape).native_rows])
+            np.concatenate([np.asarray(p) for _, p in parts])[:n * shape.n_native_rows()])
 
 
 def _joined(parts, dtype) -> jax.Array:
@@ -303,11 +304,20 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         nonlocal first
         b, p = _items(shapes[g], object_from_world[g], world_from_object[g])
         n = len(prim_ids)
-        k = p.shape[0] // n  # rows of a member: its items', each of native_rows rows
+        k = p.shape[0] // n  # rows of a member: its items', each of ``n_native_rows`` rows
+        r = shapes[g].n_native_rows()
+        kind = np.full(n * k, type(shapes[g]).native_kernel, np.int32)
+        if r > 1:  # the rows after an item's first continue it: never hit, never inside
+            kind.reshape(-1, r)[:, 1:] = KIND_NONE
         if not is_csg:
+            if r > 1:  # each continuation row an item of its own with a point box (never crossed)
+                xp = jnp if any_traced([b]) else np
+                point = xp.concatenate([b[:, :3], b[:, :3]], axis=-1)
+                rest = xp.repeat(point[:, None], r - 1, axis=1)
+                b = xp.concatenate([b[:, None], rest], axis=1).reshape(-1, 6)
             boxes.append(b)
         params.append(p)
-        kinds.append(np.full(n * k, type(shapes[g]).native_kernel, np.int32))
+        kinds.append(kind)
         prims.append(np.repeat(np.asarray(prim_ids, np.int32), k))
         filters = bool(np.any(prim_mask[np.asarray(prim_ids, np.int64)] & MASK_FILTER))
         accel_groups.append(AccelGroup(g, k, is_csg, filters))
@@ -340,7 +350,7 @@ def pack_accel(shapes, object_from_world, world_from_object, groups, prim_mask, 
         member_base = first  # the members' items follow the objects'
         for g, prim_ids in csg_groups:
             add(g, prim_ids, True)
-        rows = [type(shapes[g]).native_rows for g, _ in csg_groups]
+        rows = [shapes[g].n_native_rows() for g, _ in csg_groups]
         member_prims = np.concatenate([np.repeat(np.asarray(ids, np.int32), r)
                                        for (_, ids), r in zip(csg_groups, rows, strict=True)])
         masks = np.concatenate([masks, prim_mask[member_prims]])

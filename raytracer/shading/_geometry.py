@@ -371,7 +371,7 @@ def pack_geometry(plan: Plan, dtype, accelerate: bool | None = None) -> PackedGe
         programs = None
         if csg:
             # a member's first row of parameters (a polynomial takes two: ``native_rows``)
-            rows = [type(shapes[g]).native_rows for g, ids in csg_groups for _ in ids]
+            rows = [shapes[g].n_native_rows() for g, ids in csg_groups for _ in ids]
             ids = [int(i) for _, group in csg_groups for i in group]
             rank = dict(zip(ids, np.cumsum([0, *rows[:-1]]).tolist(), strict=True))
             programs = csg_program(plan, csg, rank, bits)

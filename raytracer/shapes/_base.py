@@ -274,6 +274,11 @@ class AbstractShape(Record):
         """k of ``native_items`` (static: from shapes alone)."""
         return 1
 
+    def n_native_rows(self) -> int:
+        """Rows an item of this shape (or of this stack of them) takes: ``native_rows`` unless its
+        parameters' count depends on the shape (a prism's outline)."""
+        return type(self).native_rows
+
     def kernel_form(self) -> tuple[object, object]:
         """``(kernel, arrays)``: shapes of several classes whose crossings one kernel
         ``kernel(arrays, o, d)`` computes from arrays of one structure name that kernel (a
@@ -332,7 +337,7 @@ def native_kinds() -> dict[str, int]:
     """The native kernels' numbers, ``KIND_<NAME>`` → n, from ``raytracer/_native/kinds.h``: the one
     place both the C++ code and ours read them from."""
     text = (Path(__file__).resolve().parent.parent / "_native" / "kinds.h").read_text()
-    return {m.group(1): int(m.group(2)) for m in re.finditer(r"constexpr int KIND_(\w+) = (\d+);", text)}
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r"constexpr int KIND_(\w+) = (-?\d+);", text)}
 
 
 _KINDS = native_kinds()
@@ -342,6 +347,7 @@ NATIVE_PLANE = _KINDS["PLANE"]  # unbounded: only a member of a CSG object the h
 NATIVE_SUPERELLIPSOID = _KINDS["SUPERELLIPSOID"]
 NATIVE_QUADRIC = _KINDS["QUADRIC"]  # unbounded, as a plane: only a member of a CSG object the hierarchy holds
 NATIVE_POLY = _KINDS["POLY"]  # unbounded, as a plane; two rows of parameters (``native_rows``)
+NATIVE_PRISM = _KINDS["PRISM"]  # a swept outline over several rows (``n_native_rows``)
 UNBOUNDED_KERNELS = frozenset({NATIVE_PLANE, NATIVE_QUADRIC, NATIVE_POLY})
 
 

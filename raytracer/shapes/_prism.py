@@ -51,7 +51,7 @@ from ..kernels._numerics import (
     solve_linear,
     solve_quadratic,
 )
-from ._base import AbstractShape
+from ._base import NATIVE_PRISM, AbstractShape, box_corners
 
 SPLINES = {"linear_spline": 1, "quadratic_spline": 2, "cubic_spline": 3, "bezier_spline": 3}
 SWEEPS = ("linear_sweep", "conic_sweep")
@@ -399,8 +399,33 @@ class Prism(AbstractShape):
     conic: bool = eqx.field(static=True, default=False)
     open: bool = eqx.field(static=True, default=False)
 
+    # the native hierarchy chooses among prisms (bvh.cc's prism: the whole outline is one item
+    # over several rows); the JAX kernel then computes the chosen one's crossings again
+    native_kernel: ClassVar[int | None] = NATIVE_PRISM
+    costly_kernel: ClassVar[bool] = True
+
     def n_crossings(self) -> int:
         return self.controls.shape[-3] * (self.controls.shape[-2] - 1) + 2
+
+    def n_native_rows(self) -> int:
+        s, m = self.controls.shape[-3], self.controls.shape[-2]
+        return -(-(24 + s * (2 * m + 1)) // 24)
+
+    def native_items(self):
+        """One item: the header ``[S, n, conic, open, h1, h2, axis]``, then the control points
+        and the senses (bvh.cc's prism), zero padded to its rows; the corners of its box."""
+        from ._base import array_module
+
+        xp = array_module(self.controls, self.height1, self.height2)
+        s, m = self.controls.shape[-3], self.controls.shape[-2]
+        dtype = self.controls.dtype
+        head = xp.stack([xp.asarray(v, dtype) for v in (s, m - 1, float(self.conic), float(self.open),
+                                                          self.height1, self.height2, self.axis)])
+        body = xp.concatenate([head, xp.zeros(5, dtype), xp.reshape(self.controls, (-1,)),
+                               xp.asarray(self.sense).astype(dtype)])
+        size = 24 * self.n_native_rows() - 12
+        lo, hi = self.bounds()
+        return xp.pad(body, (0, size - body.shape[0]))[None], box_corners(lo, hi)[None]
 
     @property
     def line_crossings(self) -> int:
@@ -475,7 +500,19 @@ class Prism(AbstractShape):
 
 
 def prism_from_segments(segments, height1, height2, *, conic=False, open_=False, cls=Prism):
-    """A prism (or ``cls``) from Bernstein segments (S, n + 1, 2): their fill sides found, padded."""
-    segments = np.asarray(segments, np.float64)
-    controls, sense = padded_segments(segments, segment_senses(segments))
-    return cls(controls=controls, sense=sense, height1=height1, height2=height2, conic=conic, open=open_)
+    """A prism (or ``cls``) from Bernstein segments (S, n + 1, 2): their fill sides found, padded.
+    Records are immutable, so one outline asked for again (a text lowered for ``min_extent``, then
+    for the scene) is the record made the first time."""
+    segments = np.ascontiguousarray(segments, np.float64)
+    key = (cls, segments.shape, segments.tobytes(), float(height1), float(height2), bool(conic), bool(open_))
+    shape = _MADE.get(key)
+    if shape is None:
+        controls, sense = padded_segments(segments, segment_senses(segments))
+        shape = cls(controls=controls, sense=sense, height1=height1, height2=height2, conic=conic, open=open_)
+        if len(_MADE) >= 4096:
+            _MADE.pop(next(iter(_MADE)))
+        _MADE[key] = shape
+    return shape
+
+
+_MADE: dict = {}

@@ -794,3 +794,35 @@ def test_small_groups_compute_their_items_on_the_host(scene, tmp_path, monkeypat
             for a, b in zip(_accel._group_items(*host), _accel._host_items(*host), strict=True):
                 np.testing.assert_allclose(np.asarray(a), b, rtol=1e-6, atol=1e-6)
     assert {"box", "sphere", "cylinder", "cone", "disc", "torus", "superellipsoid", "triangle"} <= kinds
+
+
+PRISMS_AND_TEXT = """
+#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { location <1.5, 1.5, -4> look_at <1.2, 0.2, 0> angle 50 }
+light_source { <-8, 14, -9> color rgb 1 }
+plane { y, -0.3 pigment { checker rgb 1 rgb 0.3 } }
+text { ttf "timrom.ttf" "Ag" 0.3, 0 pigment { rgb 0.8 } }
+prism { conic_sweep cubic_spline 0.5, 1, 8, <0,-1>, <0,0>, <1,0>, <1,1>, <0,1>, <0,0>, <1,0>, <0,1>
+        rotate 180*x translate <2.2, 0.8, 0.2> pigment { rgb <0.9, 0.6, 0.3> } }
+difference { box { <-0.3, -0.3, -1.2>, <2.8, 0, -0.5> }
+             text { ttf "cyrvetic" "cut" 0.3, 0 scale 0.5 rotate 90*x translate <0.1, 0.05, -1.0> }
+             pigment { rgb <0.4, 0.7, 0.9> } }
+"""
+
+
+@pytest.mark.skipif(ACCEL != "native", reason="the prism kernel is the native hierarchy's")
+def test_prisms_and_text_in_the_hierarchy_give_the_candidate_paths_image(tmp_path, monkeypatch):
+    """Text, a conic cubic prism and text cut from a box by CSG (the native prism kernel: walls,
+    caps, the inside test of a CSG member), chosen by the hierarchy: the candidate path's pixels."""
+    path = tmp_path / "pt.pov"
+    path.write_text(PRISMS_AND_TEXT)
+    scene = load_scene(path, width=32, height=24)
+    out = {}
+    for mode in ("none", "native"):
+        monkeypatch.setenv("RAYTRACER_ACCEL", mode)
+        out[mode] = np.asarray(render(scene, width=32, height=24))
+    geo = pack_geometry(make_plan(scene), jnp.float32)
+    assert sum(g.kind in ("prism", "text") and g.accelerated for g in geo.groups) >= 2
+    assert np.abs(out["none"]).max() > 0.1
+    assert (np.abs(out["native"] - out["none"]).max(axis=-1) > 1e-4).sum() == 0
