@@ -165,9 +165,66 @@ def prism_hits(controls, sense, height1, height2, o, d, *, conic: bool, open_: b
     """
     controls, height1, height2, o, d = as_float_arrays(controls, height1, height2, o, d)
     o, d = _frame(o, d, axis)
-    bx, bz = controls[..., 0], controls[..., 1]
     lo, hi = jnp.minimum(height1, height2), jnp.maximum(height1, height2)
 
+    wall_t, wall_n = _walls(controls, sense, lo, hi, o, d, conic)
+
+    # the caps
+    h = jnp.stack([lo, hi])
+    t_cap, ok = solve_linear(d[1], o[1] - h)
+    p = o[None, :] + jnp.where(ok, t_cap, 0.0)[:, None] * d[None, :]
+    scale = h if conic else jnp.ones_like(h)
+    px, pz = safe_div(p[:, 0], scale, 0.0), safe_div(p[:, 2], scale, 0.0)
+    filled = jax.vmap(lambda x, z: outline_inside(controls, sense, x, z))(px, pz)
+    cap_ok = ok & filled & (not open_) & ((scale != 0) if conic else True)
+    up = jnp.stack([jnp.zeros_like(lo), jnp.ones_like(lo), jnp.zeros_like(lo)])
+    cap_n = jnp.stack([-up, up])
+    cap_t, cap_n = masked_hits(t_cap, cap_n, cap_ok)
+    t_all = jnp.concatenate([wall_t, cap_t])
+    n_all = jnp.concatenate([wall_n, cap_n])
+    return t_all, _unframe(n_all, axis)
+
+
+NEAR_CANDIDATES = 8  # segments ``prism_near_hit`` solves: those whose boxes lie nearest the point
+
+
+def prism_near_hit(controls, sense, height1, height2, o, d, t0, *, conic: bool, axis: int = 1):
+    """The crossing at ``t0`` (the native hierarchy's, found in double precision, held) computed
+    again with its derivatives, without solving every segment: a cap where the point lies nearer
+    its plane than any wall's crossing, else the crossing nearest ``t0`` of the
+    ``NEAR_CANDIDATES`` segments whose control boxes (which hold the curve) lie nearest the
+    point. Returns ``(t (1,), n (1, 3))``."""
+    controls, height1, height2, o, d = as_float_arrays(controls, height1, height2, o, d)
+    o, d = _frame(o, d, axis)
+    lo, hi = jnp.minimum(height1, height2), jnp.maximum(height1, height2)
+    sg = jax.lax.stop_gradient
+    t0 = sg(jnp.asarray(t0, o.dtype))
+    p = sg(o + t0 * d)
+    scale = p[1] if conic else 1.0
+    x, z = safe_div(p[0], scale, 0.0), safe_div(p[2], scale, 0.0)
+    c = sg(controls)
+    gap_x = jnp.maximum(jnp.maximum(c[..., 0].min(-1) - x, x - c[..., 0].max(-1)), 0.0)
+    gap_z = jnp.maximum(jnp.maximum(c[..., 1].min(-1) - z, z - c[..., 1].max(-1)), 0.0)
+    gap = jnp.where(sense != 0, gap_x + gap_z, jnp.inf)
+    count = min(NEAR_CANDIDATES, controls.shape[0])
+    _, pick = jax.lax.top_k(-gap, count)
+    t_wall, n_wall = _walls(controls[pick], sense[pick], lo, hi, o, d, conic)
+    k = jnp.argmin(jnp.where(jnp.isfinite(t_wall), jnp.abs(sg(t_wall) - t0), jnp.inf))
+    h = jnp.stack([lo, hi])
+    t_cap, ok = solve_linear(d[1], o[1] - h)
+    j = jnp.argmin(jnp.where(ok, jnp.abs(sg(t_cap) - t0), jnp.inf))
+    cap_better = ok[j] & (jnp.abs(sg(t_cap[j]) - t0) < jnp.where(jnp.isfinite(t_wall[k]),
+                                                                   jnp.abs(sg(t_wall[k]) - t0), jnp.inf))
+    up = jnp.zeros(3, o.dtype).at[1].set(jnp.where(j == 1, 1.0, -1.0))
+    t = jnp.where(cap_better, jnp.where(ok[j], t_cap[j], 0.0), t_wall[k])
+    n = jnp.where(cap_better, up, n_wall[k])
+    return t[None], _unframe(n, axis)[None]
+
+
+def _walls(controls, sense, lo, hi, o, d, conic: bool):
+    """The wall crossings of segments ``controls`` (S, n + 1, 2) in the prism's frame: t (S·n,) and
+    outward unit normals (S·n, 3), +inf where a piece holds none."""
+    bx, bz = controls[..., 0], controls[..., 1]
     # the wall polynomial's Bernstein coefficients (S, n + 1)
     if conic:
         m = jnp.cross(o, d)  # normal of the plane through the origin and the line
@@ -202,22 +259,7 @@ def prism_hits(controls, sense, height1, height2, o, d, *, conic: bool, open_: b
         normal = jnp.stack([tz, jnp.zeros_like(tz), -tx], -1)
     normal = normal * sense.astype(normal.dtype)[:, None, None]
     wall_ok = crosses & jnp.isfinite(t) & (y >= lo) & (y <= hi)
-    wall_t, wall_n = masked_hits(t.reshape(-1), _unit(normal).reshape(-1, 3), wall_ok.reshape(-1))
-
-    # the caps
-    h = jnp.stack([lo, hi])
-    t_cap, ok = solve_linear(d[1], o[1] - h)
-    p = o[None, :] + jnp.where(ok, t_cap, 0.0)[:, None] * d[None, :]
-    scale = h if conic else jnp.ones_like(h)
-    px, pz = safe_div(p[:, 0], scale, 0.0), safe_div(p[:, 2], scale, 0.0)
-    filled = jax.vmap(lambda x, z: outline_inside(controls, sense, x, z))(px, pz)
-    cap_ok = ok & filled & (not open_) & ((scale != 0) if conic else True)
-    up = jnp.stack([jnp.zeros_like(lo), jnp.ones_like(lo), jnp.zeros_like(lo)])
-    cap_n = jnp.stack([-up, up])
-    cap_t, cap_n = masked_hits(t_cap, cap_n, cap_ok)
-    t_all = jnp.concatenate([wall_t, cap_t])
-    n_all = jnp.concatenate([wall_n, cap_n])
-    return t_all, _unframe(n_all, axis)
+    return masked_hits(t.reshape(-1), _unit(normal).reshape(-1, 3), wall_ok.reshape(-1))
 
 
 def _quadratic_root(w, splits):
@@ -406,6 +448,10 @@ class Prism(AbstractShape):
 
     def n_crossings(self) -> int:
         return self.controls.shape[-3] * (self.controls.shape[-2] - 1) + 2
+
+    def near_hit(self, o, d, t0):
+        return prism_near_hit(self.controls, self.sense, self.height1, self.height2, o, d, t0,
+                              conic=self.conic, axis=self.axis)
 
     def n_native_rows(self) -> int:
         s, m = self.controls.shape[-3], self.controls.shape[-2]

@@ -238,3 +238,36 @@ def test_an_open_prism_has_no_caps_and_no_inside():
     t, _ = open_prism.hits(jnp.array([0.2, 3.0, 0.2]), jnp.array([0.0, -1.0, 0.0]))
     assert not np.isfinite(np.asarray(t)).any()  # straight down through the open caps
     assert not bool(open_prism.inside(jnp.array([0.2, 0.5, 0.2])))
+
+
+def test_the_hierarchys_crossing_refined_is_the_kernels_with_its_derivatives(x64):
+    """``near_hit`` (the native hierarchy's crossing t0, its segment found among the nearest
+    boxes) gives the first crossing the whole kernel finds, its normal and its derivatives along
+    the controls, for lines through walls and caps of a frame with a hole (float64)."""
+    segments = spline_segments("quadratic_spline", np.array(FRAME_POINTS, float) - 1.0)
+    shape = prism_from_segments(segments, -0.4, 0.6)
+    rng = np.random.default_rng(3)
+    o = rng.normal(size=(64, 3)) * 2.5
+    d = rng.uniform(-1, 1, size=(64, 3)) * 0.3 - o / 2.5
+
+    def first(c, o_, d_):
+        t, n = Prism(controls=c, sense=shape.sense, height1=-0.4, height2=0.6).hits(o_, d_)
+        k = jnp.argmin(jnp.where(t > 0, t, jnp.inf))
+        return t[k], n[k]
+
+    def near(c, o_, d_, t0):
+        t, n = Prism(controls=c, sense=shape.sense, height1=-0.4, height2=0.6).near_hit(o_, d_, t0)
+        return t[0], n[0]
+
+    c0 = jnp.asarray(shape.controls)
+    t_all, n_all = jax.jit(jax.vmap(first, (None, 0, 0)))(c0, o, d)
+    hit = np.isfinite(np.asarray(t_all))
+    assert hit.sum() > 20
+    t_near, n_near = jax.jit(jax.vmap(near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
+    np.testing.assert_allclose(t_near, t_all[hit], rtol=1e-12)
+    np.testing.assert_allclose(n_near, n_all[hit], atol=1e-12)
+    grad_all = jax.grad(lambda c, o_, d_: first(c, o_, d_)[0])
+    grad_near = jax.grad(lambda c, o_, d_, t0: near(c, o_, d_, t0)[0])
+    g_all = jax.jit(jax.vmap(grad_all, (None, 0, 0)))(c0, o[hit], d[hit])
+    g_near = jax.jit(jax.vmap(grad_near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
+    np.testing.assert_allclose(g_near, g_all, rtol=1e-9, atol=1e-12)
