@@ -394,6 +394,30 @@ def segment_senses(controls: np.ndarray) -> np.ndarray:
     return np.where(live, out, 0).astype(np.int8)
 
 
+def outline_is_convex(segments: np.ndarray) -> bool:
+    """Whether the segments (S, n + 1, 2) make one closed loop that turns one way by one full
+    turn (host side, on the curve drawn as a fine polyline): a line then crosses it at most twice."""
+    segments = np.asarray(segments, np.float64)
+    if len(segments) < 2:
+        return False
+    extent = float(np.ptp(segments.reshape(-1, 2), axis=0).max()) or 1.0
+    ends, starts = segments[:, -1], np.roll(segments[:, 0], -1, axis=0)
+    if np.abs(ends - starts).max() > 1e-9 * extent:  # not one loop in order
+        return False
+    pts = _np_bernstein(segments, np.linspace(0.0, 1.0, 17))[:, :-1].reshape(-1, 2)
+    edges = np.roll(pts, -1, axis=0) - pts
+    edges = edges[np.hypot(edges[:, 0], edges[:, 1]) > 1e-12 * extent]
+    if len(edges) < 3:
+        return False
+    nxt = np.roll(edges, -1, axis=0)
+    cross = edges[:, 0] * nxt[:, 1] - edges[:, 1] * nxt[:, 0]
+    dot = np.sum(edges * nxt, axis=1)
+    turning = np.arctan2(cross, dot)
+    tol = 1e-9
+    one_way = bool(np.all(turning >= -tol)) or bool(np.all(turning <= tol))
+    return one_way and abs(abs(turning.sum()) - 2 * np.pi) < 1e-6
+
+
 def _np_bernstein(controls: np.ndarray, s: np.ndarray) -> np.ndarray:
     """(S, len(s), 2): the segments at the parameters ``s`` (host side)."""
     from math import comb
@@ -440,6 +464,7 @@ class Prism(AbstractShape):
     height2: Float[Array, ""] = eqx.field(converter=as_float)
     conic: bool = eqx.field(static=True, default=False)
     open: bool = eqx.field(static=True, default=False)
+    convex: bool = eqx.field(static=True, default=False)  # one convex loop (``outline_is_convex``)
 
     # the native hierarchy chooses among prisms (bvh.cc's prism: the whole outline is one item
     # over several rows); the JAX kernel then computes the chosen one's crossings again
@@ -475,7 +500,12 @@ class Prism(AbstractShape):
 
     @property
     def line_crossings(self) -> int:
-        return self.n_crossings()
+        """2 for one convex outline (a convex solid, or an open convex tube); else every wall
+        piece of every live segment and the two caps."""
+        if self.convex:
+            return 2
+        live = int(np.count_nonzero(np.asarray(self.sense)))
+        return live * (self.controls.shape[-2] - 1) + 2
 
     def hits(self, o, d):
         return prism_hits(self.controls, self.sense, self.height1, self.height2, o, d,
@@ -554,7 +584,9 @@ def prism_from_segments(segments, height1, height2, *, conic=False, open_=False,
     shape = _MADE.get(key)
     if shape is None:
         controls, sense = padded_segments(segments, segment_senses(segments))
-        shape = cls(controls=controls, sense=sense, height1=height1, height2=height2, conic=conic, open=open_)
+        convex = outline_is_convex(segments) and (not conic or float(height1) * float(height2) >= 0)
+        shape = cls(controls=controls, sense=sense, height1=height1, height2=height2, conic=conic, open=open_,
+                    convex=convex)
         if len(_MADE) >= 4096:
             _MADE.pop(next(iter(_MADE)))
         _MADE[key] = shape
