@@ -805,10 +805,18 @@ inline bool prism_filled(const PrismD<T>& P, double x, double z) {
     if (P.sense[k] == 0) continue;
     const T* c = P.c + 2 * m * k;
     double gz[4], gx[4];
+    double x_max = -INFINITY;
+    bool below = false, above = false;
     for (int j = 0; j < m; ++j) {
       gx[j] = static_cast<double>(c[2 * j]);
       gz[j] = static_cast<double>(c[2 * j + 1]) - z;
+      x_max = std::max(x_max, gx[j]);
+      below |= gz[j] <= 0.0;
+      above |= gz[j] > 0.0;
     }
+    // the curve lies in its control points' hull: no crossing of the half-line where they all
+    // lie on one side of its line or behind its start
+    if (!(below && above) || !(x_max > x)) continue;
     double s[3];
     const int count = bern_roots(gz, P.n, s);
     for (int j = 0; j < count; ++j)
@@ -843,6 +851,20 @@ inline double prism_hit(const PrismD<T>& P, const RayD& r, double tmin, double t
     for (int i = 0; i < m; ++i) {
       cx[i] = static_cast<double>(P.c[2 * (m * k + i)]);
       cz[i] = static_cast<double>(P.c[2 * (m * k + i) + 1]);
+    }
+    if (!P.conic) {  // the projected line misses the hull of the control points: no wall crossing
+      double lo_x = cx[0], hi_x = cx[0], lo_z = cz[0], hi_z = cz[0];
+      for (int i = 1; i < m; ++i) {
+        lo_x = std::min(lo_x, cx[i]);
+        hi_x = std::max(hi_x, cx[i]);
+        lo_z = std::min(lo_z, cz[i]);
+        hi_z = std::max(hi_z, cz[i]);
+      }
+      const double e0 = r.d[0] * (lo_z - r.o[2]) - r.d[2] * (lo_x - r.o[0]);
+      const double e1 = r.d[0] * (lo_z - r.o[2]) - r.d[2] * (hi_x - r.o[0]);
+      const double e2 = r.d[0] * (hi_z - r.o[2]) - r.d[2] * (lo_x - r.o[0]);
+      const double e3 = r.d[0] * (hi_z - r.o[2]) - r.d[2] * (hi_x - r.o[0]);
+      if ((e0 > 0 && e1 > 0 && e2 > 0 && e3 > 0) || (e0 < 0 && e1 < 0 && e2 < 0 && e3 < 0)) continue;
     }
     double w[4];
     double mx = 0, my = 0, mz = 0;
