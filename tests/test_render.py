@@ -584,6 +584,21 @@ def test_camera_frame_follows_povs_look_at_rules():
     np.testing.assert_allclose(loc, [1, 2, -3])
 
 
+def test_look_at_mirrors_right_where_up_lies_along_the_direction():
+    """``up z`` with the default direction z (objects/prism3.inc's camera): (up × direction)·right
+    is 0, and POV-Ray's image of that scene is the mirror of the one a kept right vector gives
+    (measured: 16.7 dB kept, 89.9 dB mirrored); a positive product keeps it, a negative mirrors."""
+    def right(up, rgt):
+        cam = rt.Camera(location=(-10, 10, -10), look_at=(0, 0, 0), up=up, right=rgt)
+        return np.asarray(cam.frame()[2], np.float64)
+
+    kept = np.cross([0, 1, 0], np.array([1.0, -1, 1]) / np.sqrt(3))
+    kept *= 4 / 3 / np.linalg.norm(kept)
+    np.testing.assert_allclose(right((0, 0, 1), (4 / 3, 0, 0)), -kept, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(right((0, 1, 0), (4 / 3, 0, 0)), kept, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(right((0, 1, 0), (-4 / 3, 0, 0)), -kept, rtol=1e-5, atol=1e-6)
+
+
 def test_the_api_turns_the_persistent_compilation_cache_on_unless_one_is_configured(tmp_path, monkeypatch):
     import importlib
 

@@ -97,7 +97,9 @@ class Camera(Record):
             d_hat = _normalize(self.look_at - loc, xp)
             r_hat = _normalize(xp.cross(self.sky, d_hat), xp)
             u_hat = xp.cross(d_hat, r_hat)
-            sign = xp.where(handedness < 0, -1.0, 1.0).astype(d.dtype)
+            # right is kept where (up × direction)·right > 0 and mirrored otherwise: with up along
+            # direction (0, `up z` with the default direction) POV-Ray mirrors (objects/prism3a.pov)
+            sign = xp.where(handedness > 0, 1.0, -1.0).astype(d.dtype)
             d, r, u = _norm(d, xp) * d_hat, sign * _norm(r, xp) * r_hat, _norm(u, xp) * u_hat
             if self.projection == "orthographic" and (self.angle_degrees is not None
                                                       or not self.up_or_right_given):
