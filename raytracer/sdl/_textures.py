@@ -721,7 +721,7 @@ def _patterned_texture(p, t, layers, default):
     """A texture pattern (``checker texture{A} texture{B}``, ``texture_map``…): approximated."""
     p.warn("texture pattern", f"patterned texture '{t.value}' is approximated by its first texture",
            t.loc)
-    first = None
+    first = first_bare = None
     depth_guard = 0
     while not p.is_op("}"):
         k = p.next()
@@ -740,6 +740,17 @@ def _patterned_texture(p, t, layers, default):
                 if q.kind == ID and q.value == "texture" and p.is_op("{") and first is None:
                     first = parse_texture(p, default)
                     continue
+                bare = q.kind == ID and q.value in ("pigment", "normal", "finish") and p.is_op("{")
+                if bare:
+                    # an entry of bare texture items (`[0.05, pigment {…} finish {…}]`), as
+                    # POV-Ray reads them: a texture of those items, taken where the map names no
+                    # texture (a named texture usually spans more of the map than a bare stripe)
+                    entry = texture_item(p, q, [LayerRec(default.pigment, dict(default.finish),
+                                                         default.normal)], default)
+                    while p.peek().kind == ID and p.peek().value in ("pigment", "normal", "finish"):
+                        entry = texture_item(p, p.next(), entry, default)
+                    first_bare = first_bare or TextureRec(entry)
+                    continue
                 if q.kind == ID and first is None and isinstance(p.lookup(q.value), TextureRec):
                     first = p.lookup(q.value)
                 if q.kind == "eof":
@@ -750,6 +761,7 @@ def _patterned_texture(p, t, layers, default):
             first = p.lookup(k.value)
         elif k.kind == "eof":
             raise p.error("expected '}', found end of file", t.loc)
+    first = first or first_bare
     return list(first.layers) if first is not None else layers
 
 

@@ -111,6 +111,17 @@ def test_csg_transform_moves_child_pattern_textures():
     np.testing.assert_allclose(np.diag(u.transform.matrix), [3, 3, 3, 1])
 
 
+def test_a_texture_map_of_bare_entries_is_approximated_by_its_first_entry():
+    """``texture_map { [0.05, pigment {…} finish {…}] … }`` (advanced/grenadine/lemon.inc's peel):
+    the entries' items are textures, as POV-Ray reads them; the approximation takes the first (it
+    took the default black texture)."""
+    o = only_object("sphere { 0, 1 texture { cylindrical texture_map {\n"
+                    " [0.05, pigment { rgb <1, 0.8, 0> } finish { phong 0.8 } ]\n"
+                    " [0.06, pigment { rgb <1, 0.9, 0.7> } ] } } }")
+    np.testing.assert_allclose(rgbft(o), [1, 0.8, 0, 0, 0])
+    assert float(o.texture.layers[0].finish.phong) == pytest.approx(0.8)
+
+
 def test_object_without_texture_gets_the_default():
     o = only_object("sphere { 0, 1 }")
     np.testing.assert_allclose(rgbft(o), [0, 0, 0, 0, 0])
