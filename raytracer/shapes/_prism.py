@@ -5,8 +5,8 @@ the x-z plane, swept along y between two heights, straight up or towards the ori
 Every segment is held in Bernstein form (the curve's control points, degree 1, 2 or 3 for the whole
 shape): linear splines are their two points, quadratic splines three, cubic and Bézier splines
 four. POV-Ray's quadratic and cubic splines pass through their points; their Bernstein points are
-worked out from the points and their neighbours when the prism is built (``segments``;
-docs/semantics.md §3).
+worked out from the points and their neighbours when the prism is built (``spline_segments``;
+docs/semantics.md §4.1).
 
 A line crosses a segment's wall where a polynomial in the curve parameter ``s`` vanishes: for a
 straight sweep, the 2-D cross product of the line's direction with the curve point seen from its
@@ -47,7 +47,7 @@ from ..kernels._numerics import (
     as_float_arrays,
     differentiable_root,
     safe_div,
-    safe_mask,
+    safe_normalize,
     solve_linear,
     solve_quadratic,
 )
@@ -121,14 +121,7 @@ def _piece_roots(w, splits):
     if n == 1:
         return safe_div(w[..., :1], w[..., :1] - w[..., 1:], 0.0)
     if n == 2:
-        c0, c1, c2 = _power(w)
-        r0, r1, _ = solve_quadratic(c2, c1, c0)
-        mid = 0.5 * (splits[..., 1:] + splits[..., :-1])
-        # the root in a piece is the one nearer its middle (a quadratic's two roots sit in its two
-        # monotone pieces)
-        near0 = jnp.abs(r0[..., None] - mid) <= jnp.abs(r1[..., None] - mid)
-        r = jnp.where(near0, r0[..., None], r1[..., None])
-        return jnp.clip(jnp.where(jnp.isfinite(r), r, mid), splits[..., :-1], splits[..., 1:])
+        return jnp.clip(_quadratic_root(w, splits), splits[..., :-1], splits[..., 1:])
     iterations = jnp.finfo(w.dtype).nmant + 4
     root, _ = _bisect(lambda s: _eval(w[..., None, :], s), splits[..., :-1], splits[..., 1:], iterations)
     return root
@@ -188,7 +181,7 @@ def prism_hits(controls, sense, height1, height2, o, d, *, conic: bool, open_: b
 NEAR_CANDIDATES = 8  # segments ``prism_near_hit`` solves: those whose boxes lie nearest the point
 
 
-def prism_near_hit(controls, sense, height1, height2, o, d, t0, *, conic: bool, axis: int = 1):
+def prism_near_hit(controls, sense, height1, height2, o, d, t0, *, conic: bool, open_: bool, axis: int = 1):
     """The crossing at ``t0`` (the native hierarchy's, found in double precision, held) computed
     again with its derivatives, without solving every segment: a cap where the point lies nearer
     its plane than any wall's crossing, else the crossing nearest ``t0`` of the
@@ -212,6 +205,7 @@ def prism_near_hit(controls, sense, height1, height2, o, d, t0, *, conic: bool, 
     k = jnp.argmin(jnp.where(jnp.isfinite(t_wall), jnp.abs(sg(t_wall) - t0), jnp.inf))
     h = jnp.stack([lo, hi])
     t_cap, ok = solve_linear(d[1], o[1] - h)
+    ok = ok & (not open_)
     j = jnp.argmin(jnp.where(ok, jnp.abs(sg(t_cap) - t0), jnp.inf))
     cap_better = ok[j] & (jnp.abs(sg(t_cap[j]) - t0) < jnp.where(jnp.isfinite(t_wall[k]),
                                                                    jnp.abs(sg(t_wall[k]) - t0), jnp.inf))
@@ -259,23 +253,19 @@ def _walls(controls, sense, lo, hi, o, d, conic: bool):
         normal = jnp.stack([tz, jnp.zeros_like(tz), -tx], -1)
     normal = normal * sense.astype(normal.dtype)[:, None, None]
     wall_ok = crosses & jnp.isfinite(t) & (y >= lo) & (y <= hi)
-    return masked_hits(t.reshape(-1), _unit(normal).reshape(-1, 3), wall_ok.reshape(-1))
+    return masked_hits(t.reshape(-1), safe_normalize(normal).reshape(-1, 3), wall_ok.reshape(-1))
 
 
 def _quadratic_root(w, splits):
-    """The root in each monotone piece of each quadratic ``w`` (S, 3), from the stable closed form
-    (differentiable as it stands; the piece's root chosen without gradient)."""
+    """The root in each monotone piece of each quadratic ``w`` (…, 3), from the stable closed form
+    (differentiable as it stands; the piece's root chosen without gradient): of the two roots, the
+    one nearer the piece's middle (a quadratic's two roots sit in its two monotone pieces)."""
     c0, c1, c2 = _power(w)
     r0, r1, _ = solve_quadratic(c2, c1, c0)
     mid = jax.lax.stop_gradient(0.5 * (splits[..., 1:] + splits[..., :-1]))
     near0 = jax.lax.stop_gradient(jnp.abs(r0[..., None] - mid) <= jnp.abs(r1[..., None] - mid))
     r = jnp.where(near0, r0[..., None], r1[..., None])
     return jnp.where(jnp.isfinite(r), r, mid)
-
-
-def _unit(v):
-    n2 = jnp.sum(v * v, -1, keepdims=True)
-    return safe_mask(n2 > 0, lambda x: v * jax.lax.rsqrt(x), n2, fallback=0.0)
 
 
 def outline_inside(controls, sense, px, pz):
@@ -332,7 +322,7 @@ def spline_segments(spline: str, points) -> np.ndarray:
     * ``quadratic_spline``: each sub-outline starts with a control point ``c``; the segment from
       ``P_i`` to ``P_i+1`` is the second half of the parabola through ``P_i−1``, ``P_i``, ``P_i+1``
       at ``s`` = −1, 0, 1: ``P_i + (P_i+1 − P_i−1) s/2 + (P_i+1 − 2 P_i + P_i−1) s²/2`` (measured:
-      POV-Ray's outline of a quadratic prism, docs/semantics.md §3).
+      POV-Ray's outline of a quadratic prism, docs/semantics.md §4.1).
     * ``cubic_spline``: a control point before and after each sub-outline; the segment from
       ``P_i`` to ``P_i+1`` is Catmull–Rom's, with tangents ``(P_i+1 − P_i−1)/2`` and
       ``(P_i+2 − P_i)/2``.
@@ -476,7 +466,7 @@ class Prism(AbstractShape):
 
     def near_hit(self, o, d, t0):
         return prism_near_hit(self.controls, self.sense, self.height1, self.height2, o, d, t0,
-                              conic=self.conic, axis=self.axis)
+                              conic=self.conic, open_=self.open, axis=self.axis)
 
     def n_native_rows(self) -> int:
         s, m = self.controls.shape[-3], self.controls.shape[-2]

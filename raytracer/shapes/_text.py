@@ -7,7 +7,7 @@ control point). A font unit is ``1 / unitsPerEm``: the text is about one unit pe
 character's left edge (its left side bearing) is at the object's origin; each next one starts at
 the previous one's advance width plus the font's kerning of the pair (its ``kern`` table) plus
 ``Offset``. Measured against
-``povray`` in docs/semantics.md §3.
+``povray`` in docs/semantics.md §4.1.
 """
 
 from __future__ import annotations

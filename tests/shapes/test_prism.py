@@ -238,6 +238,9 @@ def test_an_open_prism_has_no_caps_and_no_inside():
     t, _ = open_prism.hits(jnp.array([0.2, 3.0, 0.2]), jnp.array([0.0, -1.0, 0.0]))
     assert not np.isfinite(np.asarray(t)).any()  # straight down through the open caps
     assert not bool(open_prism.inside(jnp.array([0.2, 0.5, 0.2])))
+    # the hierarchy's refinement never answers with a cap it does not have (t0 on the top plane)
+    t, n = open_prism.near_hit(jnp.array([0.2, 3.0, 0.2]), jnp.array([0.0, -1.0, 0.0]), 2.0)
+    assert not (np.isclose(float(t[0]), 2.0) and abs(float(n[0, 1])) == 1.0)
 
 
 def test_the_hierarchys_crossing_refined_is_the_kernels_with_its_derivatives(x64):
