@@ -789,6 +789,8 @@ def _left_out(plan, mats, ctx, item_casters: bool) -> list[str]:
         out.append("the cell edges of " + ", ".join(cells) + " (turbulent, or without a face)")
     if mats.entries is not None:
         out.append("the pattern edges of pigment maps and pigment lists")
+    if mats.textures is not None:
+        out.append("the pattern edges of patterned textures (texture_map, a block pattern's textures)")
     if mats.images is not None:
         out.append("the pixel edges of image maps")
     if mats.normals is not None:

@@ -77,6 +77,16 @@ class InDiff:
 InsideTree = InPrim | InAll | InAny | InDiff
 
 
+def _texture_pigments(texture):
+    """Every pigment a texture evaluates: its layers' (pigment maps' too) and its patterns'."""
+    for tex in texture.textures():
+        if tex.patterned:
+            yield tex.pattern
+        else:
+            for layer in tex.layers:
+                yield from layer.pigment.pigments()
+
+
 def has_box(tree: InsideTree, prims) -> bool:
     """Whether POV-Ray's box of the object ``tree`` (its primitives ``prims``) is finite
     (semantics §4.4; ``shading._geometry.unit_boxes`` computes it): a primitive's unless its shape
@@ -143,8 +153,9 @@ class Prim:
         takes a lock per read in Python 3.11.)"""
         known = self.__dict__.get("_transparent")
         if known is None:
-            known = self.__dict__["_transparent"] = all(layer.pigment.transparent
-                                                        for layer in self.texture.layers)
+            # (a patterned texture: where one of its textures is)
+            known = self.__dict__["_transparent"] = any(
+                all(layer.pigment.transparent for layer in leaf.layers) for leaf in self.texture.leaves())
         return known
 
     @property
@@ -152,8 +163,7 @@ class Prim:
         """Some layer's pigment is a discrete pattern (checker, brick, hexagon …): a face at an
         exact coordinate decides its colour, so its hit points are computed at the surface
         (``shading._geometry.closest_hit``'s ``refine``)."""
-        return any(patterns.REGISTRY[pg.pattern].discrete for layer in self.texture.layers
-                   for pg in layer.pigment.pigments())  # (a pigment map's pigments too)
+        return any(patterns.REGISTRY[pg.pattern].discrete for pg in _texture_pigments(self.texture))
 
     @property
     def fades(self) -> bool:
@@ -200,6 +210,9 @@ class Effects:
                         through it, and with transmission keep their interior list to know).
         normals:        the patterns of the layers' ``normal {}`` perturbations (none: the shading
                         normal is the surface's).
+        texture_depth:  through how many patterns a point's texture is chosen (``texture_map``,
+                        ``checker texture {…} texture {…}`` …, nested): 0 without patterned
+                        textures; a hit then shades 2 ** texture_depth textures and blends them.
     """
 
     kinds: tuple[str, ...]
@@ -224,6 +237,7 @@ class Effects:
     media_slots: int = 0
     environment: tuple[str, ...] = ()
     normals: tuple[str, ...] = ()
+    texture_depth: int = 0
 
     @property
     def sky_sphere(self) -> bool:
@@ -245,6 +259,7 @@ class Effects:
         return (f"primitives: {', '.join(self.kinds) or 'none'}; effects: {', '.join(on) or 'none'}; "
                 f"patterns: {', '.join(self.patterns) or 'none'}; "
                 + (f"normals: {', '.join(self.normals)}; " if self.normals else "")
+                + (f"patterned textures: {self.texture_depth} deep; " if self.texture_depth else "")
                 + f"depth: {self.depth}"
                 + (f" (incl. {self.straight_passes} straight passes)" if self.straight_passes else ""))
 
@@ -457,11 +472,12 @@ def make_plan(scene: Scene) -> Plan:
     warnings = list(scene.warnings)
     rendered = [p for p in prims if p.rendered]
     # each texture, pigment and finish once (by identity: a declared one is shared by many objects)
-    textures = list({id(p.texture): p.texture for p in rendered}.values())
-    layers = [layer for tex in textures for layer in tex.layers]
+    textures = list({id(t): t for p in rendered for t in p.texture.textures()}.values())
+    layers = [layer for tex in textures if not tex.patterned for layer in tex.layers]
     finishes = list({id(layer.finish): layer.finish for layer in layers}.values())
     # (a pigment map's pigments too: their patterns are evaluated as well)
     pigments = list({id(pg): pg for layer in layers for pg in layer.pigment.pigments()}.values())
+    pigments += [tex.pattern for tex in textures if tex.patterned]  # the patterns that choose textures
     if any(len(tex.layers) > 1 and sum(layer.finish.reflection is not None for layer in tex.layers) > 1
            for tex in textures):
         warnings.append(SceneWarning("layered texture", "layered textures: lower layers' reflections "
@@ -505,7 +521,8 @@ def make_plan(scene: Scene) -> Plan:
     effects = Effects(
         kinds=tuple(sorted({p.kind for p in prims})),
         shadows=bool(shadow_lights) and bool(casters),
-        filtered_shadows=any(layer.pigment.transparent for p in casters for layer in p.texture.layers),
+        filtered_shadows=any(layer.pigment.transparent for p in casters for leaf in p.texture.leaves()
+                             for layer in leaf.layers),
         reflection=reflection,
         transmission=transmission,
         refraction=refraction,
@@ -525,6 +542,7 @@ def make_plan(scene: Scene) -> Plan:
                      if refraction or (transmission and any(e.needs_media for e, _ in environment)) else 0),
         environment=tuple(e.name for e, _ in environment),
         normals=tuple(sorted({b.pattern.pattern for b in bumps if b.pattern.pattern in NORMAL_PATTERNS})),
+        texture_depth=max((tex.depth for tex in textures), default=0),
     )
     units, prim_unit = bounding_units(scene.objects, roots, len(prims), fl.bounds)
     return Plan(prims=prims, lights=lights, effects=effects, warnings=tuple(dict.fromkeys(warnings)),

@@ -29,7 +29,7 @@ lights, fade, phong, specular, metallic, brilliance ≠ 1, reflection falloff/fr
 surfaces, filter/transmit other than clear glass, interior fade, non-black ``ambient`` on open
 surfaces, CSG other than union, clipped_by, cones, quadrics, tori, polygons, discs with a hole,
 ellipsoids (a non-uniformly scaled sphere would need tessellation), patterns other than checker on
-planes, layered textures, object flags, ``adc_bailout > 0`` with reflection or refraction.
+planes, layered and patterned textures, object flags, ``adc_bailout > 0`` with reflection or refraction.
 
 **Integrator.** Mitsuba has no Whitted integrator, and its ``path`` integrator adds diffuse
 inter-reflection that POV-Ray (without radiosity) does not compute. The scene therefore uses
@@ -431,6 +431,8 @@ class _Converter:
 
         if texture is None:
             texture = Texture()  # POV default: black pigment, default finish
+        if texture.patterned:
+            raise NotMatchable("patterned texture")
         if len(texture.layers) != 1:
             raise NotMatchable("layered texture")
         pigment, finish = texture.layers[0].pigment, texture.layers[0].finish

@@ -146,6 +146,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("image_map", povray=POV_BAR),
     _example("prism", povray=POV_BAR),
     _example("text", povray=POV_BAR),
+    _example("texture_map", povray=POV_BAR),
 )
 
 

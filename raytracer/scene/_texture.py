@@ -228,15 +228,76 @@ class Layer(Record):
 
 
 class Texture(Record):
-    """A stack of layers, top layer first (``layers[0]``). Most textures have one layer."""
+    """A stack of layers, top layer first (``layers[0]``), or a patterned texture: a pattern
+    choosing among whole textures (semantics §5.7).
+
+    Attributes:
+        layers:  the layers, top first. Most textures have one layer. A patterned texture's are its
+                 first plain entry's: what a shadow ray crossing it filters by (POV-Ray blends its
+                 entries there too; semantics §5.7 says what differs).
+        pattern: a patterned texture's pattern, its space and its value as a pigment holds them
+                 (``pattern``, ``transform``, ``frequency``, ``wave``, turbulence …; ``values`` the
+                 map's positions: ``texture_map``'s, or 0, 1, … for a block pattern's list); its
+                 colours play no part. None for a plain texture.
+        entries: a patterned texture's textures, one per position of ``pattern.values``; each may be
+                 patterned itself. At a point the pattern's value falls between two positions and
+                 the two textures there are each shaded in full, mirror and transmitted rays
+                 included, and their colours blended linearly (POV-Ray's rule, manual 3.4.6.5.1);
+                 a block pattern (checker, brick, hexagon …) takes one entry by its index.
+    """
 
     layers: tuple[Layer, ...] = eqx.field(default_factory=lambda: (Layer(),))
+    pattern: Pigment | None = None
+    entries: tuple[Texture, ...] | None = None
 
     def __check_init__(self):
         if not self.layers:
             raise ValueError("a texture needs at least one layer")
+        if (self.pattern is None) != (self.entries is None):
+            raise ValueError("a patterned texture has both a pattern and its entries")
+        if self.entries is not None and len(self.entries) != self.pattern.values.shape[0]:
+            raise ValueError("a patterned texture has one texture per position in its pattern's values")
 
     @classmethod
     def of(cls, pigment: Pigment | None = None, finish: Finish | None = None) -> Texture:
         return cls((Layer(pigment if pigment is not None else Pigment.solid((0.0, 0.0, 0.0)),
                           finish if finish is not None else Finish()),))
+
+    @classmethod
+    def of_map(cls, pattern: str, texture_map, **kwargs) -> Texture:
+        """A patterned texture: pattern ``pattern`` (with the pigment fields ``kwargs``:
+        ``transform``, ``vector``, ``turbulence``, ``frequency`` …) choosing among the textures of
+        ``texture_map`` ``[(value, Texture), ...]`` (a block pattern: its list, at 0, 1, …)."""
+        values = np.array([v for v, _ in texture_map], dtype=np.float64)
+        entries = tuple(t for _, t in texture_map)
+        if not entries:
+            raise ValueError("a texture map needs at least one entry")
+        black = [(v, (0.0, 0.0, 0.0)) for v in values]  # (unused: the entries are the colours)
+        kwargs.setdefault("frequency", 0.0 if patterns.REGISTRY[pattern].discrete else 1.0)
+        return cls(layers=entries[0].plain().layers, pattern=Pigment.mapped(pattern, black, **kwargs),
+                   entries=entries)
+
+    @property
+    def patterned(self) -> bool:
+        return self.pattern is not None
+
+    def plain(self) -> Texture:
+        """The first plain texture: this one, or its first entry's."""
+        return self if self.entries is None else self.entries[0].plain()
+
+    def textures(self):
+        """This texture and, if patterned, every texture in it (depth first)."""
+        yield self
+        for entry in self.entries or ():
+            yield from entry.textures()
+
+    def leaves(self):
+        """The plain textures this one shows: itself, or its entries' (depth first)."""
+        for t in self.textures():
+            if t.entries is None:
+                yield t
+
+    @property
+    def depth(self) -> int:
+        """How many patterns a point's texture is chosen through (0 for a plain texture)."""
+        return 0 if self.entries is None else 1 + max(e.depth for e in self.entries)

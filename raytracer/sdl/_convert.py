@@ -31,7 +31,7 @@ def type_name(v) -> str:
 
 
 _TYPE_NAMES = {"PigRec": "pigment", "NormRec": "normal", "PigmentMapRec": "pigment_map",
-               "SlopeMapRec": "slope_map",
+               "SlopeMapRec": "slope_map", "TextureMapRec": "texture_map",
                "LayerRec": "texture layer", "TextureRec": "texture",
                "InteriorRec": "interior", "MaterialRec": "material", "LightRec": "light_source",
                "ObjRec": "object", "CameraRec": "camera", "TransformRec": "transform",

@@ -29,6 +29,7 @@ from ._textures import (
     parse_texture,
     parse_transform_value,
     skip_braces,
+    texture_map_body,
 )
 from ._values import (
     ArrayValue,
@@ -40,6 +41,7 @@ from ._values import (
     PigmentMapRec,
     SlopeMapRec,
     SplineValue,
+    TextureMapRec,
     TextureRec,
     TransformRec,
     Vec,
@@ -357,7 +359,7 @@ _RVALUE_BLOCKS = {
     "pigment_map": lambda p, t: PigmentMapRec(parse_pigment_map_body(p, t.loc)),
     "normal_map": _opaque("normal_map"),
     "slope_map": lambda p, t: SlopeMapRec(parse_slope_map_body(p, t.loc)),
-    "texture_map": _opaque("texture_map"),
+    "texture_map": lambda p, t: TextureMapRec(texture_map_body(p, t.loc, p.default_layer)),
     "density_map": _opaque("density_map"), "photons": _opaque("photons"),
     "interior_texture": _opaque("interior_texture"),
     **{name: (lambda e: lambda p, t: parse_environment(p, t, e))(entry)

@@ -105,6 +105,19 @@ def _exact_key(v):
     return (type(v).__name__, v if isinstance(v, (int, bool, str, type(None))) else repr(v))
 
 
+def _first_plain(layer: LayerRec) -> list[LayerRec]:
+    """A layer's plain layers: its own, or its patterned texture's first texture's."""
+    if layer.patterned is None:
+        return [layer]
+    return [flat for sub in layer.patterned[1][0][1].layers for flat in _first_plain(sub)]
+
+
+def _pattern_fields(pig: S.Pigment) -> dict:
+    """What a patterned texture's pattern keeps of its lowered pigment (its space and value)."""
+    return {k: getattr(pig, k) for k in ("transform", "vector", "frequency", "phase", "turbulence", "omega",
+                                         "lambda_", "octaves", "wave")}
+
+
 class Lowerer:
     """Converts records, caching textures so objects sharing one get one pytree."""
 
@@ -118,11 +131,19 @@ class Lowerer:
         key = (tuple(id(layer) for layer in layers), None if world is None else world.tobytes())
         tex = self._tex_cache.get(key)
         if tex is None:
-            # the renderer wants the top layer first; records keep them bottom first
-            tex = build(S.Texture, layers=tuple(
-                build(S.Layer, pigment=lower_pigment(layer.pigment, world, self.fit_zero_terms),
-                        finish=self.finish(layer.finish), normal=lower_normal(layer.normal, world))
-                for layer in reversed(layers)))
+            if len(layers) == 1 and layers[0].patterned is not None:
+                pattern, entries = layers[0].patterned
+                mapped = [(v, self.texture(t.layers, world)) for v, t in entries]
+                fields = _pattern_fields(lower_pigment(pattern, world))
+                tex = S.Texture.of_map(pattern.pattern, mapped, **fields)
+            else:
+                # a patterned layer under or over others (which POV-Ray refuses): its first texture
+                layers = [flat for layer in layers for flat in _first_plain(layer)]
+                # the renderer wants the top layer first; records keep them bottom first
+                tex = build(S.Texture, layers=tuple(
+                    build(S.Layer, pigment=lower_pigment(layer.pigment, world, self.fit_zero_terms),
+                          finish=self.finish(layer.finish), normal=lower_normal(layer.normal, world))
+                    for layer in reversed(layers)))
             self._tex_cache[key] = (tex, layers)  # keep layers alive so ids stay unique
             return tex
         return tex[0]

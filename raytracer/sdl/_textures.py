@@ -21,6 +21,7 @@ from ._values import (
     PigmentMapRec,
     PigRec,
     SlopeMapRec,
+    TextureMapRec,
     TextureRec,
     TransformRec,
     Vec,
@@ -29,8 +30,8 @@ from ._values import (
 TRANSFORM_KEYWORDS = ("translate", "rotate", "scale", "matrix", "transform")
 # Pattern keywords, arguments, default maps and waves come from ``raytracer.patterns.REGISTRY``.
 WAVE_KEYWORDS = {f"{wave}_wave": wave for wave in patterns.WAVES}
-# texture-level patterns (``checker texture {…} texture {…}``, ``texture_map``): approximated
-TEXTURE_PATTERNS = patterns.SDL_KEYWORDS | {"texture_map", "tiles"}
+# texture-level patterns (``checker texture {…} texture {…}``, ``texture_map``, ``tiles``)
+TEXTURE_PATTERNS = patterns.SDL_KEYWORDS | {"texture_map", "tiles", "material_map"}
 NEUTRAL = Vec((0.5, 0.5, 0.5, 0, 0))  # the colour of a pattern we do not render
 
 
@@ -718,51 +719,201 @@ def texture_item(p, t, layers, default):
 
 
 def _patterned_texture(p, t, layers, default):
-    """A texture pattern (``checker texture{A} texture{B}``, ``texture_map``…): approximated."""
-    p.warn("texture pattern", f"patterned texture '{t.value}' is approximated by its first texture",
-           t.loc)
-    first = first_bare = None
-    depth_guard = 0
+    """``texture { PATTERN [modifiers] texture_map {…} }``, a block pattern's list
+    (``checker texture {A} texture {B}``) or ``tiles A tile2 B``: a patterned texture, the
+    texture's one layer (semantics §5.7). A transform applies to the pattern and to the textures
+    read before it, as each is parsed. ``average`` and ``material_map`` are approximated by their
+    first texture (warned)."""
+    kw = t.value
+    pattern = PigRec()
+    listed: list = []  # a block pattern's textures, or tiles and tile2
+    mapped: list | None = None  # texture_map's (position, TextureRec)
+    approximated = None
+    tiles = kw == "tiles"
+    if kw == "material_map":
+        approximated = ("material_map", t.loc)
+        listed.extend(_material_map_textures(p, t, default))
+    elif kw == "tiles":
+        pattern = _tiles_pattern()
+        listed.extend(_tiles(p, default))
+    elif kw == "texture_map":
+        mapped = texture_map_body(p, t.loc, default)
+    elif not patterns.REGISTRY[kw].rendered:
+        # a pattern we do not render: its first texture (warned), found in its arguments where
+        # they are a block (``object { Obj texture {…}, texture {…} }``)
+        p.warn(kw, f"pattern '{kw}' is not supported; the patterned texture shows its first texture", t.loc)
+        if p.is_op("{"):
+            listed.extend(_block_textures(p, t, default))
+        else:
+            _skip_args(p)
+    else:
+        pattern = _pattern(p, patterns.REGISTRY[kw], pattern, t.loc)
     while not p.is_op("}"):
-        k = p.next()
-        depth_guard += 1
-        if k.kind == ID and k.value == "texture" and p.is_op("{"):
-            tex = parse_texture(p, default)
-            first = first or tex
-        elif k.kind == ID and k.value in ("texture_map", "material_map") or (
-                k.kind == OP and k.value == "{"):
-            if k.kind == ID:
-                p.expect_op("{")
-                _refuse_empty_map(p, k)
+        q = p.peek()
+        if q.kind == ID and q.value == "texture" and not declared(p, q):
+            p.next()
+            listed.append(parse_texture(p, default))
+            opt_comma(p)
+        elif q.kind == ID and q.value == "tile2":
+            p.next()
+            listed.append(_tile(p, default))
+        elif q.kind == ID and q.value == "tiles":
+            p.next()
+            pattern = _tiles_pattern()
+            listed.extend(_tiles(p, default))
+            tiles = True
+        elif q.kind == ID and q.value == "texture_map":
+            p.next()
+            mapped = texture_map_body(p, q.loc, default)
+        elif q.kind == ID and q.value in TRANSFORM_KEYWORDS:
+            p.next()
+            m = parse_transform_item(p, q)
+            pattern = pattern.transformed(m)
+            listed = [_transformed(tex, m) for tex in listed]
+            mapped = None if mapped is None else [(v, _transformed(tex, m)) for v, tex in mapped]
+        elif q.kind == ID and q.value == "material_map":
+            p.next()
+            approximated = approximated or ("material_map", q.loc)
+            listed.extend(_material_map_textures(p, q, default))
+        elif q.kind == ID and q.value in patterns.SDL_KEYWORDS and not declared(p, q):
+            p.next()
+            pattern = _pattern(p, patterns.REGISTRY[q.value], pattern, q.loc)
+        else:
+            pattern = pigment_item(p, pattern)
+    if tiles:  # (measured: tiles' texture is where a checker's second is, tile2's where its first is)
+        listed[:2] = listed[:2][::-1]
+    entries = mapped if mapped is not None else [(float(i), tex) for i, tex in enumerate(listed)]
+    if not entries:
+        raise p.error(f"expected the textures of patterned texture '{kw}' (texture {{…}} or texture_map)",
+                      t.loc)
+    if pattern.pattern != "solid" and patterns.REGISTRY[pattern.pattern].averaged:
+        approximated = approximated or ("average texture", t.loc)
+    if mapped is None and pattern.pattern != "solid" and patterns.REGISTRY[pattern.pattern].discrete:
+        record = patterns.REGISTRY[pattern.pattern]
+        while len(entries) < record.colours:  # a list too short: the default texture for the rest
+            entries.append((float(len(entries)), TextureRec([LayerRec(default.pigment, dict(default.finish),
+                                                                      default.normal)])))
+    if approximated is not None and approximated[0] == "material_map":
+        p.warn("material_map", "material_map is approximated by its first texture", approximated[1])
+    elif approximated is not None:
+        p.warn("average texture", "an average of textures is approximated by its first texture",
+               approximated[1])
+    if approximated is not None or pattern.pattern == "solid":  # (a pattern we do not render: warned)
+        return list(_first_plain_layers(entries[0][1]))
+    cmap = [(v, Vec((0, 0, 0, 0, 0))) for v, _ in entries]  # (the map's positions; no colours)
+    pattern = dataclasses.replace(pattern, cmap=cmap, cmap_given=True)
+    return [LayerRec(patterned=(pattern, entries))]
+
+
+def _tiles_pattern() -> PigRec:
+    """``tiles``' pattern: a checker (its textures listed the other way round)."""
+    return PigRec("checker", [(0.0, Vec((0, 0, 0, 0, 0))), (1.0, Vec((0, 0, 0, 0, 0)))], frequency=0.0)
+
+
+def _first_plain_layers(tex: TextureRec) -> list:
+    """The layers of a texture's first plain texture (itself, or its first entry's, nested)."""
+    layers = tex.layers
+    while len(layers) == 1 and layers[0].patterned is not None:
+        layers = layers[0].patterned[1][0][1].layers
+    return layers
+
+
+def _transformed(tex: TextureRec, m) -> TextureRec:
+    return TextureRec([layer.transformed(m) for layer in tex.layers])
+
+
+def _tile(p, default) -> TextureRec:
+    """The texture after ``tiles`` or ``tile2``: ``texture {…}`` items (layers) up to the next keyword."""
+    layers = [LayerRec(default.pigment, dict(default.finish), default.normal)]
+    first = True
+    while p.is_id("texture"):
+        p.next()
+        got = parse_texture(p, default).layers
+        layers = list(got) if first else layers + list(got)
+        first = False
+    return TextureRec(layers)
+
+
+def _tiles(p, default) -> list:
+    """``tiles`` is followed by its texture, or by ``{ TEXTURE tile2 TEXTURE }``: the textures read
+    (the second, tile2's, read by the caller when outside the braces)."""
+    if not p.accept_op("{"):
+        return [_tile(p, default)]
+    got = [_tile(p, default)]
+    while not p.accept_op("}"):
+        t = p.next()
+        if t.kind == ID and t.value == "tile2":
+            got.append(_tile(p, default))
+        else:
+            raise p.error(f"expected tile2 or '}}' in tiles, found {t.describe()}", t.loc)
+    return got
+
+
+def _block_textures(p, t, default) -> list:
+    """The ``texture {…}`` items of a block (an unrendered pattern's arguments), the rest skipped."""
+    p.expect_op("{")
+    textures = []
+    depth = 1
+    while depth:
+        q = p.next()
+        if q.kind == "eof":
+            raise p.error("expected '}', found end of file", t.loc)
+        if q.kind == ID and q.value == "texture" and p.is_op("{") and depth == 1:
+            textures.append(parse_texture(p, default))
+            opt_comma(p)
+        elif q.kind == OP and q.value in "{}":
+            depth += 1 if q.value == "{" else -1
+    return textures
+
+
+def texture_map_body(p, loc, default) -> list:
+    """``{ [v TEXTURE_BODY] … }`` or ``{ Identifier }`` after ``texture_map``: ``(v, TextureRec)``
+    pairs in order. An entry is what a ``texture {…}`` may hold (its items, a declared texture, or
+    ``texture {…}`` itself)."""
+
+    def entry(p, entries):
+        v = float_(p) if _starts_value(p) else float(len(entries))
+        opt_comma(p)
+        layers = [LayerRec(default.pigment, dict(default.finish), default.normal)]
+        while not p.is_op("]"):
+            q = p.peek()
+            if declared(p, q):
+                got = _declared_value(p, q, TextureRec, "texture")
+                layers = list(got.layers)
+                continue
+            p.next()
+            if q.kind == ID and q.value == "texture" and p.is_op("{"):
+                layers = list(parse_texture(p, default).layers)
+            else:
+                layers = texture_item(p, q, layers, default)
+        return v, TextureRec(layers)
+
+    return _map_body(p, loc, "texture_map", TextureMapRec, entry)
+
+
+def _material_map_textures(p, t, default) -> list:
+    """``material_map { TYPE "file" modifiers… texture {…}… }``: its textures (the image that
+    chooses among them is not read)."""
+    p.expect_op("{", "'{' after material_map")
+    _refuse_empty_map(p, t)
+    textures = []
+    while not p.accept_op("}"):
+        q = p.next()
+        if q.kind == "eof":
+            raise p.error("expected '}', found end of file", t.loc)
+        if q.kind == ID and q.value == "texture" and p.is_op("{"):
+            textures.append(parse_texture(p, default))
+        elif q.kind == OP and q.value == "{":
             depth = 1
             while depth:
-                q = p.next()
-                if q.kind == ID and q.value == "texture" and p.is_op("{") and first is None:
-                    first = parse_texture(p, default)
-                    continue
-                bare = q.kind == ID and q.value in ("pigment", "normal", "finish") and p.is_op("{")
-                if bare:
-                    # an entry of bare texture items (`[0.05, pigment {…} finish {…}]`), as
-                    # POV-Ray reads them: a texture of those items, taken where the map names no
-                    # texture (a named texture usually spans more of the map than a bare stripe)
-                    entry = texture_item(p, q, [LayerRec(default.pigment, dict(default.finish),
-                                                         default.normal)], default)
-                    while p.peek().kind == ID and p.peek().value in ("pigment", "normal", "finish"):
-                        entry = texture_item(p, p.next(), entry, default)
-                    first_bare = first_bare or TextureRec(entry)
-                    continue
-                if q.kind == ID and first is None and isinstance(p.lookup(q.value), TextureRec):
-                    first = p.lookup(q.value)
-                if q.kind == "eof":
+                r = p.next()
+                if r.kind == "eof":
                     raise p.error("expected '}', found end of file", t.loc)
-                if q.kind == OP and q.value in "{}":
-                    depth += 1 if q.value == "{" else -1
-        elif k.kind == ID and first is None and isinstance(p.lookup(k.value), TextureRec):
-            first = p.lookup(k.value)
-        elif k.kind == "eof":
-            raise p.error("expected '}', found end of file", t.loc)
-    first = first or first_bare
-    return list(first.layers) if first is not None else layers
+                if r.kind == OP and r.value in "{}":
+                    depth += 1 if r.value == "{" else -1
+    if not textures:
+        textures.append(TextureRec([LayerRec(default.pigment, dict(default.finish), default.normal)]))
+    return textures
 
 
 def parse_normal(p, base: NormRec | None = None) -> NormRec:

@@ -222,15 +222,23 @@ class EnvRec:
 
 @dataclasses.dataclass
 class LayerRec:
-    """One texture layer: pigment, finish (a dict of the keywords given) and its normal, if given."""
+    """One texture layer: pigment, finish (a dict of the keywords given) and its normal, if given;
+    or a patterned texture (``patterned``: its pattern and its ``(position, TextureRec)``
+    entries), which POV-Ray allows only as a texture's one layer."""
 
     pigment: PigRec = dataclasses.field(default_factory=PigRec)
     finish: dict = dataclasses.field(default_factory=dict)
     normal: NormRec | None = None
+    patterned: tuple[PigRec, list] | None = None
 
     def transformed(self, m: np.ndarray) -> LayerRec:
+        patterned = None
+        if self.patterned is not None:
+            pattern, entries = self.patterned
+            patterned = (pattern.transformed(m),
+                         [(v, TextureRec([layer.transformed(m) for layer in t.layers])) for v, t in entries])
         return LayerRec(self.pigment.transformed(m), self.finish,
-                        None if self.normal is None else self.normal.transformed(m))
+                        None if self.normal is None else self.normal.transformed(m), patterned)
 
 
 @dataclasses.dataclass
@@ -238,6 +246,13 @@ class TextureRec:
     """A texture value: layers bottom first (as written)."""
 
     layers: list
+
+
+@dataclasses.dataclass
+class TextureMapRec:
+    """A ``texture_map`` value (``#declare M = texture_map { … }``): ``(position, TextureRec)`` pairs."""
+
+    entries: list
 
 
 @dataclasses.dataclass

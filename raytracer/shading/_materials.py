@@ -88,6 +88,9 @@ class PackedMaterials:
     # wrapping ``image_modes[tables["image_mode"][i]]`` (the scene's distinct ones, static)
     images: jax.Array | None = None
     image_modes: tuple = ()
+    # the scene's patterned textures (semantics §5.7), None without any; the rows above then hold
+    # each primitive's first plain texture (what shadow rays and the boundary term see)
+    textures: PackedTextures | None = None
 
 
 class FinishArrays(NamedTuple):
@@ -209,7 +212,127 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         _pack_images(mats, pg_, dtype)
     if any(layer.normal is not None and layer.normal.pattern.pattern in NORMAL_PATTERNS for layer in layers):
         mats.normals = pack_normals(layers, bucket(len(plan.prims)) * n_layers, dtype)
+    if any(p.texture.patterned for p in plan.prims):
+        mats.textures = pack_textures(plan.prims, dtype)
     return mats
+
+
+@dataclasses.dataclass
+class PackedTextures:
+    """Patterned textures as a tree (semantics §5.7): its nodes are the scene's distinct textures,
+    a plain one a leaf, a patterned one an inner node whose children are its entries.
+
+    ``leaves`` holds the plain textures as :func:`pack_materials` holds primitives (leaf i's layers
+    at rows ``i · n_layers + k``); ``selectors`` the inner nodes' patterns, one pigment row each.
+    ``tables``: ``prim_node`` (N,) each primitive's node; per node ``node_leaf`` (its leaf, -1 for
+    an inner node), ``node_selector`` (its pattern's row, 0 for a leaf), ``node_start`` and
+    ``node_size`` (its children in ``children``; a leaf is its own one child), and
+    ``prim_patterned`` (N,), ``patterned``'s copy. ``depth``, static: the most patterns on a path
+    from a primitive's node to a leaf."""
+
+    leaves: PackedMaterials
+    selectors: PackedMaterials
+    tables: dict
+    depth: int
+    patterned: np.ndarray  # (N,) bool, static: the primitive's texture is patterned
+
+
+register_packed(PackedTextures, ("leaves", "selectors", "tables"))
+
+
+@dataclasses.dataclass
+class _TextureRow:
+    """A plain texture as :func:`pack_materials` reads a primitive (no interior)."""
+
+    texture: Texture
+    interior: None = None
+
+    @property
+    def transparent(self) -> bool:
+        return all(layer.pigment.transparent for layer in self.texture.layers)
+
+
+def pack_textures(prims, dtype) -> PackedTextures:
+    """The patterned textures of primitives ``prims`` (each texture once, by identity)."""
+    index: dict[int, int] = {}
+    nodes: list[Texture] = []
+
+    def visit(tex: Texture) -> int:
+        if id(tex) not in index:
+            index[id(tex)] = len(nodes)
+            nodes.append(tex)
+            for entry in tex.entries or ():
+                visit(entry)
+        return index[id(tex)]
+
+    prim_node = np.array([visit(p.texture) for p in prims], np.int32)
+    leaves = [t for t in nodes if not t.patterned]
+    inner = [t for t in nodes if t.patterned]
+    leaf_of = {id(t): i for i, t in enumerate(leaves)}
+    selector_of = {id(t): i for i, t in enumerate(inner)}
+    children: list[int] = []
+    start = np.zeros(len(nodes), np.int32)
+    size = np.ones(len(nodes), np.int32)
+    for i, t in enumerate(nodes):
+        start[i] = len(children)
+        kids = [index[id(e)] for e in t.entries] if t.patterned else [i]
+        size[i] = len(kids)
+        children.extend(kids)
+    n_nodes = bucket(len(nodes))
+    patterned = np.array([p.texture.patterned for p in prims])
+    tables = {
+        "prim_patterned": pad_rows(patterned, bucket(len(prims)), False),
+        "prim_node": pad_rows(prim_node, bucket(len(prims))),
+        "node_leaf": pad_rows(np.array([leaf_of.get(id(t), -1) for t in nodes], np.int32), n_nodes),
+        "node_selector": pad_rows(np.array([selector_of.get(id(t), 0) for t in nodes], np.int32), n_nodes),
+        "node_start": pad_rows(start, n_nodes),
+        "node_size": pad_rows(size, n_nodes),
+        "children": pad_rows(np.array(children, np.int32), bucket(len(children))),
+    }
+    return PackedTextures(leaves=pack_materials(_PigmentRows([_TextureRow(t) for t in leaves]), dtype),
+                          selectors=pack_pigments([t.pattern for t in inner], dtype), tables=tables,
+                          depth=max(t.depth for t in inner), patterned=patterned)
+
+
+def texture_pigments(textures: PackedTextures, leaf, p):
+    """The pigments (layers, 5) of leaf ``leaf``'s layers at ``p`` and which layers it has."""
+    leaves = textures.leaves
+    rows = leaf * leaves.n_layers + jnp.arange(leaves.n_layers)
+    return (jax.vmap(lambda r: pigment_at(leaves, r, p))(rows),
+            jnp.asarray(leaves.tables["layer_present"])[leaf])
+
+
+def texture_choice(textures: PackedTextures, prim, p):
+    """The leaves (2 ** depth,) a primitive's texture shows at world point ``p`` and their weights,
+    which sum to 1: at each patterned node, its pattern's value there chooses the two entries
+    around it and the fraction between them, as a pigment map chooses pigments (a block pattern:
+    its entry by index). A plain texture: itself, with weight 1 (and 0 for the copies)."""
+    tables = textures.tables
+    nodes = jnp.asarray(tables["prim_node"])[prim][None]
+    weights = jnp.ones((1,), p.dtype)
+    for _ in range(textures.depth):
+        lo, hi, f = jax.vmap(lambda node: _node_choice(textures, node, p))(nodes)
+        leaf = jnp.asarray(tables["node_leaf"])[nodes] >= 0
+        f = jnp.where(leaf, 0.0, f)
+        nodes = jnp.stack([jnp.where(leaf, nodes, lo), jnp.where(leaf, nodes, hi)], axis=-1).reshape(-1)
+        weights = jnp.stack([weights * (1.0 - f), weights * f], axis=-1).reshape(-1)
+    return jnp.asarray(tables["node_leaf"])[nodes], weights
+
+
+def _node_choice(textures: PackedTextures, node, p):
+    """The two children of ``node`` around its pattern's value at ``p`` and the fraction between."""
+    tables, sel = textures.tables, textures.selectors
+    row = jnp.asarray(tables["node_selector"])[node]
+    size = jnp.asarray(tables["node_size"])[node]
+    q = _pattern_point(sel, row, p)
+    pid = jnp.asarray(sel.tables["pattern_id"])[row]
+    v = jnp.zeros((), p.dtype)
+    for k in _evaluated_patterns(sel):
+        v = jnp.where(pid == k, _raw_value(sel, k, row, q), v)
+    lo, hi, f = map_choice(sel, row, waved_value(sel, row, v), size)
+    start = jnp.asarray(tables["node_start"])[node]
+    children = jnp.asarray(tables["children"])
+    return children[start + lo], children[start + hi], f.astype(p.dtype)
 
 
 def _pack_entries(mats: PackedMaterials, pg_: list[dict], dtype) -> None:
@@ -441,7 +564,8 @@ def _padded_to_bucket(mats: PackedMaterials, n_prims: int) -> PackedMaterials:
 
 register_packed(PackedMaterials, ("values", "colors", "pattern_from_world", "vector", "frequency", "phase",
                                   "turbulence", "omega", "lambda_", "finish", "ior", "fade_distance",
-                                  "fade_power", "fade_color", "tables", "normals", "entries", "images"))
+                                  "fade_power", "fade_color", "tables", "normals", "entries", "images",
+                                  "textures"))
 
 
 def pat_wave_index(pg: Pigment) -> int:
@@ -523,6 +647,17 @@ def _entries_at(mats: PackedMaterials, row, p, w, size):
     """Row ``row``'s pigment map at ``p`` for its waved value ``w``: the two pigments around ``w``
     blended as ``_color_map`` blends colours (a discrete pattern: its list entries by index, as
     ``_list_entry``)."""
+    lo, hi, s = map_choice(mats, row, w, size)
+    start = jnp.asarray(mats.tables["map_start"])[row]
+    # the two pigments in one vmapped evaluation: the program holds the entries' patterns once
+    c = jax.vmap(lambda r: pigment_at(mats.entries, r, p))(start + jnp.stack([lo, hi]))
+    return c[0] * (1 - s) + c[1] * s
+
+
+def map_choice(mats: PackedMaterials, row, w, size):
+    """The two entries of row ``row``'s map (its first ``size``) around its waved value ``w`` and
+    the fraction between them: ``map_bracket`` of the map's positions, or for a discrete pattern
+    entry ``floor(w)`` and the next, by the fraction (``_list_entry``)."""
     pid = jnp.asarray(mats.tables["pattern_id"])[row]
     discrete = jnp.asarray([patterns.REGISTRY[name].discrete for name in mats.pattern_names])[pid]
     lo, hi, s = map_bracket(mats.values[row], w, size)
@@ -531,11 +666,7 @@ def _entries_at(mats: PackedMaterials, row, p, w, size):
     j = jnp.minimum(jnp.floor(x).astype(jnp.int32), size - 1)
     lo = jnp.where(discrete, j, lo)
     hi = jnp.where(discrete, jnp.minimum(j + 1, size - 1), hi)
-    s = jnp.where(discrete, x - j, s)
-    start = jnp.asarray(mats.tables["map_start"])[row]
-    # the two pigments in one vmapped evaluation: the program holds the entries' patterns once
-    c = jax.vmap(lambda r: pigment_at(mats.entries, r, p))(start + jnp.stack([lo, hi]))
-    return c[0] * (1 - s) + c[1] * s
+    return lo, hi, jnp.where(discrete, x - j, s)
 
 
 def _all_solid(mats: PackedMaterials) -> bool:
@@ -695,8 +826,11 @@ def _list_entry(v, colors):
 
 def solid_rows(mats: PackedMaterials, rows: np.ndarray) -> np.ndarray:
     """Which of the material rows ``rows`` (static ints) are solid colours (static bools): their
-    pigment is ``colors[row, 0]`` at every point."""
-    return np.asarray(mats.pattern_id)[rows] == _solid_index(mats)
+    pigment is ``colors[row, 0]`` at every point (not a patterned texture's rows)."""
+    solid = np.asarray(mats.pattern_id)[rows] == _solid_index(mats)
+    if mats.textures is not None:
+        solid &= ~mats.textures.patterned[np.asarray(rows) // mats.n_layers]
+    return solid
 
 
 def _solid_index(mats: PackedMaterials) -> int:

@@ -70,7 +70,16 @@ from ._geometry import (
     prim_bits,
     solo_prims,
 )
-from ._materials import PackedMaterials, costly_patterns, pack_pigments, pigment_at, pigments_at, solid_rows
+from ._materials import (
+    PackedMaterials,
+    costly_patterns,
+    pack_pigments,
+    pigment_at,
+    pigments_at,
+    solid_rows,
+    texture_choice,
+    texture_pigments,
+)
 from ._normals import perturbed
 
 
@@ -288,7 +297,30 @@ def make_context(plan: Plan, geo: PackedGeometry, mats: PackedMaterials, lights,
 # ---------------------------------------------------------------- shadows
 def _filter_of(mats: PackedMaterials, row, p):
     """RGB filter ``f·P + t`` of material row ``row``'s pigment at world point ``p`` (semantics §2.5)."""
-    return _rgb_filter(pigment_at(mats, row, p))
+    return _textured_filters(mats, row[None], p[None], _rgb_filter(pigment_at(mats, row, p))[None])[0]
+
+
+def _textured_filters(mats: PackedMaterials, rows, points, f):
+    """The filters ``f`` (E, 3) of material rows ``rows`` (E,) at ``points`` (E, 3), a patterned
+    texture's made its own (semantics §5.7): at its top layer's row the product of each of its
+    textures' layers' filters, blended by its pattern as its colours are; 1 at its other rows."""
+    textures = mats.textures
+    if textures is None:
+        return f
+    prim = rows // mats.n_layers
+    patterned = jnp.asarray(textures.tables["prim_patterned"])[prim]
+
+    def blended(prim, p):
+        leaves, weights = texture_choice(textures, prim, p)
+
+        def leaf_filter(leaf):
+            pig, present = texture_pigments(textures, leaf, p)
+            return jnp.prod(jnp.where(present[:, None], _rgb_filter(pig), 1.0), axis=0)
+
+        return jnp.tensordot(weights, jax.vmap(leaf_filter)(leaves), axes=1)
+
+    mine = jnp.where((rows % mats.n_layers == 0)[:, None], jax.vmap(blended)(prim, points), 1.0)
+    return jnp.where(patterned[:, None], mine, f)
 
 
 def _rgb_filter(pig):
@@ -633,8 +665,10 @@ def _traced_samples(ctx: TraceContext, p_spawn, sets) -> list:
         fl = jax.vmap(lambda p, q: _sample_filters(ctx, p, q))(*items)
         if fl.rows.shape[-1] == 0:
             return fl.base
-        pig = pigments_at(ctx.mats, fl.rows.reshape(-1), fl.points.reshape(-1, 3), fl.use.reshape(-1))
-        return jax.vmap(_filtered)(fl, _rgb_filter(pig).reshape(fl.rows.shape + (3,)))
+        rows, points = fl.rows.reshape(-1), fl.points.reshape(-1, 3)
+        pig = pigments_at(ctx.mats, rows, points, fl.use.reshape(-1))
+        f = _textured_filters(ctx.mats, rows, points, _rgb_filter(pig))
+        return jax.vmap(_filtered)(fl, f.reshape(fl.rows.shape + (3,)))
 
     out = map_live(trace, (jnp.concatenate(ps), jnp.concatenate(qs)), jnp.concatenate(alive), chunk)
     ends = np.cumsum([0] + sizes)
@@ -788,14 +822,15 @@ def _light_arrival(ctx: TraceContext, light: Light, p, p_spawn, n, visibility=No
     return _Arrival(l, c * visibility, cos_nl, cos_nl > lighting.NL_EPSILON)
 
 
-def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, att, d, n):
-    """Diffuse and highlight terms of one texture layer (material ``row``) for one light; ``n`` is
-    the layer's shading normal (perturbed by its ``normal {}``, which then decides ``n·l``)."""
+def _layer_light(ctx: TraceContext, mats: PackedMaterials, light: Light, arrival: _Arrival, row, rgb, att,
+                 d, n):
+    """Diffuse and highlight terms of one texture layer (row ``row`` of ``mats``) for one light;
+    ``n`` is the layer's shading normal (perturbed by its ``normal {}``, which then decides ``n·l``)."""
     l, c, cos_nl, lit = arrival
     if ctx.plan.effects.normals:
         cos_nl = jnp.dot(n, l)
         lit = cos_nl > lighting.NL_EPSILON
-    fin = ctx.mats.finish
+    fin = mats.finish
     out = lighting.diffuse(att, fin.diffuse[row], fin.brilliance[row], cos_nl, rgb) * c
     eff = ctx.plan.effects
     if eff.highlights and all(t.shadows for t in light_types(light, eff)):
@@ -806,9 +841,9 @@ def _layer_light(ctx: TraceContext, light: Light, arrival: _Arrival, row, rgb, a
     return jnp.where(lit, out, 0.0)
 
 
-def _reflectivity(ctx: TraceContext, row, cos_i, eta_rel, rgb):
-    """Reflection colour (semantics §2.6) and its ray weight."""
-    fin, mats = ctx.mats.finish, ctx.mats
+def _reflectivity(ctx: TraceContext, mats: PackedMaterials, row, cos_i, eta_rel, rgb):
+    """Reflection colour (semantics §2.6) and its ray weight (row ``row`` of ``mats``)."""
+    fin = mats.finish
     rmin, rmax = fin.refl_min[row], fin.refl_max[row]
     frac = safe_pow(1.0 - cos_i, fin.refl_falloff[row])
     reflec = frac * rmax + (1 - frac) * rmin
@@ -868,6 +903,7 @@ class _Layers(NamedTuple):
     r_weight: jax.Array  # () weight of the mirror ray relative to this ray's
     normal: jax.Array | None  # (3,) the top layer's shading normal (normal {}), which the mirror
     #                           and refracted rays use; None without normals (the surface's)
+    exponent: jax.Array  # () the top layer's reflection exponent (the mirror ray's)
 
 
 class _Lights(NamedTuple):
@@ -908,24 +944,52 @@ def _batched(fn, lights: _Lights, extra):
 
 def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibility,
             pigments=None) -> _Layers:
-    """Texture layers, top first (semantics §2.3): each adds its local colour filtered by the layers above;
-    the loop stops once the layers above let less than adc_bailout through. ``visibility``: per
-    light, its shadow filter if the batch computed it, else None; ``pigments``: each layer's
+    """The texture at a hit: its layers summed (:func:`_texture_layers`), or a patterned
+    texture's textures there, each shaded in full and blended (semantics §5.7). ``visibility``:
+    per light, its shadow filter if the batch computed it, else None; ``pigments``: each layer's
     pigment (layers, 5) if the batch computed them, else None."""
-    mats, fin = ctx.mats, ctx.mats.finish
-    d, n, prim = ray.direction, s.n, s.prim
     # lights of one structure are one vmapped computation (their shadow rays too), so the program
     # holds each kind of light once, not once per light
     classes = _light_classes(ctx.lights, visibility, ctx.plan.effects)
-    arrivals = [_batched(lambda lt, v: _light_arrival(ctx, lt, s.p, s.p_out, n, v), lights, vis)
+    arrivals = [_batched(lambda lt, v: _light_arrival(ctx, lt, s.p, s.p_out, s.n, v), lights, vis)
                 for _, lights, vis in classes]
+    textures = ctx.mats.textures
+    if textures is None:
+        return _texture_layers(ctx, ctx.mats, s.prim, ray, s, cos_i, eta_rel, classes, arrivals, pigments)
+    # the 2 ** depth textures a patterned texture blends at the hit (a plain one: itself, weight 1),
+    # in one vmapped evaluation: the program holds a texture's shading once
+    leaves, weights = texture_choice(textures, s.prim, s.p)
+    each = jax.vmap(lambda leaf: _texture_layers(ctx, textures.leaves, leaf, ray, s, cos_i, eta_rel, classes,
+                                                 arrivals, None))(leaves)
+
+    def blend(x):
+        return jnp.tensordot(weights.astype(x.dtype), x, axes=1)
+
+    # the colour a texture gives is linear in its local colour and in its children's coefficients:
+    # blending those blends the colours, the mirror and transmitted rays being the same rays (the
+    # dominant texture's, where normal {} perturbations differ)
+    main = jnp.argmax(weights)
+    return _Layers(local=blend(each.local), fil=blend(each.fil), trans=blend(each.trans),
+                   reflec=None if each.reflec is None else blend(each.reflec),
+                   r_weight=None if each.r_weight is None else blend(each.r_weight),
+                   normal=None if each.normal is None else each.normal[main],
+                   exponent=each.exponent[main])
+
+
+def _texture_layers(ctx: TraceContext, mats: PackedMaterials, base, ray: Rays, s: _Surface, cos_i, eta_rel,
+                    classes, arrivals, pigments) -> _Layers:
+    """Texture layers, top first (semantics §2.3), of rows ``base · n_layers + k`` of ``mats``:
+    each adds its local colour filtered by the layers above; the loop stops once the layers above
+    let less than adc_bailout through."""
+    fin = mats.finish
+    d, n = ray.direction, s.n
     n_layers = mats.n_layers
     reflection = ctx.plan.effects.reflection
 
     def one_layer(k):
         # what a layer contributes by itself: its local colour (before the layers above filter
         # it), its filter, its reflection colour and weight, and its shading normal
-        row = prim * n_layers + k
+        row = base * n_layers + k
         n_k, cos_i_k = n, cos_i
         if ctx.plan.effects.normals:  # the layer's normal {} (semantics §5.5)
             n_k = perturbed(mats.normals, row, s.p, n)
@@ -935,12 +999,13 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
         att = 1.0 - f - t
         tmp = att * rgb * (fin.ambient[row] * ctx.settings.ambient_light + fin.emission[row])
         for (_, lights, _), arrival in zip(classes, arrivals, strict=True):
-            terms = _batched(lambda lt, a: _layer_light(ctx, lt, a, row, rgb, att, d, n_k), lights, arrival)
+            terms = _batched(lambda lt, a: _layer_light(ctx, mats, lt, a, row, rgb, att, d, n_k), lights,
+                             arrival)
             tmp = tmp + (terms if lights.count == 1 else jnp.sum(terms, axis=0))
         layer_fil = f * rgb + t
         if not reflection:
             return tmp, layer_fil, None, None, n_k
-        reflec_k, w_k = _reflectivity(ctx, row, cos_i_k, eta_rel, rgb)
+        reflec_k, w_k = _reflectivity(ctx, mats, row, cos_i_k, eta_rel, rgb)
         conserve = jnp.asarray(mats.tables["conserve_energy"])[row]
         # 1 - reflection, at most 1 (POV-Ray's, measured: a negative reflection passes all); at a
         # reflection of exactly 0 (a Fresnel exit, min 0) the derivative is the physical side's, -1
@@ -963,7 +1028,7 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
     for k in range(n_layers):
         # top first: each layer is seen through the filters of those above it, and the loop
         # stops once they let less than adc_bailout through
-        present = jnp.asarray(mats.tables["layer_present"])[prim, k]
+        present = jnp.asarray(mats.tables["layer_present"])[base, k]
         active = present & ((trans > ctx.settings.adc_bailout) | (k == 0))
         local = local + jnp.where(active, fil * tmps[k], 0.0)
         if reflection:
@@ -973,7 +1038,8 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
         trans = jnp.minimum(1.0, jnp.abs(lighting.grey(fil)))
     # (the shading normal only where a layer perturbs it: otherwise the conditional that
     # materialises the layers would carry the surface normal through as one more buffer)
-    return _Layers(local, fil, trans, reflec, r_weight, normals[0] if ctx.plan.effects.normals else None)
+    return _Layers(local, fil, trans, reflec, r_weight, normals[0] if ctx.plan.effects.normals else None,
+                   mats.finish.refl_exponent[base * n_layers])  # the top layer's exponent
 
 
 # ---------------------------------------------------------------- children
@@ -1024,7 +1090,7 @@ def _mirror(ctx: TraceContext, ray: Rays, s: _Surface, layers: _Layers, tir, sur
     settings = ctx.settings
     w = jax.lax.stop_gradient(ray.weight * layers.r_weight)
     r_alive = s.found & jnp.any(layers.reflec != 0) & ~tir & (w >= settings.adc_bailout)
-    expo = ctx.mats.finish.refl_exponent[s.prim * ctx.mats.n_layers]  # top layer's
+    expo = layers.exponent
     direction = lighting.reflect(ray.direction, s.n)
     if surface_normal is not None:
         direction = lighting.above_surface(direction, surface_normal)
@@ -1244,11 +1310,13 @@ def _batch_shadows(ctx: TraceContext, s: _Surface, visibility: list, layers: boo
     out = list(visibility)
     if not rows:
         return out, None
-    pig = pigments_at(ctx.mats, jnp.concatenate(rows), jnp.concatenate(points), jnp.concatenate(needed))
+    rows, points = jnp.concatenate(rows), jnp.concatenate(points)
+    pig = pigments_at(ctx.mats, rows, points, jnp.concatenate(needed))
     start = 0
     for ids, lights, weights, fl in classes:
         size = fl.rows.size
-        f = _rgb_filter(pig[start:start + size]).reshape(fl.rows.shape + (3,))
+        f = _textured_filters(ctx.mats, rows[start:start + size], points[start:start + size],
+                              _rgb_filter(pig[start:start + size])).reshape(fl.rows.shape + (3,))
         start += size
         shape = fl.base.shape[:-1]  # (B, [lights,] S)
         flat = _Filters(fl.base.reshape(-1, 3), fl.rows.reshape(-1, fl.rows.shape[-1]),
