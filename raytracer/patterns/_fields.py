@@ -10,7 +10,7 @@ import jax.numpy as jnp
 
 from ..kernels import safe_sqrt
 from ._common import frac, safe_atan2
-from ._record import BLACK, Pattern
+from ._record import BLACK, Pattern, rgb
 
 
 def solid(p, inputs):
@@ -65,7 +65,9 @@ PATTERNS = (
     Pattern("average", solid, averaged=True),
     Pattern("image_map", solid, imaged=True),
     Pattern("gradient", gradient, argument="vector"),
-    Pattern("radial", radial),
+    # POV-Ray's built-in map, measured (povray beside a black-to-white map on the same plane)
+    Pattern("radial", radial, default_map=((0.0, rgb(0, 1, 1)), (1 / 3, rgb(1, 1, 0)), (2 / 3, rgb(1, 0, 1)),
+                                           (1.0, rgb(0, 1, 1)))),
     Pattern("onion", onion),
     Pattern("spherical", spherical),
     Pattern("cylindrical", cylindrical),

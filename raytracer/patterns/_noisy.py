@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from ..kernels import safe_sqrt
 from ._common import cycloidal, frac
 from ._noise import WAVE_CENTRES, WAVE_FREQUENCIES, dturbulence, noise, turbulence
-from ._record import BLUE, GREEN, RED, WHITE, Pattern
+from ._record import BLACK, BLUE, GREEN, RED, WHITE, Pattern, rgb
 
 
 def bozo(p, inputs):
@@ -99,6 +99,13 @@ def agate(p, inputs, *, agate_turb):
 
 _BOZO_MAP = ((0.0, WHITE), (0.4, WHITE), (0.4, GREEN), (0.6, GREEN), (0.6, BLUE), (0.8, BLUE),
              (0.8, RED), (1.0, RED))
+# POV-Ray's built-in maps of marble, wood and agate, measured (povray's pigment without a map beside
+# one with a black-to-white map on the same plane: pairs of value and colour, their breaks found)
+_MARBLE_MAP = ((0.0, rgb(0.9, 0.8, 0.8)), (0.9, rgb(0.9, 0.08, 0.08)), (0.9, BLACK), (1.0, BLACK))
+_WOOD_MAP = ((0.0, rgb(0.666, 0.312, 0.2)), (0.6, rgb(0.666, 0.312, 0.2)), (0.6, rgb(0.4, 0.133, 0.066)),
+             (1.0, rgb(0.4, 0.133, 0.066)))
+_AGATE_MAP = ((0.0, rgb(1, 1, 1)), (0.5, rgb(0.95, 0.75, 0.5)), (0.5, rgb(0.9, 0.7, 0.5)),
+              (0.6, rgb(0.9, 0.7, 0.4)), (0.6, rgb(1.0, 0.7, 0.4)), (1.0, rgb(0.6, 0.3, 0.0)))
 
 # POV-Ray's own normal patterns: the gain on our perturbation (shading/_normals.py) that gives the
 # standard deviation of POV-Ray's, measured on planes of each at 320×240 (the mean ratio of POV-Ray's
@@ -116,7 +123,8 @@ PATTERNS = (
     Pattern("wrinkles", wrinkles, noise=True, normal_gain=NORMAL_GAIN["wrinkles"], normal_bias=WRINKLES_BIAS),
     Pattern("ripples", ripples, normal_gain=NORMAL_GAIN["ripples"]),
     Pattern("waves", waves, normal_gain=NORMAL_GAIN["waves"]),
-    Pattern("marble", marble, default_wave="triangle", turbulence="internal"),
-    Pattern("wood", wood, default_wave="triangle", turbulence="internal"),
-    Pattern("agate", agate, turbulence="internal", modifiers={"agate_turb": 1.0}, noise=True),
+    Pattern("marble", marble, default_wave="triangle", turbulence="internal", default_map=_MARBLE_MAP),
+    Pattern("wood", wood, default_wave="triangle", turbulence="internal", default_map=_WOOD_MAP),
+    Pattern("agate", agate, turbulence="internal", modifiers={"agate_turb": 1.0}, noise=True,
+            default_map=_AGATE_MAP),
 )

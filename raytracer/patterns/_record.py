@@ -13,6 +13,10 @@ RED, GREEN, BLUE = (1.0, 0.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0, 0.0), (0.0, 0
 BLACK_TO_WHITE = ((0.0, BLACK), (1.0, WHITE))  # POV-Ray's colour map when a pigment gives none
 
 
+def rgb(r: float, g: float, b: float) -> tuple[float, ...]:
+    return (r, g, b, 0.0, 0.0)
+
+
 class PatternInputs(NamedTuple):
     """What every pigment carries for its pattern (``Pigment``'s fields of the same names).
 

@@ -18,6 +18,7 @@ from ._objects import (
 )
 from ._stream import Frame, Stream
 from ._textures import (
+    layered,
     parse_color_map,
     parse_finish,
     parse_interior,
@@ -327,7 +328,7 @@ def _layered_texture(p):
         if not (t.kind == ID and t.value == "texture"):
             return tex
         p.next()
-        tex = TextureRec(tex.layers + parse_texture(p, p.default_layer).layers)
+        tex = TextureRec(layered(p, tex.layers, parse_texture(p, p.default_layer).layers, t.loc))
 
 
 def _normal_value(p, t):

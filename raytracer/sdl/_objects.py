@@ -31,6 +31,7 @@ from ._textures import (
     _starts_value,
     declared,
     float_,
+    layered,
     opt_comma,
     parse_finish,
     parse_interior,
@@ -187,7 +188,7 @@ def _modifier(p, rec: ObjRec, t) -> None:
     elif kw == "texture":
         tex = parse_texture(p, p.default_layer)
         old = rec.layers if rec.layers_given and rec.layers else []
-        rec.layers = old + list(tex.layers)
+        rec.layers = layered(p, old, list(tex.layers), t.loc)
         rec.layers_given = True
     elif kw == "pigment":
         layers = _layers(p, rec)
@@ -614,6 +615,9 @@ def parse_default(p, tok) -> None:
         d = p.default_layer
         if k.kind == ID and k.value == "texture":
             tex = parse_texture(p, d)
+            if tex.layers[-1].patterned is not None:  # (POV-Ray's error, in its words)
+                raise p.error("a default texture cannot be a patterned texture (material map or tiles)",
+                              k.loc)
             p.default_layer = tex.layers[-1]
         elif k.kind == ID and k.value == "pigment":
             p.default_layer = dataclasses.replace(d, pigment=parse_pigment(p, d.pigment))

@@ -722,22 +722,22 @@ def _patterned_texture(p, t, layers, default):
     """``texture { PATTERN [modifiers] texture_map {…} }``, a block pattern's list
     (``checker texture {A} texture {B}``) or ``tiles A tile2 B``: a patterned texture, the
     texture's one layer (semantics §5.7). A transform applies to the pattern and to the textures
-    read before it, as each is parsed. ``average`` and ``material_map`` are approximated by their
-    first texture (warned)."""
+    read before it, as each is parsed. ``material_map`` is approximated by its first texture
+    (warned)."""
     kw = t.value
     pattern = PigRec()
     listed: list = []  # a block pattern's textures, or tiles and tile2
     mapped: list | None = None  # texture_map's (position, TextureRec)
-    approximated = None
+    approximated = None  # where a material_map was read
     tiles = kw == "tiles"
     if kw == "material_map":
-        approximated = ("material_map", t.loc)
+        approximated = t.loc
         listed.extend(_material_map_textures(p, t, default))
     elif kw == "tiles":
         pattern = _tiles_pattern()
         listed.extend(_tiles(p, default))
     elif kw == "texture_map":
-        mapped = texture_map_body(p, t.loc, default)
+        mapped = texture_map_body(p, t.loc, default, None)
     elif not patterns.REGISTRY[kw].rendered:
         # a pattern we do not render: its first texture (warned), found in its arguments where
         # they are a block (``object { Obj texture {…}, texture {…} }``)
@@ -764,7 +764,9 @@ def _patterned_texture(p, t, layers, default):
             tiles = True
         elif q.kind == ID and q.value == "texture_map":
             p.next()
-            mapped = texture_map_body(p, q.loc, default)
+            # an average's entries weigh 1 unless given, a map's sit at 0, 1, … unless given
+            averaged = pattern.pattern != "solid" and patterns.REGISTRY[pattern.pattern].averaged
+            mapped = texture_map_body(p, q.loc, default, 1.0 if averaged else None)
         elif q.kind == ID and q.value in TRANSFORM_KEYWORDS:
             p.next()
             m = parse_transform_item(p, q)
@@ -773,7 +775,7 @@ def _patterned_texture(p, t, layers, default):
             mapped = None if mapped is None else [(v, _transformed(tex, m)) for v, tex in mapped]
         elif q.kind == ID and q.value == "material_map":
             p.next()
-            approximated = approximated or ("material_map", q.loc)
+            approximated = approximated or q.loc
             listed.extend(_material_map_textures(p, q, default))
         elif q.kind == ID and q.value in patterns.SDL_KEYWORDS and not declared(p, q):
             p.next()
@@ -786,23 +788,28 @@ def _patterned_texture(p, t, layers, default):
     if not entries:
         raise p.error(f"expected the textures of patterned texture '{kw}' (texture {{…}} or texture_map)",
                       t.loc)
-    if pattern.pattern != "solid" and patterns.REGISTRY[pattern.pattern].averaged:
-        approximated = approximated or ("average texture", t.loc)
     if mapped is None and pattern.pattern != "solid" and patterns.REGISTRY[pattern.pattern].discrete:
         record = patterns.REGISTRY[pattern.pattern]
         while len(entries) < record.colours:  # a list too short: the default texture for the rest
             entries.append((float(len(entries)), TextureRec([LayerRec(default.pigment, dict(default.finish),
                                                                       default.normal)])))
-    if approximated is not None and approximated[0] == "material_map":
-        p.warn("material_map", "material_map is approximated by its first texture", approximated[1])
-    elif approximated is not None:
-        p.warn("average texture", "an average of textures is approximated by its first texture",
-               approximated[1])
+    if approximated is not None:
+        p.warn("material_map", "material_map is approximated by its first texture", approximated)
     if approximated is not None or pattern.pattern == "solid":  # (a pattern we do not render: warned)
         return list(_first_plain_layers(entries[0][1]))
     cmap = [(v, Vec((0, 0, 0, 0, 0))) for v, _ in entries]  # (the map's positions; no colours)
     pattern = dataclasses.replace(pattern, cmap=cmap, cmap_given=True)
     return [LayerRec(patterned=(pattern, entries))]
+
+
+def layered(p, under: list, over: list, loc) -> list:
+    """The layers of texture ``over`` laid on texture ``under`` (both bottom first); a patterned
+    texture takes no part in a layered one (POV-Ray's errors, word for word)."""
+    if under and under[-1].patterned is not None:
+        raise p.error("cannot layer over a patterned texture", loc)
+    if under and over and over[0].patterned is not None:
+        raise p.error("cannot layer a patterned texture over another", loc)
+    return under + over
 
 
 def _tiles_pattern() -> PigRec:
@@ -866,13 +873,13 @@ def _block_textures(p, t, default) -> list:
     return textures
 
 
-def texture_map_body(p, loc, default) -> list:
+def texture_map_body(p, loc, default, unwritten: float | None = None) -> list:
     """``{ [v TEXTURE_BODY] … }`` or ``{ Identifier }`` after ``texture_map``: ``(v, TextureRec)``
-    pairs in order. An entry is what a ``texture {…}`` may hold (its items, a declared texture, or
-    ``texture {…}`` itself)."""
+    pairs in order; an entry without ``v`` has ``unwritten`` (None: its index). An entry is what a
+    ``texture {…}`` may hold (its items, a declared texture, or ``texture {…}`` itself)."""
 
     def entry(p, entries):
-        v = float_(p) if _starts_value(p) else float(len(entries))
+        v = float_(p) if _starts_value(p) else (float(len(entries)) if unwritten is None else unwritten)
         opt_comma(p)
         layers = [LayerRec(default.pigment, dict(default.finish), default.normal)]
         while not p.is_op("]"):

@@ -228,12 +228,13 @@ class PackedTextures:
     an inner node), ``node_selector`` (its pattern's row, 0 for a leaf), ``node_start`` and
     ``node_size`` (its children in ``children``; a leaf is its own one child), and
     ``prim_patterned`` (N,), ``patterned``'s copy. ``depth``, static: the most patterns on a path
-    from a primitive's node to a leaf."""
+    from a primitive's node to a leaf; a point blends ``width ** depth`` leaves."""
 
     leaves: PackedMaterials
     selectors: PackedMaterials
     tables: dict
     depth: int
+    width: int  # static: the most children a node blends at a point (2, or an average's entries)
     patterned: np.ndarray  # (N,) bool, static: the primitive's texture is patterned
 
 
@@ -291,7 +292,9 @@ def pack_textures(prims, dtype) -> PackedTextures:
     }
     return PackedTextures(leaves=pack_materials(_PigmentRows([_TextureRow(t) for t in leaves]), dtype),
                           selectors=pack_pigments([t.pattern for t in inner], dtype), tables=tables,
-                          depth=max(t.depth for t in inner), patterned=patterned)
+                          depth=max(t.depth for t in inner), patterned=patterned,
+                          width=max([2] + [len(t.entries) for t in inner
+                                           if patterns.REGISTRY[t.pattern.pattern].averaged]))
 
 
 def texture_pigments(textures: PackedTextures, leaf, p):
@@ -303,25 +306,25 @@ def texture_pigments(textures: PackedTextures, leaf, p):
 
 
 def texture_choice(textures: PackedTextures, prim, p):
-    """The leaves (2 ** depth,) a primitive's texture shows at world point ``p`` and their weights,
-    which sum to 1: at each patterned node, its pattern's value there chooses the two entries
-    around it and the fraction between them, as a pigment map chooses pigments (a block pattern:
-    its entry by index). A plain texture: itself, with weight 1 (and 0 for the copies)."""
+    """The leaves (width ** depth,) a primitive's texture shows at world point ``p`` and their
+    weights, which sum to 1: at each patterned node, its pattern's value there chooses the two
+    entries around it and the fraction between them, as a pigment map chooses pigments (a block
+    pattern: its entry by index); an ``average`` weighs every entry by its position. A plain
+    texture: itself, with weight 1 (and 0 for the copies)."""
     tables = textures.tables
     nodes = jnp.asarray(tables["prim_node"])[prim][None]
     weights = jnp.ones((1,), p.dtype)
     for _ in range(textures.depth):
-        lo, hi, f = jax.vmap(lambda node: _node_choice(textures, node, p))(nodes)
-        leaf = jnp.asarray(tables["node_leaf"])[nodes] >= 0
-        f = jnp.where(leaf, 0.0, f)
-        nodes = jnp.stack([jnp.where(leaf, nodes, lo), jnp.where(leaf, nodes, hi)], axis=-1).reshape(-1)
-        weights = jnp.stack([weights * (1.0 - f), weights * f], axis=-1).reshape(-1)
+        kids, w = jax.vmap(lambda node: _node_choice(textures, node, p))(nodes)  # (n, width)
+        nodes, weights = kids.reshape(-1), (weights[:, None] * w).reshape(-1)
     return jnp.asarray(tables["node_leaf"])[nodes], weights
 
 
 def _node_choice(textures: PackedTextures, node, p):
-    """The two children of ``node`` around its pattern's value at ``p`` and the fraction between."""
-    tables, sel = textures.tables, textures.selectors
+    """The children (width,) of ``node`` its point ``p`` blends and their weights: the two around
+    its pattern's value and the fraction between (the rest weigh 0), every child of an average,
+    or the node itself for a leaf."""
+    tables, sel, width = textures.tables, textures.selectors, textures.width
     row = jnp.asarray(tables["node_selector"])[node]
     size = jnp.asarray(tables["node_size"])[node]
     q = _pattern_point(sel, row, p)
@@ -332,7 +335,21 @@ def _node_choice(textures: PackedTextures, node, p):
     lo, hi, f = map_choice(sel, row, waved_value(sel, row, v), size)
     start = jnp.asarray(tables["node_start"])[node]
     children = jnp.asarray(tables["children"])
-    return children[start + lo], children[start + hi], f.astype(p.dtype)
+    f = f.astype(p.dtype)
+    slots = jnp.arange(width)
+    kids = children[start + jnp.where(slots == 1, hi, lo)]
+    w = jnp.where(slots == 0, 1.0 - f, jnp.where(slots == 1, f, 0.0))
+    averaged = [k for k, name in enumerate(sel.pattern_names) if patterns.REGISTRY[name].averaged]
+    if averaged:  # every entry, weighed by its position
+        m = sel.values.shape[-1]
+        at = jnp.minimum(slots, size - 1)
+        aw = jnp.where(slots < size, sel.values[row][jnp.minimum(slots, m - 1)], 0.0).astype(p.dtype)
+        total = jnp.sum(aw)
+        is_avg = jnp.isin(pid, jnp.asarray(averaged))
+        kids = jnp.where(is_avg, children[start + at], kids)
+        w = jnp.where(is_avg, aw / jnp.where(total != 0, total, 1.0), w)
+    leaf = jnp.asarray(tables["node_leaf"])[node] >= 0
+    return jnp.where(leaf, node, kids), jnp.where(leaf, (slots == 0).astype(p.dtype), w)
 
 
 def _pack_entries(mats: PackedMaterials, pg_: list[dict], dtype) -> None:

@@ -130,16 +130,42 @@ def test_the_sdl_reads_texture_maps_block_lists_and_tiles():
     assert checker.layers is checker.entries[0].layers
 
 
+def test_an_average_weighs_every_texture_by_its_position(x64):
+    # average texture_map [1 red] [3 green] [(1) blue]: 1/5, 3/5, 1/5 wherever the point is
+    s = load_scene("""sphere { 0, 1 texture { average texture_map {
+        [1 pigment { rgb <1, 0, 0> }] [3 pigment { rgb <0, 1, 0> }] [pigment { rgb <0, 0, 1> }] } } }""")
+    tex = s.objects[0].texture
+    assert s.warnings == () and [float(v) for v in tex.pattern.values] == [1.0, 3.0, 1.0]
+    leaves, weights = _choices(tex, [(0.3, -2.0, 7.0)])
+    assert leaves.shape == (1, 3)
+    got = [weights[0][leaves[0] == k].sum() for k in range(3)]
+    np.testing.assert_allclose(got, [0.2, 0.6, 0.2], rtol=1e-12)
+
+
 def test_what_is_approximated_is_warned_and_a_patterned_texture_needs_its_textures():
     s = load_scene("""
-        sphere { 0, 1 texture { average texture_map { [1 pigment { rgb 1 }] [1 pigment { rgb 0 }] } } }
         #declare O = sphere { 0, 1 }
         sphere { 0, 1 texture { object { O texture { pigment { rgb <1, 0, 0> } },
                                          texture { pigment { rgb 0 } } } } }
+        sphere { 0, 1 texture { material_map { png "none.png" texture { pigment { rgb <1, 0, 0> } } } } }
     """)
-    assert {w.feature for w in s.warnings} == {"average texture", "object"}
+    assert [w.feature for w in s.warnings] == ["object", "material_map"]
     assert not any(o.texture.patterned for o in s.objects)
-    np.testing.assert_allclose(np.asarray(s.objects[1].texture.layers[0].pigment.colors)[0, :3], RED)
+    for o in s.objects:
+        np.testing.assert_allclose(np.asarray(o.texture.layers[0].pigment.colors)[0, :3], RED)
     with pytest.raises(SceneError) as e:
         load_scene("sphere { 0, 1 texture {\n checker scale 2 } }")
     assert e.value.location.line == 2 and "textures of patterned texture 'checker'" in str(e.value)
+
+
+@pytest.mark.parametrize("scene, message", [
+    ("sphere { 0, 1 texture { C }\n texture { pigment { rgbt 1 } } }", "cannot layer over a patterned"),
+    ("sphere { 0, 1 texture { pigment { rgbt 1 } }\n texture { C } }", "cannot layer a patterned texture"),
+    ("#declare L = texture { pigment { rgbt 1 } }\n texture { C }", "cannot layer a patterned texture over"),
+    ("#default {\n texture { C } }", "a default texture cannot be a patterned texture"),
+], ids=["over", "under", "declared", "default"])
+def test_a_patterned_texture_is_no_layer_and_no_default_as_in_povray(scene, message):
+    checker = "#declare C = texture { checker texture { pigment { rgb 1 } } texture { pigment { rgb 0 } } }\n"
+    with pytest.raises(SceneError) as e:
+        load_scene(checker + scene)
+    assert e.value.location.line == 3 and message in str(e.value)
