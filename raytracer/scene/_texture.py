@@ -65,8 +65,10 @@ class Pigment(Record):
                      (checker, hexagon, brick) has its listed colours, chosen by the indices 0, 1, ….
         transform:   ``world_from_pattern``; the pattern sees the inverse-transformed hit point.
         vector:      (3,) pattern direction (``gradient``'s vector), unused by others.
-        frequency, phase: the value is ``fmod(v·frequency + phase, 1.00001)`` unless frequency is 0
-                     or the pattern is discrete.
+        frequency, phase: the value is ``fmod(v·frequency + phase, 1.00001)`` unless frequency is 0.
+                     None: POV-Ray's default, 1, or for a discrete pattern (whose value is the index
+                     of its colour) 0: POV-Ray wraps an index only where the scene writes a
+                     ``frequency`` (measured, semantics §5.2).
         turbulence:  (3,) amount, or None; ``octaves`` (static), ``omega``, ``lambda_``.
         wave:        static wave function name.
         transparent: static: whether any colour carries filter or transmit (enables transmission).
@@ -82,7 +84,7 @@ class Pigment(Record):
     colors: Float[Array, "M 5"] = eqx.field(converter=as_float)
     transform: Transform | None = None
     vector: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 1.0, 0.0))
-    frequency: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    frequency: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
     phase: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
     turbulence: Float[Array, "3"] | None = eqx.field(converter=as_float_or_none, default=None)
     omega: Float[Array, ""] = eqx.field(converter=as_float, default=0.5)
@@ -273,7 +275,6 @@ class Texture(Record):
         if not entries:
             raise ValueError("a texture map needs at least one entry")
         black = [(v, (0.0, 0.0, 0.0)) for v in values]  # (unused: the entries are the colours)
-        kwargs.setdefault("frequency", 0.0 if patterns.REGISTRY[pattern].discrete else 1.0)
         return cls(layers=entries[0].plain().layers, pattern=Pigment.mapped(pattern, black, **kwargs),
                    entries=entries)
 

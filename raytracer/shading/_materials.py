@@ -188,7 +188,7 @@ def pack_materials(plan: Plan, dtype) -> PackedMaterials:
         colors=_padded([_structural_colors(pg) for pg in pg_], m, dtype),
         pattern_from_world=inverse_affines(world_from_pattern),
         vector=stack([pg["vector"] for pg in pg_], dtype),
-        frequency=stack([pg["frequency"] for pg in pg_], dtype),
+        frequency=stack([_frequency(pg) for pg in pg_], dtype),
         phase=stack([pg["phase"] for pg in pg_], dtype),
         turbulence=stack([zero3 if pg["turbulence"] is None else pg["turbulence"] for pg in pg_], dtype),
         omega=stack([pg["omega"] for pg in pg_], dtype),
@@ -585,6 +585,14 @@ register_packed(PackedMaterials, ("values", "colors", "pattern_from_world", "vec
                                   "textures"))
 
 
+def _frequency(pg: dict):
+    """A pigment's frequency (its fields), POV-Ray's default where it has none: 1, or 0 (none) for
+    a discrete pattern."""
+    if pg["frequency"] is not None:
+        return pg["frequency"]
+    return 0.0 if patterns.REGISTRY[pg["pattern"]].discrete else 1.0
+
+
 def pat_wave_index(pg: Pigment) -> int:
     return WAVES.index(pg.wave)
 
@@ -732,16 +740,14 @@ def discrete_face_nudge(mats: PackedMaterials, row, q):
 
 
 def waved_value(mats: PackedMaterials, prim, v):
-    """The value row ``prim``'s colour map looks up, of raw value ``v``: frequency and phase (not for
-    a discrete pattern, whose value is the index of its colour), then the row's wave."""
-    pid = jnp.asarray(mats.tables["pattern_id"])[prim]
-    # frequency / phase with POV's 1.00001 wrap (semantics §5.2 step 3); a discrete pattern's value is the
-    # index of its colour and is never wrapped
+    """The value row ``prim``'s colour map looks up, of raw value ``v``: frequency and phase, then
+    the row's wave."""
+    # frequency / phase with POV's 1.00001 wrap (semantics §5.2 step 4), unless the frequency is 0:
+    # a discrete pattern's (the index of its colour) unless the scene wrote one
     freq, phase = mats.frequency[prim], mats.phase[prim]
     w = jnp.fmod(v * freq + phase, 1.00001)
     w = jnp.where(w < 0, w - jnp.floor(w), w)
-    discrete = jnp.asarray([patterns.REGISTRY[name].discrete for name in mats.pattern_names])[pid]
-    v = jnp.where((freq != 0) & ~discrete, w, v)
+    v = jnp.where(freq != 0, w, v)
     wave = jnp.asarray(mats.tables["waves"])[prim]
     if np.any(mats.waves != 0):
         waved = jnp.stack([patterns.apply_wave(v, name) for name in WAVES])

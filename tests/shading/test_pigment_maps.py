@@ -103,3 +103,26 @@ def test_average_is_the_mean_of_its_pigments_weighted_by_their_positions(x64):
                                atol=1e-12)
     s = load_scene("sphere { 0, 1 pigment { average pigment_map { [2 rgb 1] [bozo] } } }")
     assert [float(v) for v in s.objects[0].texture.layers[0].pigment.values] == [2.0, 1.0]  # unwritten: 1
+
+
+@pytest.mark.parametrize("modifiers, index_values", [
+    ("", (0.0, 1.0, 2.0)),  # the index itself
+    ("phase 0.3", (0.0, 1.0, 2.0)),  # phase alone changes nothing
+    ("frequency 1", (0.0, 1.0, 2.0 - 2 * 1.00001 + 1.00001)),  # written: fmod(2, 1.00001), ≈ entry 1
+    ("frequency 0.5 phase 0.25", (0.25, 0.75, 1.25 - 1.00001)),
+], ids=["plain", "phase", "frequency-1", "frequency-and-phase"])
+def test_a_discrete_pattern_wraps_its_index_only_where_a_frequency_is_written(x64, modifiers, index_values):
+    # measured with povray (hexagon red, green, blue on a plane): without `frequency` the cell shows
+    # its colour whatever the phase; with it, fmod(index·frequency + phase, 1.00001) picks the colours
+    # as a colour map at 0, 1, 2 would (`frequency 1`: the third cell shows green, not blue)
+    hexagon = "hexagon rgb <1, 0, 0>, rgb <0, 1, 0>, rgb <0, 0, 1>"
+    s = load_scene(f"plane {{ y, 0 pigment {{ {hexagon} {modifiers} }} }}")
+    pigment = s.objects[0].texture.layers[0].pigment
+    got = _at(pigment, [(0.0, 0.0, 0.0), (0.5, 0.0, 1.2), (0.9, 0.0, 1.2)])[:, :3]
+    colours = np.eye(3)
+
+    def entry(v):
+        i = min(int(np.floor(v)), 1)
+        return colours[i] * (1 - (v - i)) + colours[i + 1] * (v - i) if v < 2 else colours[2]
+
+    np.testing.assert_allclose(got, [entry(v) for v in index_values], atol=1e-9)
