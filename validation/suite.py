@@ -147,6 +147,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("prism", povray=POV_BAR),
     _example("text", povray=POV_BAR),
     _example("texture_map", povray=POV_BAR),
+    _example("lathe", povray=POV_BAR),
 )
 
 

@@ -910,6 +910,131 @@ inline double prism_hit(const PrismD<T>& P, const RayD& r, double tmin, double t
   return best < tmax ? best : INFINITY;
 }
 
+// ------------------------------------------------------------------------------------ lathe
+// A curve (r(s), y(s)) of S Bernstein segments turned about the y axis (shapes/_lathe.py), laid
+// out as a prism's item (prism_of: no heights, no caps). A line is at distance ρ(t) from the
+// axis, ρ² = a t² + 2 b t + c; it reaches the radius r(s) at t_lo(s) ≤ t_hi(s), and crosses the
+// surface where on either branch g(s) = y(s) − o_y − d_y t(s) vanishes. Each segment is cut where
+// the line's nearest approach to the axis equals r(s) (the branches meet there), each piece's
+// branches sampled at LATHE_SAMPLES + 1 points and each sign change bisected: the JAX kernel's
+// method, in double.
+constexpr int LATHE_SAMPLES = 16;
+
+struct LatheLine {
+  double a, b, c, oy, dy;
+  bool axial;  // the line runs along the axis: r(s)² = c, t from the height
+};
+
+// g and t of branch j (0: the near root, 1: the far) at the curve point (rs, ys); false where the
+// line does not reach the radius (``pinch``: taken as the branches' meeting point).
+inline bool lathe_branch(const LatheLine& L, double rs, double ys, int j, bool pinch, double& g, double& t) {
+  const double cc = L.c - rs * rs;
+  if (L.axial) {
+    if (j == 1) return false;
+    g = -cc;
+    t = L.dy != 0.0 ? (ys - L.oy) / L.dy : INFINITY;
+    return true;
+  }
+  double disc = L.b * L.b - L.a * cc;
+  if (pinch) disc = 0.0;
+  const bool reached = disc >= 0.0;
+  const double sq = disc > 0.0 ? std::sqrt(disc) : 0.0;
+  const double q = -(L.b + (L.b < 0 ? -sq : sq));
+  const double far_t = q / L.a;
+  const double near_t = (q != 0.0 && disc > 0.0) ? cc / q : far_t;
+  t = j == 0 ? std::min(far_t, near_t) : std::max(far_t, near_t);
+  g = ys - L.oy - L.dy * t;
+  return reached;
+}
+
+template <typename T>
+inline double lathe_hit(const PrismD<T>& P, const RayD& r, double tmin, double tmax) {
+  double best = tmax;
+  const int m = P.n + 1;
+  LatheLine L;
+  L.a = r.d[0] * r.d[0] + r.d[2] * r.d[2];
+  L.b = r.o[0] * r.d[0] + r.o[2] * r.d[2];
+  L.c = r.o[0] * r.o[0] + r.o[2] * r.o[2];
+  L.oy = r.o[1];
+  L.dy = r.d[1];
+  L.axial = L.a <= 1e-6 * (L.a + L.dy * L.dy);
+  const double rho_min = L.axial ? 0.0 : std::sqrt(std::max(0.0, (L.a * L.c - L.b * L.b) / L.a));
+  for (int k = 0; k < P.S; ++k) {
+    if (P.sense[k] == 0) continue;
+    double cr[4], cy[4], w[4];
+    double r_max = 0.0, y_lo = INFINITY, y_hi = -INFINITY;
+    for (int i = 0; i < m; ++i) {
+      cr[i] = static_cast<double>(P.c[2 * (m * k + i)]);
+      cy[i] = static_cast<double>(P.c[2 * (m * k + i) + 1]);
+      w[i] = cr[i] - rho_min;
+      r_max = std::max(r_max, std::fabs(cr[i]));
+      y_lo = std::min(y_lo, cy[i]);
+      y_hi = std::max(y_hi, cy[i]);
+    }
+    // the curve lies in its control points' hull: a line that stays farther from the axis than
+    // the hull's radius, or above or below it, misses the segment
+    if (!L.axial && rho_min > r_max) continue;
+    if (L.dy == 0.0 && (L.oy < y_lo || L.oy > y_hi)) continue;
+    double ends[5];
+    int count = 1;
+    ends[0] = 0.0;
+    if (!L.axial) {
+      double junction[3];
+      const int nj = bern_roots(w, P.n, junction);
+      for (int j = 0; j < nj; ++j) ends[count++] = junction[j];
+    }
+    const int first_junction = 1, last_junction = count - 1;
+    ends[count++] = 1.0;
+    std::sort(ends, ends + count);
+    for (int piece = 0; piece + 1 < count; ++piece) {
+      const double s0 = ends[piece], s1 = ends[piece + 1];
+      if (!(s1 > s0)) continue;
+      const bool pinch0 = !L.axial && piece >= first_junction && piece <= last_junction;
+      const bool pinch1 = !L.axial && piece + 1 >= first_junction && piece + 1 <= last_junction;
+      double g, t;
+      const double mid = 0.5 * (s0 + s1);
+      if (!lathe_branch(L, bern(cr, P.n, mid), bern(cy, P.n, mid), 0, false, g, t)) continue;
+      for (int j = 0; j < 2; ++j) {
+        if (L.axial && j == 1) break;
+        auto gj = [&](double s, bool pinch) {
+          double gv, tv;
+          lathe_branch(L, bern(cr, P.n, s), bern(cy, P.n, s), j, pinch, gv, tv);
+          return gv;
+        };
+        double sa = s0, ga = gj(s0, pinch0);
+        for (int q = 1; q <= LATHE_SAMPLES; ++q) {
+          const double sb = q == LATHE_SAMPLES ? s1 : s0 + (s1 - s0) * q / LATHE_SAMPLES;
+          const double gb = gj(sb, q == LATHE_SAMPLES && pinch1);
+          if ((ga > 0.0) != (gb > 0.0)) {
+            auto f = [&](double s) { return gj(s, false); };
+            const double s = ga == 0.0 ? sa : bisect_sign(f, sa, sb, ga, 1e-15, 64);
+            double gv, tv;
+            if (lathe_branch(L, bern(cr, P.n, s), bern(cy, P.n, s), j, false, gv, tv)) {
+              if (!L.axial && L.dy != 0.0) {  // the better conditioned of the two ways to t
+                const double rs = bern(cr, P.n, s);
+                double dr[3], dyc[3];
+                for (int i = 0; i < P.n; ++i) {
+                  dr[i] = P.n * (cr[i + 1] - cr[i]);
+                  dyc[i] = P.n * (cy[i + 1] - cy[i]);
+                }
+                const double disc = L.b * L.b - L.a * (L.c - rs * rs);
+                const double slope_r = P.n > 0 ? bern(dr, P.n - 1, s) : 0.0;
+                const double slope_y = P.n > 0 ? bern(dyc, P.n - 1, s) : 0.0;
+                if (std::fabs(slope_y) * std::sqrt(std::max(disc, 0.0)) < std::fabs(L.dy) * std::fabs(rs * slope_r))
+                  tv = (bern(cy, P.n, s) - L.oy) / L.dy;
+              }
+              keep_first(tv, tmin, best);
+            }
+          }
+          sa = sb;
+          ga = gb;
+        }
+      }
+    }
+  }
+  return best < tmax ? best : INFINITY;
+}
+
 // The 35 coefficients of a polynomial item (its two rows: see above), in double.
 template <typename T>
 inline void poly_coefficients(const T* params, double* c) {
@@ -936,6 +1061,7 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     }
     return prism_hit(P, r, tmin, tmax);
   }
+  if (kind == KIND_LATHE) return lathe_hit(prism_of(params), r, tmin, tmax);
   const double* q = p + 12;
   double t0 = INFINITY, t1 = INFINITY;
   if (kind == KIND_SPHERE) {
@@ -1068,6 +1194,10 @@ inline bool item_inside(int32_t kind, const T* params, const double* pw) {
     double c[POLY_TERMS];
     poly_coefficients(params, c);
     return poly_at(c, x) < 0.0;
+  }
+  if (kind == KIND_LATHE) {
+    const PrismD<T> P = prism_of(params);
+    return prism_filled(P, std::sqrt(x[0] * x[0] + x[2] * x[2]), x[1]);
   }
   if (kind == KIND_PRISM) {
     const PrismD<T> P = prism_of(params);

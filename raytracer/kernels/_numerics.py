@@ -239,8 +239,10 @@ def _bisect(f: Callable[[Array], Array], lo: Array, hi: Array, iterations: int) 
         same_side = (f(mid) < 0) == neg_lo
         return jnp.where(same_side, mid, lo), jnp.where(same_side, hi, mid)
 
+    lo0, hi0 = lo, hi
     lo, hi = lax.fori_loop(0, iterations, body, (lo, hi))
-    root = jnp.where(f_lo == 0, lo, jnp.where(f_hi == 0, hi, 0.5 * (lo + hi)))
+    # a root at an end is that end (the loop moves the brackets away from a zero there)
+    root = jnp.where(f_lo == 0, lo0, jnp.where(f_hi == 0, hi0, 0.5 * (lo + hi)))
     return root, has_root
 
 

@@ -26,6 +26,7 @@ from ._cone import cylinder_inside as cylinder_inside
 from ._disc import Disc as Disc
 from ._disc import disc_hits as disc_hits
 from ._disc import disc_inside as disc_inside
+from ._lathe import Lathe as Lathe
 from ._mesh import Mesh as Mesh
 from ._plane import Plane as Plane
 from ._plane import plane_hits as plane_hits
@@ -58,7 +59,7 @@ from ._triangle import triangle_hits as triangle_hits
 
 _SHAPES: tuple[type[AbstractShape], ...] = (
     Sphere, Plane, Box, Cylinder, Cone, Quadric, Torus, Disc, Triangle, SmoothTriangle, Polygon, Mesh,
-    Superellipsoid, Poly, Prism, Text,
+    Superellipsoid, Poly, Prism, Text, Lathe,
 )
 
 REGISTRY: dict[str, type[AbstractShape]] = {cls.kind: cls for cls in _SHAPES}

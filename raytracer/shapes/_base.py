@@ -348,6 +348,7 @@ NATIVE_SUPERELLIPSOID = _KINDS["SUPERELLIPSOID"]
 NATIVE_QUADRIC = _KINDS["QUADRIC"]  # unbounded, as a plane: only a member of a CSG object the hierarchy holds
 NATIVE_POLY = _KINDS["POLY"]  # unbounded, as a plane; two rows of parameters (``native_rows``)
 NATIVE_PRISM = _KINDS["PRISM"]  # a swept outline over several rows (``n_native_rows``)
+NATIVE_LATHE = _KINDS["LATHE"]  # a turned curve, laid out as a prism's item
 UNBOUNDED_KERNELS = frozenset({NATIVE_PLANE, NATIVE_QUADRIC, NATIVE_POLY})
 
 

@@ -165,3 +165,14 @@ def test_matvec_and_vecmat_are_the_matrix_products_for_any_leading_axes():
                                    atol=1e-6)
         np.testing.assert_allclose(np.asarray(vecmat(jnp.asarray(v), jnp.asarray(a))), v @ a, rtol=1e-5,
                                    atol=1e-6)
+
+
+def test_bisection_answers_a_root_at_either_end_with_that_end():
+    """A bracket whose end is a root (a curve's joint: a prism's or a lathe's line through it) gives
+    that end, not the point the halvings moved to."""
+    from raytracer.kernels._numerics import _bisect
+
+    lo, hi = jnp.array([0.0, 0.0, 0.0]), jnp.array([1.0, 1.0, 1.0])
+    root, has = _bisect(lambda s: jnp.stack([s[0], s[1] - 1.0, s[2] - 0.3]), lo, hi, 30)
+    np.testing.assert_allclose(np.asarray(root), [0.0, 1.0, 0.3], atol=1e-7)
+    assert np.asarray(has).all()

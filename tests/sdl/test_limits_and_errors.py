@@ -77,9 +77,9 @@ def test_a_guarded_self_include_recurses_and_an_unguarded_cycle_stops_at_the_dep
 
 def test_unsupported_feature_warns_and_strict_raises():
     text = "sphere { 0, 1 normal { quilted 0.5 } }\nrainbow { angle 42 width 5 }\n" \
-           "lathe { 3, <1, 0>, <1, 1>, <0, 1> }"
+           "sor { 4, <0, 0>, <1, 1>, <1, 2>, <0, 3> }"
     s = load_scene(text)
-    assert [w.feature for w in s.warnings] == ["quilted", "rainbow", "lathe"]
+    assert [w.feature for w in s.warnings] == ["quilted", "rainbow", "sor"]
     assert [w.location.line for w in s.warnings] == [1, 2, 3]
     assert len(s.objects) == 1
     e = error_of(text, strict=True)

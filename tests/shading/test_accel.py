@@ -807,14 +807,19 @@ prism { conic_sweep cubic_spline 0.5, 1, 8, <0,-1>, <0,0>, <1,0>, <1,1>, <0,1>, 
         rotate 180*x translate <2.2, 0.8, 0.2> pigment { rgb <0.9, 0.6, 0.3> } }
 difference { box { <-0.3, -0.3, -1.2>, <2.8, 0, -0.5> }
              text { ttf "cyrvetic" "cut" 0.3, 0 scale 0.5 rotate 90*x translate <0.1, 0.05, -1.0> }
+             lathe { linear_spline 5, <0.1, -0.1>, <0.25, -0.1>, <0.25, 0.2>, <0.1, 0.2>, <0.1, -0.1>
+                     translate <2.3, 0, -0.85> }
              pigment { rgb <0.4, 0.7, 0.9> } }
+lathe { cubic_spline 8, <0, -0.5>, <0, 0>, <0.5, 0.2>, <0.2, 0.5>, <0.45, 0.9>, <0.1, 1.1>, <0, 1.2>, <0, 1.5>
+        translate <0.7, -0.3, 0.7> pigment { rgb <0.3, 0.9, 0.4> } }
 """
 
 
 @pytest.mark.skipif(ACCEL != "native", reason="the prism kernel is the native hierarchy's")
-def test_prisms_and_text_in_the_hierarchy_give_the_candidate_paths_image(tmp_path, monkeypatch):
-    """Text, a conic cubic prism and text cut from a box by CSG (the native prism kernel: walls,
-    caps, the inside test of a CSG member), chosen by the hierarchy: the candidate path's pixels."""
+def test_prisms_text_and_lathes_in_the_hierarchy_give_the_candidate_paths_image(tmp_path, monkeypatch):
+    """Text, a conic cubic prism, a cubic lathe, and text and a lathe cut from a box by CSG (the
+    native prism and lathe kernels: walls, caps, the inside test of a CSG member), chosen by the
+    hierarchy: the candidate path's pixels."""
     path = tmp_path / "pt.pov"
     path.write_text(PRISMS_AND_TEXT)
     scene = load_scene(path, width=32, height=24)
@@ -824,5 +829,6 @@ def test_prisms_and_text_in_the_hierarchy_give_the_candidate_paths_image(tmp_pat
         out[mode] = np.asarray(render(scene, width=32, height=24))
     geo = pack_geometry(make_plan(scene), jnp.float32)
     assert sum(g.kind in ("prism", "text") and g.accelerated for g in geo.groups) >= 2
+    assert any(g.kind == "lathe" and g.accelerated for g in geo.groups)
     assert np.abs(out["none"]).max() > 0.1
     assert (np.abs(out["native"] - out["none"]).max(axis=-1) > 1e-4).sum() == 0
