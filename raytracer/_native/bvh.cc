@@ -972,9 +972,24 @@ inline double lathe_hit(const PrismD<T>& P, const RayD& r, double tmin, double t
       y_hi = std::max(y_hi, cy[i]);
     }
     // the curve lies in its control points' hull: a line that stays farther from the axis than
-    // the hull's radius, or above or below it, misses the segment
+    // the hull's radius, or above or below it, misses the segment; so does one whose stretch
+    // within the hull's heights lies beyond the crossing found, or runs outside its radii there
     if (!L.axial && rho_min > r_max) continue;
     if (L.dy == 0.0 && (L.oy < y_lo || L.oy > y_hi)) continue;
+    if (L.dy != 0.0) {
+      const double ta = (y_lo - L.oy) / L.dy, tb = (y_hi - L.oy) / L.dy;
+      const double t1 = std::min(ta, tb), t2 = std::max(ta, tb);
+      if (t2 <= tmin || t1 >= best) continue;
+      if (!L.axial) {
+        double r_min = INFINITY;
+        for (int i = 0; i < m; ++i) r_min = std::min(r_min, cr[i] >= 0.0 ? cr[i] : 0.0);
+        auto rho2 = [&](double t) { return (L.a * t + 2.0 * L.b) * t + L.c; };
+        const double vertex = -L.b / L.a;
+        const double lo2 = (vertex > t1 && vertex < t2) ? rho_min * rho_min : std::min(rho2(t1), rho2(t2));
+        const double hi2 = std::max(rho2(t1), rho2(t2));
+        if (lo2 > r_max * r_max * (1.0 + 1e-9) || hi2 < r_min * r_min * (1.0 - 1e-9)) continue;
+      }
+    }
     double ends[5];
     int count = 1;
     ends[0] = 0.0;
