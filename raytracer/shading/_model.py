@@ -956,8 +956,8 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
     textures = ctx.mats.textures
     if textures is None:
         return _texture_layers(ctx, ctx.mats, s.prim, ray, s, cos_i, eta_rel, classes, arrivals, pigments)
-    # the 2 ** depth textures a patterned texture blends at the hit (a plain one: itself, weight 1),
-    # in one vmapped evaluation: the program holds a texture's shading once
+    # the width ** depth textures a patterned texture blends at the hit (a plain one: itself,
+    # weight 1), in one vmapped evaluation: the program holds a texture's shading once
     leaves, weights = texture_choice(textures, s.prim, s.p)
     each = jax.vmap(lambda leaf: _texture_layers(ctx, textures.leaves, leaf, ray, s, cos_i, eta_rel, classes,
                                                  arrivals, None))(leaves)
@@ -970,10 +970,8 @@ def _layers(ctx: TraceContext, ray: Rays, s: _Surface, cos_i, eta_rel, visibilit
     # dominant texture's, where normal {} perturbations differ)
     main = jnp.argmax(weights)
     return _Layers(local=blend(each.local), fil=blend(each.fil), trans=blend(each.trans),
-                   reflec=None if each.reflec is None else blend(each.reflec),
-                   r_weight=None if each.r_weight is None else blend(each.r_weight),
-                   normal=None if each.normal is None else each.normal[main],
-                   exponent=each.exponent[main])
+                   reflec=blend(each.reflec), r_weight=blend(each.r_weight),
+                   normal=None if each.normal is None else each.normal[main], exponent=each.exponent[main])
 
 
 def _texture_layers(ctx: TraceContext, mats: PackedMaterials, base, ray: Rays, s: _Surface, cos_i, eta_rel,

@@ -59,6 +59,7 @@ from ._prism import (
     _straddles,
     outline_inside,
     padded_segments,
+    read_points,
     segment_senses,
 )
 
@@ -361,11 +362,8 @@ class Lathe(AbstractShape):
     def parse_sdl(cls, keyword, args):
         spline = args.keyword(*SPLINES) or "linear_spline"
         loc = args.loc
-        n = args.count("lathe points")
-        pts = []
-        for _ in range(n):
-            args.comma()
-            pts.append(args.vector(2))
+        pts = read_points(args, "lathe points")
+        n = len(pts)
         need = {"linear_spline": 2, "quadratic_spline": 3, "cubic_spline": 4, "bezier_spline": 4}[spline]
         if n < need or (spline == "bezier_spline" and n % 4):
             multiple = " (a multiple of 4)" if spline == "bezier_spline" else ""

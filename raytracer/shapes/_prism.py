@@ -545,11 +545,8 @@ class Prism(AbstractShape):
         args.comma()
         h2 = args.float()
         args.comma()
-        n = args.count("prism points")
-        pts = []
-        for _ in range(n):
-            args.comma()
-            pts.append(args.vector(2))
+        pts = read_points(args, "prism points")
+        n = len(pts)
         need = {"linear_spline": 3, "quadratic_spline": 4, "cubic_spline": 5, "bezier_spline": 4}[spline]
         if n < need:
             raise args.error(f"expected at least {need} points for a {spline} prism, found {n}", loc)
@@ -563,6 +560,16 @@ class Prism(AbstractShape):
     def from_sdl(cls, fields):
         return prism_from_segments(fields["segments"], fields["height1"], fields["height2"],
                                    conic=fields["conic"], open_=bool(fields.get("open", False)), cls=cls)
+
+
+def read_points(args, what: str) -> list:
+    """A count, then that many 2-D points, each after an optional comma (a prism's, a lathe's)."""
+    n = args.count(what)
+    pts = []
+    for _ in range(n):
+        args.comma()
+        pts.append(args.vector(2))
+    return pts
 
 
 def prism_from_segments(segments, height1, height2, *, conic=False, open_=False, cls=Prism):

@@ -92,3 +92,33 @@ class _JittedKernels:
 
 
 jitted_kernels = _JittedKernels()
+
+
+def assert_refined_crossing_is_the_kernels(make, controls, o, d):
+    """``make(controls).near_hit`` at the first crossing the whole kernel finds of each line
+    ``o + t d`` (those that cross) gives that crossing, its normal and its derivatives along the
+    controls (float64): the native hierarchy's choice, refined, is the kernel's own."""
+    import jax
+    import jax.numpy as jnp
+
+    def first(c, o_, d_):
+        t, n = make(c).hits(o_, d_)
+        k = jnp.argmin(jnp.where(t > 0, t, jnp.inf))
+        return t[k], n[k]
+
+    def near(c, o_, d_, t0):
+        t, n = make(c).near_hit(o_, d_, t0)
+        return t[0], n[0]
+
+    c0, o, d = jnp.asarray(controls, jnp.float64), jnp.asarray(o), jnp.asarray(d)
+    t_all, n_all = jax.jit(jax.vmap(first, (None, 0, 0)))(c0, o, d)
+    hit = np.isfinite(np.asarray(t_all))
+    assert hit.sum() > 20
+    t_near, n_near = jax.jit(jax.vmap(near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
+    np.testing.assert_allclose(t_near, t_all[hit], rtol=1e-12)
+    np.testing.assert_allclose(n_near, n_all[hit], atol=1e-12)
+    grad_all = jax.grad(lambda c, o_, d_: first(c, o_, d_)[0])
+    grad_near = jax.grad(lambda c, o_, d_, t0: near(c, o_, d_, t0)[0])
+    g_all = jax.jit(jax.vmap(grad_all, (None, 0, 0)))(c0, o[hit], d[hit])
+    g_near = jax.jit(jax.vmap(grad_near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
+    np.testing.assert_allclose(g_near, g_all, rtol=1e-9, atol=1e-12)

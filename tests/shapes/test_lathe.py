@@ -11,7 +11,7 @@ import pytest
 from raytracer.shapes import Lathe
 from raytracer.shapes._lathe import MAX_CROSSINGS, lathe_from_segments, lathe_segments
 
-from ._case import Case
+from ._case import Case, assert_refined_crossing_is_the_kernels
 from .test_prism import outline_distance
 
 TUBE = [(1.0, 0.0), (1.5, 0.0), (1.5, 2.0), (1.0, 2.0), (1.0, 0.0)]  # r 1 to 1.5, y 0 to 2
@@ -137,33 +137,12 @@ def test_the_sdl_reads_every_spline_and_refuses_too_few_points(tmp_path):
 
 
 def test_the_hierarchys_crossing_refined_is_the_kernels_with_its_derivatives(x64):
-    """``near_hit`` (the native hierarchy's crossing t0, its segment found among the nearest
-    boxes) gives the first crossing the whole kernel finds, its normal and its derivatives along
-    the controls, for lines through the ring (float64)."""
+    """``near_hit`` (the native hierarchy's crossing t0, its curve parameter the point's nearest on
+    the nearest segments) gives the first crossing the whole kernel finds, its normal and its
+    derivatives along the controls, for lines through the ring (float64)."""
     shape = lathe_from_segments(lathe_segments("bezier_spline", RING))
     rng = np.random.default_rng(3)
     o = rng.normal(size=(64, 3)) * 3.0
     d = rng.uniform(-1, 1, size=(64, 3)) * 0.5 - o / 3.0
-
-    def first(c, o_, d_):
-        t, n = Lathe(controls=c, sense=shape.sense).hits(o_, d_)
-        k = jnp.argmin(jnp.where(t > 0, t, jnp.inf))
-        return t[k], n[k]
-
-    def near(c, o_, d_, t0):
-        t, n = Lathe(controls=c, sense=shape.sense).near_hit(o_, d_, t0)
-        return t[0], n[0]
-
-    c0 = jnp.asarray(shape.controls, jnp.float64)
-    o, d = jnp.asarray(o), jnp.asarray(d)
-    t_all, n_all = jax.jit(jax.vmap(first, (None, 0, 0)))(c0, o, d)
-    hit = np.isfinite(np.asarray(t_all))
-    assert hit.sum() > 20
-    t_near, n_near = jax.jit(jax.vmap(near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
-    np.testing.assert_allclose(t_near, t_all[hit], rtol=1e-12)
-    np.testing.assert_allclose(n_near, n_all[hit], atol=1e-12)
-    grad_all = jax.grad(lambda c, o_, d_: first(c, o_, d_)[0])
-    grad_near = jax.grad(lambda c, o_, d_, t0: near(c, o_, d_, t0)[0])
-    g_all = jax.jit(jax.vmap(grad_all, (None, 0, 0)))(c0, o[hit], d[hit])
-    g_near = jax.jit(jax.vmap(grad_near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
-    np.testing.assert_allclose(g_near, g_all, rtol=1e-9, atol=1e-12)
+    assert_refined_crossing_is_the_kernels(lambda c: Lathe(controls=c, sense=shape.sense), shape.controls,
+                                           o, d)

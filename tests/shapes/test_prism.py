@@ -10,7 +10,7 @@ import pytest
 from raytracer.shapes import Prism
 from raytracer.shapes._prism import prism_from_segments, segment_senses, spline_segments
 
-from ._case import Case
+from ._case import Case, assert_refined_crossing_is_the_kernels
 
 
 def _bernstein(c, s):
@@ -252,25 +252,5 @@ def test_the_hierarchys_crossing_refined_is_the_kernels_with_its_derivatives(x64
     rng = np.random.default_rng(3)
     o = rng.normal(size=(64, 3)) * 2.5
     d = rng.uniform(-1, 1, size=(64, 3)) * 0.3 - o / 2.5
-
-    def first(c, o_, d_):
-        t, n = Prism(controls=c, sense=shape.sense, height1=-0.4, height2=0.6).hits(o_, d_)
-        k = jnp.argmin(jnp.where(t > 0, t, jnp.inf))
-        return t[k], n[k]
-
-    def near(c, o_, d_, t0):
-        t, n = Prism(controls=c, sense=shape.sense, height1=-0.4, height2=0.6).near_hit(o_, d_, t0)
-        return t[0], n[0]
-
-    c0 = jnp.asarray(shape.controls)
-    t_all, n_all = jax.jit(jax.vmap(first, (None, 0, 0)))(c0, o, d)
-    hit = np.isfinite(np.asarray(t_all))
-    assert hit.sum() > 20
-    t_near, n_near = jax.jit(jax.vmap(near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
-    np.testing.assert_allclose(t_near, t_all[hit], rtol=1e-12)
-    np.testing.assert_allclose(n_near, n_all[hit], atol=1e-12)
-    grad_all = jax.grad(lambda c, o_, d_: first(c, o_, d_)[0])
-    grad_near = jax.grad(lambda c, o_, d_, t0: near(c, o_, d_, t0)[0])
-    g_all = jax.jit(jax.vmap(grad_all, (None, 0, 0)))(c0, o[hit], d[hit])
-    g_near = jax.jit(jax.vmap(grad_near, (None, 0, 0, 0)))(c0, o[hit], d[hit], t_all[hit])
-    np.testing.assert_allclose(g_near, g_all, rtol=1e-9, atol=1e-12)
+    assert_refined_crossing_is_the_kernels(
+        lambda c: Prism(controls=c, sense=shape.sense, height1=-0.4, height2=0.6), shape.controls, o, d)
