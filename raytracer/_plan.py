@@ -212,7 +212,8 @@ class Effects:
                         normal is the surface's).
         texture_depth:  through how many patterns a point's texture is chosen (``texture_map``,
                         ``checker texture {…} texture {…}`` …, nested): 0 without patterned
-                        textures; a hit then shades 2 ** texture_depth textures and blends them.
+                        textures; a hit then shades width ** texture_depth textures and blends
+                        them (width 2, or an ``average``'s entries).
     """
 
     kinds: tuple[str, ...]

@@ -962,11 +962,12 @@ inline double lathe_hit(const PrismD<T>& P, const RayD& r, double tmin, double t
   for (int k = 0; k < P.S; ++k) {
     if (P.sense[k] == 0) continue;
     double cr[4], cy[4], w[4];
-    double r_max = 0.0, y_lo = INFINITY, y_hi = -INFINITY;
+    double r_min = INFINITY, r_max = 0.0, y_lo = INFINITY, y_hi = -INFINITY;
     for (int i = 0; i < m; ++i) {
       cr[i] = static_cast<double>(P.c[2 * (m * k + i)]);
       cy[i] = static_cast<double>(P.c[2 * (m * k + i) + 1]);
       w[i] = cr[i] - rho_min;
+      r_min = std::min(r_min, std::max(cr[i], 0.0));
       r_max = std::max(r_max, std::fabs(cr[i]));
       y_lo = std::min(y_lo, cy[i]);
       y_hi = std::max(y_hi, cy[i]);
@@ -981,8 +982,6 @@ inline double lathe_hit(const PrismD<T>& P, const RayD& r, double tmin, double t
       const double t1 = std::min(ta, tb), t2 = std::max(ta, tb);
       if (t2 <= tmin || t1 >= best) continue;
       if (!L.axial) {
-        double r_min = INFINITY;
-        for (int i = 0; i < m; ++i) r_min = std::min(r_min, cr[i] >= 0.0 ? cr[i] : 0.0);
         auto rho2 = [&](double t) { return (L.a * t + 2.0 * L.b) * t + L.c; };
         const double vertex = -L.b / L.a;
         const double lo2 = (vertex > t1 && vertex < t2) ? rho_min * rho_min : std::min(rho2(t1), rho2(t2));

@@ -105,13 +105,6 @@ def _exact_key(v):
     return (type(v).__name__, v if isinstance(v, (int, bool, str, type(None))) else repr(v))
 
 
-def _first_plain(layer: LayerRec) -> list[LayerRec]:
-    """A layer's plain layers: its own, or its patterned texture's first texture's."""
-    if layer.patterned is None:
-        return [layer]
-    return [flat for sub in layer.patterned[1][0][1].layers for flat in _first_plain(sub)]
-
-
 def _pattern_fields(pig: S.Pigment) -> dict:
     """What a patterned texture's pattern keeps of its lowered pigment (its space and value)."""
     return {k: getattr(pig, k) for k in ("transform", "vector", "frequency", "phase", "turbulence", "omega",
@@ -137,8 +130,7 @@ class Lowerer:
                 fields = _pattern_fields(lower_pigment(pattern, world))
                 tex = S.Texture.of_map(pattern.pattern, mapped, **fields)
             else:
-                # a patterned layer under or over others (which POV-Ray refuses): its first texture
-                layers = [flat for layer in layers for flat in _first_plain(layer)]
+                # (a patterned texture is never a layer among others: ``_textures.layered``)
                 # the renderer wants the top layer first; records keep them bottom first
                 tex = build(S.Texture, layers=tuple(
                     build(S.Layer, pigment=lower_pigment(layer.pigment, world, self.fit_zero_terms),

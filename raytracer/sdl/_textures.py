@@ -1030,7 +1030,8 @@ def parse_material(p, default: LayerRec) -> MaterialRec:
         p.next()
         if t.kind == ID and t.value == "texture":
             tex = parse_texture(p, default)
-            mat.texture = tex if mat.texture is None else TextureRec(mat.texture.layers + tex.layers)
+            under = [] if mat.texture is None else mat.texture.layers
+            mat.texture = TextureRec(layered(p, under, tex.layers, t.loc))
         elif t.kind == ID and t.value == "interior":
             mat.interior = parse_interior(p, mat.interior)
         elif t.kind == ID and t.value in TRANSFORM_KEYWORDS:

@@ -1237,8 +1237,11 @@ def shade_batch(ctx: TraceContext, rays: Rays) -> Shading:
     if any(adaptive) or any(full):
         visibility = _batch_visibility(ctx, s, adaptive, full)
     if by_pattern:
-        visibility, pigments = _batch_shadows(ctx, s, visibility, layers=True)
-        return jax.vmap(lambda r, s_, v, pig: shade(ctx, r, s_, v, pig))(rays, s, tuple(visibility), pigments)
+        # (a patterned texture's layers are its leaves', which the batch does not compute)
+        visibility, pigments = _batch_shadows(ctx, s, visibility, layers=ctx.mats.textures is None)
+        if pigments is not None:
+            return jax.vmap(lambda r, s_, v, pig: shade(ctx, r, s_, v, pig))(rays, s, tuple(visibility),
+                                                                              pigments)
     return jax.vmap(lambda r, s_, v: shade(ctx, r, s_, v))(rays, s, tuple(visibility))
 
 

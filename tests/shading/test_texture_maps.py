@@ -163,7 +163,8 @@ def test_what_is_approximated_is_warned_and_a_patterned_texture_needs_its_textur
     ("sphere { 0, 1 texture { pigment { rgbt 1 } }\n texture { C } }", "cannot layer a patterned texture"),
     ("#declare L = texture { pigment { rgbt 1 } }\n texture { C }", "cannot layer a patterned texture over"),
     ("#default {\n texture { C } }", "a default texture cannot be a patterned texture"),
-], ids=["over", "under", "declared", "default"])
+    ("sphere { 0, 1 material { texture { C }\n texture { pigment { rgbt 1 } } } }", "cannot layer over"),
+], ids=["over", "under", "declared", "default", "material"])
 def test_a_patterned_texture_is_no_layer_and_no_default_as_in_povray(scene, message):
     checker = "#declare C = texture { checker texture { pigment { rgb 1 } } texture { pigment { rgb 0 } } }\n"
     with pytest.raises(SceneError) as e:
