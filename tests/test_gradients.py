@@ -350,16 +350,25 @@ def _features(scene: rt.Scene) -> set:
 @functools.cache
 def _differentiated_examples() -> tuple[str, ...]:
     """The example scenes whose reverse mode is compiled: one per shading signature (at the capped
-    depth), the one with the most primitive kinds and patterns (then by name). Every primitive kind
-    is also differentiated in one scene (:func:`every_kind_scene`)."""
-    best: dict = {}
+    depth), together covering every pattern of the examples. Every primitive kind is differentiated
+    in one scene (:func:`every_kind_scene`), so a signature's scene is the smallest (fewest kinds
+    and patterns, then by name) that leaves no pattern uncovered: a lathe's example adds only a
+    checker to the seed's signature, and its kernel's reverse mode cost 12 s of compile more."""
+    by_signature: dict = {}
+    features: dict = {}
     for path in EXAMPLE_SCENES:
         scene = _capped_example(path)
-        key = (-len(_features(scene)), Path(path).stem)
-        signature = _shading_signature(scene)
-        if signature not in best or key < best[signature][0]:
-            best[signature] = (key, path)
-    return tuple(sorted(path for _, path in best.values()))
+        features[path] = _features(scene)
+        by_signature.setdefault(_shading_signature(scene), []).append(path)
+    patterns = {f for path in EXAMPLE_SCENES for f in features[path] if f[0] == "pattern"}
+    # start from the richest scene of each signature, then shrink each pick while the cover holds
+    chosen = {sig: min(paths, key=lambda p: (-len(features[p]), Path(p).stem))
+              for sig, paths in by_signature.items()}
+    for sig, paths in by_signature.items():
+        others = set().union(*(features[p] for s, p in chosen.items() if s != sig))
+        chosen[sig] = min((p for p in paths if patterns <= others | features[p]),
+                          key=lambda p: (len(features[p]), Path(p).stem))
+    return tuple(sorted(chosen.values()))
 
 
 KIND_W, KIND_H = 32, 24  # a few rays on every object

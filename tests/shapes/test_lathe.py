@@ -92,15 +92,17 @@ def test_lines_along_and_across_the_axis():
     """A line down the axis meets the ring's holes' floor nowhere and a line down beside it the
     ring twice; a horizontal line through the tube's middle meets its four walls."""
     tube = lathe_from_segments(lathe_segments("linear_spline", TUBE))
-    t, n = tube.hits(jnp.array([-3.0, 1.0, 0.0]), jnp.array([1.0, 0.0, 0.0]))
+    lines = jax.jit(jax.vmap(tube.hits))(jnp.array([[-3.0, 1.0, 0.0], [0.0, 5.0, 0.0], [1.25, 5.0, 0.0]]),
+                                         jnp.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, -1.0, 0.0]]))
+    t, n = (x[0] for x in lines)
     hit = np.isfinite(np.asarray(t))
     np.testing.assert_allclose(np.sort(np.asarray(t)[hit]), [1.5, 2.0, 4.0, 4.5], atol=1e-5)
     # outward: away from the tube's wall solid (−x at x = −1.5, +x at x = −1, …)
     by_t = dict(zip(np.asarray(t)[hit].round(4), np.asarray(n)[hit, 0].round(4), strict=True))
     assert by_t == {1.5: -1.0, 2.0: 1.0, 4.0: -1.0, 4.5: 1.0}
-    t, _ = tube.hits(jnp.array([0.0, 5.0, 0.0]), jnp.array([0.0, -1.0, 0.0]))  # down the axis: the hole
+    t = lines[0][1]  # down the axis: the hole
     assert not np.isfinite(np.asarray(t)).any()
-    t, n = tube.hits(jnp.array([1.25, 5.0, 0.0]), jnp.array([0.0, -1.0, 0.0]))  # down inside the wall
+    t, n = (x[2] for x in lines)  # down inside the wall
     hit = np.isfinite(np.asarray(t))
     np.testing.assert_allclose(np.sort(np.asarray(t)[hit]), [3.0, 5.0], atol=1e-5)
     np.testing.assert_allclose(np.asarray(n)[hit][np.argsort(np.asarray(t)[hit])], [(0, 1, 0), (0, -1, 0)],
@@ -109,7 +111,7 @@ def test_lines_along_and_across_the_axis():
 
 def test_the_inside_is_the_meridian_fill_and_the_crossings_are_few():
     ring = lathe_from_segments(lathe_segments("bezier_spline", RING))
-    inside = jax.vmap(ring.inside)(jnp.array([[1.5, 0.5, 0.0], [0.0, 0.5, -1.5], [0.0, 0.5, 0.0],
+    inside = jax.jit(jax.vmap(ring.inside))(jnp.array([[1.5, 0.5, 0.0], [0.0, 0.5, -1.5], [0.0, 0.5, 0.0],
                                               [2.5, 0.5, 0.0], [1.5, 1.2, 0.0]]))
     np.testing.assert_array_equal(np.asarray(inside), [True, True, False, False, False])
     assert ring.n_crossings() == min(2 * 3 * ring.controls.shape[0], MAX_CROSSINGS)

@@ -153,7 +153,7 @@ def test_a_line_through_a_joint_crosses_once_and_holes_are_empty():
                                                  (0.5, 0.5), (1.5, 0.5), (1.5, 1.5), (0.5, 1.5), (0.5, 0.5)])
     shape = prism_from_segments(segments, 0.0, 1.0)
     # along x at z = 0 (the bottom wall itself is hit edge-on: no crossing of the walls x = 0, 2)
-    t, _ = shape.hits(jnp.array([-1.0, 0.5, 0.5]), jnp.array([1.0, 0.0, 0.0]))
+    t, _ = jax.jit(shape.hits)(jnp.array([-1.0, 0.5, 0.5]), jnp.array([1.0, 0.0, 0.0]))
     np.testing.assert_allclose(np.sort(np.asarray(t)[np.isfinite(t)]), [1.0, 1.5, 2.5, 3.0], atol=1e-6)
     inside = jax.jit(jax.vmap(shape.inside))
     pts = jnp.array([[0.25, 0.5, 1.0], [1.0, 0.5, 1.0], [1.0, 1.5, 1.0], [1.0, 0.5, 2.5]])
@@ -235,11 +235,11 @@ def test_the_sdl_reads_every_spline_and_sweep_and_refuses_too_few_points(tmp_pat
 def test_an_open_prism_has_no_caps_and_no_inside():
     segs = spline_segments("linear_spline", [(0, 0), (1, 0), (0, 1)])
     open_prism = prism_from_segments(segs, 0, 1, open_=True)
-    t, _ = open_prism.hits(jnp.array([0.2, 3.0, 0.2]), jnp.array([0.0, -1.0, 0.0]))
+    t, _ = jax.jit(open_prism.hits)(jnp.array([0.2, 3.0, 0.2]), jnp.array([0.0, -1.0, 0.0]))
     assert not np.isfinite(np.asarray(t)).any()  # straight down through the open caps
-    assert not bool(open_prism.inside(jnp.array([0.2, 0.5, 0.2])))
+    assert not bool(jax.jit(open_prism.inside)(jnp.array([0.2, 0.5, 0.2])))
     # the hierarchy's refinement never answers with a cap it does not have (t0 on the top plane)
-    t, n = open_prism.near_hit(jnp.array([0.2, 3.0, 0.2]), jnp.array([0.0, -1.0, 0.0]), 2.0)
+    t, n = jax.jit(open_prism.near_hit)(jnp.array([0.2, 3.0, 0.2]), jnp.array([0.0, -1.0, 0.0]), 2.0)
     assert not (np.isclose(float(t[0]), 2.0) and abs(float(n[0, 1])) == 1.0)
 
 

@@ -1,6 +1,7 @@
 """The shape registry is the one source: every registered shape has its test case, SDL syntax,
 bounds that hold its surface, and stacks and batches like the renderer uses it."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -28,7 +29,9 @@ def test_sdl_keywords_are_the_registry_and_the_interpreter_knows_them():
 def test_records_declare_crossings_consistent_with_their_kernels():
     for case in CASES:
         shape = case.make(*case.params)
-        t, n = shape.hits(jnp.asarray(case.aim) - jnp.array([0.0, 0.0, 5.0]), jnp.array([0.0, 0.0, 1.0]))
+        # shapes only: traced, never compiled (run eagerly, every primitive was a program of its own)
+        t, n = jax.eval_shape(shape.hits, jnp.asarray(case.aim) - jnp.array([0.0, 0.0, 5.0]),
+                              jnp.array([0.0, 0.0, 1.0]))
         assert t.shape == (shape.n_crossings(),) and n.shape == (shape.n_crossings(), 3), case.name
         assert shape.line_crossings <= shape.n_crossings() or shape.kind == "mesh", case.name
 
@@ -79,8 +82,8 @@ def test_renderer_groups_shapes_by_static_variant_and_vmaps_their_own_kernels():
     groups = sorted((g.kind, len(g.prims)) for g in geo.groups)
     assert groups == [("cylinder", 1), ("cylinder", 1), ("sphere", 2)]
     o, d = jnp.array([0.0, 0.0, -5.0]), jnp.array([0.0, 0.0, 1.0])
-    t, _ = all_crossings(geo, o, d)
-    expected = {0: sorted(np.asarray(objects[0].shape.hits(o, d)[0]).tolist()),
+    t, _ = eqx.filter_jit(all_crossings)(geo, o, d)
+    expected = {0: sorted(np.asarray(jax.jit(objects[0].shape.hits)(o, d)[0]).tolist()),
                 2: [7.0, 9.0], 3: [10.0, 12.0]}
     for prim, want in expected.items():
         got = sorted(np.asarray(t)[geo.cand_prim == prim].tolist())
@@ -114,8 +117,8 @@ def test_a_crossings_face_surface_holds_the_crossing(index, x64):
     t, _ = jax.jit(jax.vmap(shape.hits))(o, d)
     hit = np.isfinite(np.asarray(t))
     at = jnp.where(hit, t, 0.0)
-    faces = jax.vmap(jax.vmap(shape.face))(o[:, None, :] + at[..., None] * d[:, None, :])
-    again = jax.vmap(jax.vmap(shape.face_distance, in_axes=(None, None, 0, 0)))(o, d, faces, at)
+    faces = jax.jit(jax.vmap(jax.vmap(shape.face)))(o[:, None, :] + at[..., None] * d[:, None, :])
+    again = jax.jit(jax.vmap(jax.vmap(shape.face_distance, in_axes=(None, None, 0, 0))))(o, d, faces, at)
     np.testing.assert_allclose(np.asarray(again)[hit], np.asarray(t)[hit], rtol=1e-9, atol=1e-9 * case.size)
     seen = set(np.asarray(faces)[hit].tolist())
     if getattr(shape, "open", False):
@@ -153,11 +156,17 @@ def test_a_margin_is_positive_where_the_line_crosses_the_shape_and_crosses_zero_
     assert crosses.any() and not crosses.all(), case.name
     # along an offset of the origin: forward-mode derivative against central differences
     offset = jnp.asarray(np.random.default_rng(3).normal(size=3))
-    slope = jax.vmap(lambda oo, dd: jax.jvp(lambda s: margin_of(oo + s * offset, dd),
-                                            (0.0,), (1.0,))[1])(o, d)
     step = 1e-6 * case.size
-    central = (jax.vmap(margin_of)(o + step * offset[None, :], d)
-               - jax.vmap(margin_of)(o - step * offset[None, :], d)) / (2 * step)
+
+    @jax.jit  # one program (run eagerly, every primitive of the kernel was a program of its own)
+    def slope_and_central(o, d):
+        slope = jax.vmap(lambda oo, dd: jax.jvp(lambda s: margin_of(oo + s * offset, dd),
+                                                (0.0,), (1.0,))[1])(o, d)
+        central = (jax.vmap(margin_of)(o + step * offset[None, :], d)
+                   - jax.vmap(margin_of)(o - step * offset[None, :], d)) / (2 * step)
+        return slope, central
+
+    slope, central = slope_and_central(o, d)
     near = np.argsort(np.abs(margin))[:64]
     np.testing.assert_allclose(np.asarray(slope)[near], np.asarray(central)[near], rtol=1e-5,
                                atol=1e-7 * float(np.max(np.abs(central))))
