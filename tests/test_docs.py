@@ -20,4 +20,4 @@ def test_features_doc_lists_what_the_registries_hold():
     block = script.current_block(script.DOC.read_text())
     assert block is not None, "docs/features.md lost its generated part's markers"
     assert block == script.generated(), "docs/features.md is stale: run python scripts/features_doc.py"
-    assert "`isosurface`" in block and "| sphere |" in block  # warned and rendered, from the registries
+    assert "`ovus`" in block and "| isosurface |" in block  # warned and rendered, from the registries

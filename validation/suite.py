@@ -148,6 +148,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("text", povray=POV_BAR),
     _example("texture_map", povray=POV_BAR),
     _example("lathe", povray=POV_BAR),
+    _example("isosurface", povray=POV_BAR),
 )
 
 

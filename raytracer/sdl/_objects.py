@@ -387,6 +387,26 @@ class _ShapeArgs:
         self._rec.supported = False
         self._p.warn(self._rec.kind, message, self._rec.loc)
 
+    def function(self, n_args: int = 3):
+        """``function { … }`` (its body, or a declared function's name and
+        arguments), compiled (``_functions.compile_function``): ``(expression, constants)``. What
+        is not compiled leaves the object out, its warning naming it; then a constant 1."""
+        from ._functions import Unsupported, compile_function
+
+        p = self._p
+        t = p.peek()
+        if t.kind != ID or t.value != "function":
+            raise p.error(f"expected function {{ … }}, found {t.describe()}", t.loc)
+        loc = t.loc
+        fn = p.parse_function()
+        try:
+            return compile_function(p, fn, n_args)
+        except Unsupported as e:
+            self._rec.supported = False
+            p.warn(self._rec.kind, f"{self._rec.kind} left out: its function uses {e.what}, "
+                   "which is not rendered", e.loc or loc)
+            return ("const", 0), (1.0,)
+
 
 # ---- lights ----------------------------------------------------------------------------------
 def parse_light(p, t) -> LightRec:

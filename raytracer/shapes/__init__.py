@@ -26,6 +26,7 @@ from ._cone import cylinder_inside as cylinder_inside
 from ._disc import Disc as Disc
 from ._disc import disc_hits as disc_hits
 from ._disc import disc_inside as disc_inside
+from ._isosurface import Isosurface as Isosurface
 from ._lathe import Lathe as Lathe
 from ._mesh import Mesh as Mesh
 from ._plane import Plane as Plane
@@ -59,7 +60,7 @@ from ._triangle import triangle_hits as triangle_hits
 
 _SHAPES: tuple[type[AbstractShape], ...] = (
     Sphere, Plane, Box, Cylinder, Cone, Quadric, Torus, Disc, Triangle, SmoothTriangle, Polygon, Mesh,
-    Superellipsoid, Poly, Prism, Text, Lathe,
+    Superellipsoid, Poly, Prism, Text, Lathe, Isosurface,
 )
 
 REGISTRY: dict[str, type[AbstractShape]] = {cls.kind: cls for cls in _SHAPES}

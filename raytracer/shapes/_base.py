@@ -142,6 +142,11 @@ class ShapeArgs(Protocol):
     def leave_out(self, message: str) -> None:
         """The object is dropped from the scene (with a warning naming it)."""
 
+    def function(self, n_args: int = 3) -> tuple[tuple, tuple[float, ...]]:
+        """``function { … }`` compiled: ``(expression, constants)``
+        (``raytracer.patterns._expression``), called with ``n_args`` arguments (x, y, z). A
+        function using what is not compiled leaves the object out (warned)."""
+
 
 SdlArguments = tuple[tuple[str, str], ...]  # (field, "vector" | "float"), in order
 

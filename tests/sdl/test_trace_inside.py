@@ -88,7 +88,7 @@ def test_trace_and_inside_say_at_the_call_that_they_cannot_see_an_unrendered_par
     own warning comes where the object is placed."""
     from raytracer.sdl import load_scene
 
-    s = load_scene("""#declare Land = union { isosurface { function { y } } sphere { 0, 1 } }
+    s = load_scene("""#declare Land = union { ovus { 1, 0.5 } sphere { 0, 1 } }
         #declare I = 0;
         #while (I < 3)
           #declare P = trace(Land, <0, 5, 0>, -y);
@@ -97,8 +97,8 @@ def test_trace_and_inside_say_at_the_call_that_they_cannot_see_an_unrendered_par
         #end
         object { Land }""")
     found = [(w.feature, w.location.line, w.location.col) for w in s.warnings]
-    assert found == [("isosurface", 4, 24), ("isosurface", 5, 24), ("isosurface", 1, 25)]
-    assert "trace() cannot see the isosurface" in s.warnings[0].message
+    assert found == [("ovus", 4, 24), ("ovus", 5, 24), ("ovus", 1, 25)]
+    assert "trace() cannot see the ovus" in s.warnings[0].message
     s = load_scene("#declare S = sphere { 0, 1 } #declare P = trace(S, <0, 5, 0>, -y);")
     assert s.warnings == ()
 
