@@ -37,6 +37,11 @@ class Unsupported(Exception):
         self.what, self.loc = what, loc
 
 
+class Malformed(Unsupported):
+    """A function body that is not a function (a syntax error, an undeclared name): the scene's
+    error, as POV-Ray's."""
+
+
 def compile_function(p, fn: FunctionValue, n_args: int = 3) -> tuple[Expression, tuple[float, ...]]:
     """``fn`` called with the arguments ``(arg 0 … arg n_args−1)``: its expression and constants.
     ``p`` is the interpreter (identifiers are looked up in its scope)."""
@@ -85,7 +90,7 @@ class _Compiler:
         body = _Body(self, fn.tokens[:-1], scope)
         tree = body.expr()
         if not body.done():
-            raise Unsupported(f"{body.peek_desc()} in a function body", body.loc())
+            raise Malformed(f"expected the end of the function body, found {body.peek_desc()}", body.loc())
         self.depth -= 1
         return tree
 
@@ -126,13 +131,13 @@ class _Body:
     def next(self):
         t = self.peek()
         if t is None:
-            raise Unsupported("an expression that ends early", self.loc())
+            raise Malformed("expected a value, found the end of the function body", self.loc())
         self.i += 1
         return t
 
     def expect(self, op: str):
         if not self.is_op(op):
-            raise Unsupported(f"{self.peek_desc()} where '{op}' was expected", self.loc())
+            raise Malformed(f"expected '{op}' in the function body, found {self.peek_desc()}", self.loc())
         self.i += 1
 
     # ---- grammar ----
@@ -211,7 +216,7 @@ class _Body:
             self.expect(")")
             return v
         if t.kind != ID:
-            raise Unsupported(f"{t.describe()} in a function body", t.loc)
+            raise Malformed(f"expected a value in the function body, found {t.describe()}", t.loc)
         name = t.value
         if name in self.scope:
             return self.scope[name]
@@ -219,7 +224,8 @@ class _Body:
             args = self.args()
             lo, hi = ARITY[name]
             if not lo <= len(args) <= hi:
-                raise Unsupported(f"{name}() with {len(args)} arguments", t.loc)
+                raise Malformed(f"expected {lo if lo == hi else f'{lo} to {hi}'} arguments to {name}(), "
+                                f"found {len(args)}", t.loc)
             if name == "pow" and args[1][0] == "const":
                 n = self.c.constants[args[1][1]]
                 if float(n).is_integer() and abs(n) <= MAX_WHOLE_POWER:
@@ -241,5 +247,6 @@ class _Body:
             args = tuple(self.args()) if self.is_op("(") else ()
             return self.c.inline(value, args, t.loc)
         if value is None:
-            raise Unsupported(f"the undeclared identifier '{name}'", t.loc)
+            raise Malformed(f"expected a value in the function body, found undeclared identifier '{name}'",
+                            t.loc)
         raise Unsupported(f"'{name}' ({type(value).__name__}) in a function body", t.loc)

@@ -390,8 +390,9 @@ class _ShapeArgs:
     def function(self, n_args: int = 3):
         """``function { … }`` (its body, or a declared function's name and
         arguments), compiled (``_functions.compile_function``): ``(expression, constants)``. What
-        is not compiled leaves the object out, its warning naming it; then a constant 1."""
-        from ._functions import Unsupported, compile_function
+        is not compiled leaves the object out, its warning naming it (then a constant 1); a body
+        that is not a function is the scene's error at its place."""
+        from ._functions import Malformed, Unsupported, compile_function
 
         p = self._p
         t = p.peek()
@@ -401,6 +402,8 @@ class _ShapeArgs:
         fn = p.parse_function()
         try:
             return compile_function(p, fn, n_args)
+        except Malformed as e:
+            raise p.error(e.what, e.loc or loc) from None
         except Unsupported as e:
             self._rec.supported = False
             p.warn(self._rec.kind, f"{self._rec.kind} left out: its function uses {e.what}, "

@@ -187,3 +187,18 @@ def test_povrays_internal_functions_have_povrays_values():
         sh.constants, many)) for sh in (noise, snoise))
     assert 0 <= n.min() and n.max() <= 1 and n.std() > 0.05
     np.testing.assert_allclose(s, 2 * n - 1, atol=1e-6)
+
+
+@pytest.mark.parametrize("body, message, col", [
+    ("x + ", "expected a value, found the end of the function body", 27),
+    ("x + ) y", "expected a value in the function body, found ')'", 29),
+    ("x y", "expected the end of the function body, found 'y'", 27),
+    ("Nope(x)", "undeclared identifier 'Nope'", 25),
+    ("min()", "expected 1 to 64 arguments to min(), found 0", 25),
+])
+def test_a_body_that_is_not_a_function_is_an_error_at_its_place(body, message, col):
+    from raytracer.sdl import SceneError
+
+    with pytest.raises(SceneError, match=message.replace("(", r"\(").replace(")", r"\)")) as e:
+        load_scene(HEAD + f"isosurface {{ function {{ {body} }} }}")
+    assert (e.value.location.line, e.value.location.col) == (2, col)
