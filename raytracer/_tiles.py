@@ -18,7 +18,7 @@ from ._packed import Packed, _placed, _plan_of
 from ._plan import Plan
 from .scene import Scene, environment_of
 from .shading._model import pack_environment, segment_factors, unlit_colour
-from .shading.camera import camera_rays, sample_coords
+from .shading.camera import camera_rays, camera_sees, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
 
 RAYS_PER_TILE = 1 << 18  # ray slots in the widest level of one tile's Whitted tree (memory bound)
@@ -164,12 +164,18 @@ def _trace_tiles(packed: Packed, scene_plan: Plan, tiles, width: int, height: in
 
         def shaded(pixel):
             ray = (pixel[:, None] * samples + jnp.arange(samples)[None, :]).reshape(tile)
-            o, d = camera_rays(scene.camera, *sample_coords(ray, width, height, k, dtype))
+            coords = sample_coords(ray, width, height, k, dtype)
+            o, d = camera_rays(scene.camera, *coords)
             # a row of pixel indices: those past the image are padding, dead rays (a plain
             # render's tail past the image is traced: its tiles are not padded at their ends)
             alive = jnp.repeat(pixel < width * height, samples) if t.ndim else None
+            seen = camera_sees(scene.camera, *coords)  # a fisheye's corners: black, not traced
+            if seen is not None:
+                alive = seen if alive is None else alive & seen
             colours, dropped = trace(ctx, o, d, chunk=chunk, capacity=capacity, media=media,
                                      grad_chunk=grad_chunk, alive=alive)
+            if seen is not None:
+                colours = jnp.where(seen[:, None], colours, 0.0)
             return colours.reshape(pixels, samples, 3).mean(axis=1), dropped
 
         def blank(pixel):  # ``traced``'s outputs for a tile of padding (the trace's count is int32)
@@ -270,7 +276,7 @@ def _background_only(scene: Scene, width: int, height: int, k: int = 1):
     """The image of a scene without a rendered object: every ray sees the background, or what the
     environment effects make of it (a sky, through fogs)."""
     environment = environment_of(scene)
-    if environment:  # a colour per ray
+    if environment or scene.camera.projection == "fisheye":  # a colour per ray (a fisheye: or none)
         return _unlit_image(scene.camera, environment, scene.background, scene.settings, width, height, k)
     return _background_image(scene.background.astype(scene.camera.location.dtype), scene.settings,
                              width, height)
@@ -281,7 +287,8 @@ def _unlit_image(camera, environment, background, settings, width: int, height: 
     """The image every ray of which hits nothing: the background under the environment effects
     ``environment`` (``environment_of``'s; the shading model's functions, k×k samples a pixel)."""
     dtype = camera.location.dtype
-    o, d = camera_rays(camera, *sample_coords(jnp.arange(width * height * k * k), width, height, k, dtype))
+    coords = sample_coords(jnp.arange(width * height * k * k), width, height, k, dtype)
+    o, d = camera_rays(camera, *coords)
     background = background.astype(dtype)
     packed = pack_environment(environment, dtype)
 
@@ -290,6 +297,9 @@ def _unlit_image(camera, environment, background, settings, width: int, height: 
         return unlit_colour(packed, background, d_) * scale + add
 
     colours = jax.vmap(one)(o, d)
+    seen = camera_sees(camera, *coords)
+    if seen is not None:
+        colours = jnp.where(seen[:, None], colours, 0.0)
     image = colours.reshape(height * width, k * k, 3).mean(axis=1).reshape(height, width, 3)
     return _output_transfer(image, settings)
 

@@ -141,6 +141,9 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
     if edges:
         if adaptive is not None:
             raise ValueError("edges=True takes a lattice of spp samples; adaptive anti-aliasing has none")
+        if scene.camera.projection not in ("perspective", "orthographic"):
+            raise ValueError(f"edges=True needs a perspective or orthographic camera; the boundary term "
+                             f"has no outline for a {scene.camera.projection} camera's rays")
         return _render_with_edges(scene, width, height, k, capacity)
     if adaptive is not None:
         if spp != 1:

@@ -1,4 +1,4 @@
-"""The camera: POV-Ray's perspective and orthographic cameras.
+"""The camera: POV-Ray's perspective, orthographic, fisheye, spherical and cylindrical cameras.
 
 The user-facing fields are the modifiers as written (``location``, ``look_at``, ``angle``…); the
 final ``direction``/``right``/``up`` vectors are computed in JAX by :meth:`Camera.frame` following
@@ -37,6 +37,10 @@ def _numpy(*xs) -> bool:
     return all(x is None or isinstance(x, np.ndarray) for x in xs)
 
 
+PROJECTIONS = ("perspective", "orthographic", "fisheye", "spherical", "cylinder 1", "cylinder 2",
+               "cylinder 3", "cylinder 4")
+
+
 class Camera(Record):
     """POV-Ray camera (left-handed: +x right, +y up, +z into the screen).
 
@@ -49,8 +53,10 @@ class Camera(Record):
         look_at:       (3,) or None.
         angle_degrees: horizontal field of view across the full image width, or None.
         transform:     camera transform applied after everything else, or None.
-        projection:    "perspective" or "orthographic" (static).
+        projection:    one of ``PROJECTIONS`` (static): "perspective", "orthographic",
+                       "fisheye", "spherical", "cylinder 1" … "cylinder 4" (semantics §1.4).
         up_or_right_given: whether the scene gave ``up`` or ``right`` (static; orthographic sizing).
+        angle_vertical: the spherical camera's vertical angle (``angle H, V``), or None (H / 2).
     """
 
     location: Float[Array, "3"] = eqx.field(converter=as_float, default=(0.0, 0.0, 0.0))
@@ -63,9 +69,10 @@ class Camera(Record):
     transform: Transform | None = None
     projection: str = eqx.field(static=True, default="perspective")
     up_or_right_given: bool = eqx.field(static=True, default=False)
+    angle_vertical: Float[Array, ""] | None = eqx.field(converter=as_float_or_none, default=None)
 
     def __check_init__(self):
-        if self.projection not in ("perspective", "orthographic"):
+        if self.projection not in PROJECTIONS:
             raise ValueError(f"unknown camera projection {self.projection!r}")
         if self.look_at is None or any(isinstance(v, jax.core.Tracer)
                                        for v in (self.look_at, self.location, self.sky)):
@@ -88,8 +95,9 @@ class Camera(Record):
         loc, d, u, r = self.location, self.direction, self.up, self.right
         xp = np if _numpy(loc, d, u, r, self.sky, self.look_at, self.angle_degrees,
                           None if self.transform is None else self.transform.matrix) else jnp
-        if self.angle_degrees is not None:
-            # |D| = |R| / (2 tan(α/2)): α is the horizontal angle across the full width
+        if self.angle_degrees is not None and self.projection in ("perspective", "orthographic"):
+            # |D| = |R| / (2 tan(α/2)): α is the horizontal angle across the full width (the other
+            # projections read their angle themselves: shading/camera.py)
             half = xp.deg2rad(self.angle_degrees) / 2
             d = _normalize(d, xp) * (_norm(r, xp) / (2 * xp.tan(half)))
         if self.look_at is not None:

@@ -247,7 +247,8 @@ def lower_camera(cam: CameraRec | None, warn) -> S.Camera:
         _fix_degenerate_sky(kwargs, warn)
     try:
         return S.Camera(**kwargs, angle_degrees=v.get("angle"), transform=_transform(cam.transform),
-                        projection=cam.projection, up_or_right_given="up" in v or "right" in v)
+                        projection=cam.projection, up_or_right_given="up" in v or "right" in v,
+                        angle_vertical=v.get("angle_vertical") if cam.projection == "spherical" else None)
     except ValueError as e:
         # the model's checks see the values in the working precision: location <0, 0, -1e-320>
         # and look_at 0 differ in float64 but not in float32 (found by benchmarks/fuzz.py)

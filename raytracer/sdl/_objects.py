@@ -545,17 +545,18 @@ def _camera_item(p, cam, k):
         cam.angle_loc = p.peek().loc
         cam.values["angle"] = float_(p)
         opt_comma(p)
-        if _starts_value(p):
-            float_(p)
-    elif kw in ("perspective", "orthographic"):
-        cam.projection = kw
-    elif kw in ("fisheye", "ultra_wide_angle", "omnimax", "panoramic", "spherical", "cylinder",
-                "mesh_camera", "user_defined"):
+        if _starts_value(p):  # the spherical camera's vertical angle
+            cam.values["angle_vertical"] = float_(p)
+    elif kw in ("perspective", "orthographic", "fisheye", "spherical"):
+        cam.projection, cam.other_projection = kw, None
+    elif kw == "cylinder":
+        loc = p.peek().loc
+        kind = as_int(p, parse_expr(p), loc, "a cylinder camera type", 1, 4)
+        cam.projection, cam.other_projection = f"cylinder {kind}", None
+    elif kw in ("ultra_wide_angle", "omnimax", "panoramic", "mesh_camera", "user_defined"):
         p.warn(kw, f"{kw} camera is rendered as perspective", k.loc)
-        cam.other_projection = kw
-        if kw == "cylinder":
-            float_(p)
-        elif kw in ("mesh_camera", "user_defined"):
+        cam.projection, cam.other_projection = "perspective", kw
+        if kw in ("mesh_camera", "user_defined"):
             skip_braces(p)
     elif kw in TRANSFORM_KEYWORDS:
         m = parse_transform_item(p, k)
