@@ -531,6 +531,25 @@ def _to_object(m, o, d):
     return matvec(m[:3, :3], o) + m[:3, 3], matvec(m[:3, :3], d)
 
 
+def _culled(one, shapes, ofw, o, d, count: int):
+    """``one`` (a member's crossings) for the ``count`` members of a group whose bounds the ray
+    enters first, +inf slots for the others: a costly kernel (an isosurface's march) paid for
+    ``count`` members a ray, not for every member (``AbstractShape.cull_to``)."""
+    def entry(shape, ofw_i):
+        oo, dd = _to_object(ofw_i, o, d)
+        return shape.entry(oo, dd)
+
+    t_entry = jax.lax.stop_gradient(jax.vmap(entry)(shapes, ofw))
+    _, nearest = jax.lax.top_k(-t_entry, count)
+    picked = jax.tree_util.tree_map(lambda a: jnp.asarray(a)[nearest], shapes)
+    t, n = jax.vmap(one)(picked, jnp.asarray(ofw)[nearest])
+    missed = ~jnp.isfinite(t_entry[nearest])[:, None]
+    t = jnp.where(missed, jnp.inf, t)
+    full_t = jnp.full((ofw.shape[0],) + t.shape[1:], jnp.inf, t.dtype).at[nearest].set(t)
+    full_n = jnp.zeros((ofw.shape[0],) + n.shape[1:], n.dtype).at[nearest].set(n)
+    return full_t, full_n
+
+
 def all_crossings(geo: PackedGeometry, o, d, members=None, world: bool = True):
     """Every crossing of the ray with every primitive not in the hierarchy, or with the members
     ``members`` (per group, an index array: a :class:`CandidateView`'s) only.
@@ -559,7 +578,11 @@ def all_crossings(geo: PackedGeometry, o, d, members=None, world: bool = True):
             t, n = shape.hits(oo, dd)
             return t, (world_normal(n, ofw_i) if world else n)
 
-        t, n = jax.vmap(one)(shapes, ofw)
+        cull = type(shapes).cull_to
+        if cull is not None and ofw.shape[0] > cull:
+            t, n = _culled(one, shapes, ofw, o, d, cull)
+        else:
+            t, n = jax.vmap(one)(shapes, ofw)
         ts.append(t.reshape(-1))
         ns.append(n.reshape(-1, 3))
         if not world:

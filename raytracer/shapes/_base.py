@@ -256,6 +256,16 @@ class AbstractShape(Record):
         define it."""
         raise NotImplementedError(f"{self.kind} has one face")
 
+    # A group of more members than this computes the crossings of only the ``cull_to`` whose bounds
+    # a ray enters first (``entry``), the others' slots empty (``shading/_geometry._culled``): for a
+    # kernel so costly a ray cannot pay it for every member (an isosurface's march). None: all.
+    cull_to: ClassVar[int | None] = None
+
+    def entry(self, o: Float[Array, "3"], d: Float[Array, "3"]) -> Float[Array, ""]:
+        """Where the line enters the shape's bounds ahead of ``o`` (0 from inside), +inf where it
+        misses them: what ``cull_to`` orders a group's members by."""
+        raise NotImplementedError(f"{self.kind} is not culled")
+
     # The acceleration structure (``shading/_accel.py``) can choose among shapes that name one of
     # its native kernels. It only chooses: the hit is then computed again by ``sub_hits``.
     native_kernel: ClassVar[int | None] = None  # one of the NATIVE_* kernels below

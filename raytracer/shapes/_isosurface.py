@@ -48,7 +48,8 @@ from ._sphere import sphere_hits
 
 MAX_STEPS = 4096  # march steps a line at most: a span of more than MAX_STEPS·accuracy steps coarser
 MAX_SLOTS = 8  # crossings kept with all_intersections
-BISECTIONS = 40  # halvings of a bracket (a step's span, far below a float's resolution after)
+CULL_TO = 8  # isosurfaces of a group a ray marches: those whose containers it enters first
+BISECTIONS = 24  # halvings of a bracket: its width (a step, at most the span) to below float32 resolution
 
 
 class Isosurface(AbstractShape):
@@ -84,6 +85,14 @@ class Isosurface(AbstractShape):
     accuracy: float = eqx.field(static=True, default=0.001)
     open: bool = eqx.field(static=True, default=False)
     slots: int = eqx.field(static=True, default=2)
+
+    # a ray marches the 8 isosurfaces whose containers it enters first (``AbstractShape.cull_to``)
+    cull_to: ClassVar[int | None] = CULL_TO
+
+    def entry(self, o, d):
+        t, _ = self._container_span(o, d)
+        ahead = jnp.isfinite(t[0]) & jnp.isfinite(t[1]) & (t[1] > 0)
+        return jnp.where(ahead, jnp.maximum(t[0], 0.0), jnp.inf)
 
     def n_crossings(self) -> int:
         return self.slots

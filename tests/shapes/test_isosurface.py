@@ -202,3 +202,38 @@ def test_a_body_that_is_not_a_function_is_an_error_at_its_place(body, message, c
     with pytest.raises(SceneError, match=message.replace("(", r"\(").replace(")", r"\)")) as e:
         load_scene(HEAD + f"isosurface {{ function {{ {body} }} }}")
     assert (e.value.location.line, e.value.location.col) == (2, col)
+
+
+def test_a_ray_marches_the_isosurfaces_whose_containers_it_enters_first(monkeypatch):
+    """A group of more isosurfaces than ``CULL_TO`` (twelve balls in a row, shuffled in the scene):
+    every ray's crossings are those of all twelve where it enters at most ``CULL_TO`` containers,
+    and its nearest crossing is the nearest of all twelve in any case."""
+    import jax
+
+    from raytracer import plan as make_plan
+    from raytracer.shading._geometry import all_crossings, pack_geometry
+    from raytracer.shapes._isosurface import CULL_TO
+
+    order = np.random.default_rng(3).permutation(12)
+    ball = "isosurface { function { sqrt(x*x + y*y + z*z) - 0.4 } contained_by { sphere { 0, 0.45 } }"
+    balls = "\n".join(f"{ball} translate <{i - 5.5}, 0, 0> }}" for i in order)
+    scene = load_scene(HEAD + balls)
+    geo = pack_geometry(make_plan(scene), jnp.float32)
+    rng = np.random.default_rng(0)
+    o = np.stack([rng.uniform(-8, 8, 64), rng.uniform(-0.3, 0.3, 64), np.full(64, -3.0)], axis=1)
+    o[:8] = (-9.0, 0.05, 0.0)  # along the row: twelve containers
+    d = np.stack([rng.uniform(-0.3, 0.3, 64), rng.uniform(-0.05, 0.05, 64), np.ones(64)], axis=1)
+    d[:8] = 0.0
+    d[:8, 0], d[:8, 1] = 1.0, rng.uniform(-0.005, 0.005, 8)
+    def crossings():  # a new program each time: cull_to is read as it is traced
+        return np.asarray(jax.jit(jax.vmap(lambda oo, dd: all_crossings(geo, oo, dd)[0]))(
+            jnp.asarray(o, jnp.float32), jnp.asarray(d, jnp.float32)))
+
+    culled = crossings()
+    monkeypatch.setattr(Isosurface, "cull_to", None)
+    every = crossings()
+    np.testing.assert_array_equal(culled.min(axis=1), every.min(axis=1))
+    assert np.isfinite(every[:8]).sum(axis=1).min() == 24  # twelve balls, two crossings each
+    assert np.isfinite(culled[:8]).sum(axis=1).max() == 2 * CULL_TO
+    few = np.isfinite(every[8:]).sum(axis=1) <= 2 * CULL_TO
+    np.testing.assert_array_equal(culled[8:][few], every[8:][few])
