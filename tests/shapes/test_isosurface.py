@@ -206,8 +206,9 @@ def test_a_body_that_is_not_a_function_is_an_error_at_its_place(body, message, c
 
 def test_a_ray_marches_the_isosurfaces_whose_containers_it_enters_first(monkeypatch):
     """A group of more isosurfaces than ``CULL_TO`` (twelve balls in a row, shuffled in the scene):
-    every ray's crossings are those of all twelve where it enters at most ``CULL_TO`` containers,
-    and its nearest crossing is the nearest of all twelve in any case."""
+    every ray's crossings are those of all twelve where it enters at most ``CULL_TO`` containers;
+    along the row, the first eight balls' (the nearest crossing is among them: a ball nearly fills
+    its container)."""
     import jax
 
     from raytracer import plan as make_plan
