@@ -202,22 +202,20 @@ def isosurface_hits(shape: Isosurface, o, d):
     crosses = jnp.isfinite(t_in) & jnp.isfinite(t_out) & (t_out > 0)
     start = jnp.where(crosses, jnp.maximum(t_in, 0.0), 0.0)
     stop = jnp.where(crosses, t_out, 0.0)
-    length = jnp.sqrt(jnp.sum(d * d))
+    length = lax.stop_gradient(jnp.sqrt(jnp.sum(d * d)))  # the march chooses; it is not differentiated
     held = jax.lax.stop_gradient(shape)
     o_h, d_h = lax.stop_gradient(o), lax.stop_gradient(d)
 
     def g(t):
         return held.value(o_h + t * d_h)
 
-    span = lax.stop_gradient(stop - start)
-    min_step = jnp.maximum(shape.accuracy / jnp.maximum(length, 1e-30), span / MAX_STEPS)
+    start_h, stop_h = lax.stop_gradient(start), lax.stop_gradient(stop)
+    min_step = jnp.maximum(shape.accuracy / jnp.maximum(length, 1e-30), (stop_h - start_h) / MAX_STEPS)
     rate = shape.max_gradient * length
 
     def cond(state):
         i, t, _, count, _ = state
         return (i < MAX_STEPS) & (t < stop_h) & (count < k)
-
-    stop_h = lax.stop_gradient(stop)
 
     def body(state):
         i, t, g_t, count, brackets = state
@@ -229,7 +227,6 @@ def isosurface_hits(shape: Isosurface, o, d):
         brackets = brackets.at[slot].set(jnp.stack([t, t_next]), mode="drop")
         return i + 1, t_next, g_next, count + crossed.astype(count.dtype), brackets
 
-    start_h = lax.stop_gradient(start)
     init = (jnp.zeros((), jnp.int32), start_h, g(start_h), jnp.zeros((), jnp.int32),
             jnp.full((k, 2), jnp.inf, dtype))
     _, _, _, count, brackets = lax.while_loop(cond, body, init)
