@@ -68,15 +68,14 @@ class _Compiler:
                 raise Unsupported(f"POV-Ray's internal function {number} (functions.inc)", loc)
             name, count, _ = INTERNAL[number]
             if len(args) != count:
-                raise Unsupported(f"{name} with {len(args)} arguments (it takes {count})", loc)
+                raise Malformed(f"expected {count} arguments to {name}, found {len(args)}", loc)
             return ("internal", number, *args)
         if fn.kind != "float":
             head = fn.tokens[0].value if fn.tokens else "function"
             raise Unsupported(f"a {head} function" if head != "internal" else
                               "POV-Ray's internal functions (functions.inc)", loc)
         if len(args) != len(fn.params):
-            raise Unsupported(f"a call with {len(args)} arguments of a function of {len(fn.params)}",
-                              loc)
+            raise Malformed(f"expected {len(fn.params)} arguments to the function, found {len(args)}", loc)
         if self.depth >= MAX_INLINE_DEPTH:
             raise Unsupported(f"functions nested deeper than {MAX_INLINE_DEPTH}", loc)
         scope = dict(zip(fn.params, args, strict=True))

@@ -195,13 +195,14 @@ def test_povrays_internal_functions_have_povrays_values():
     ("x y", "expected the end of the function body, found 'y'", 27),
     ("Nope(x)", "undeclared identifier 'Nope'", 25),
     ("min()", "expected 1 to 64 arguments to min(), found 0", 25),
+    ("G(x, y)", "expected 1 arguments to the function, found 2", 25),
 ])
 def test_a_body_that_is_not_a_function_is_an_error_at_its_place(body, message, col):
     from raytracer.sdl import SceneError
 
     with pytest.raises(SceneError, match=message.replace("(", r"\(").replace(")", r"\)")) as e:
-        load_scene(HEAD + f"isosurface {{ function {{ {body} }} }}")
-    assert (e.value.location.line, e.value.location.col) == (2, col)
+        load_scene(HEAD + "#declare G = function(s) { s * s }\n" + f"isosurface {{ function {{ {body} }} }}")
+    assert (e.value.location.line, e.value.location.col) == (3, col)
 
 
 def test_a_ray_marches_the_isosurfaces_whose_containers_it_enters_first(monkeypatch):
