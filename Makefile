@@ -20,12 +20,12 @@ demo: setup
 # The full suite, slow tests included (this is what CI runs). worksteal: an idle worker takes tests
 # from a busy one, so no file's long tests pin the run to one core; tests/conftest.py gives the run
 # one JAX compilation cache that the workers share. Three workers on two cores: tests wait on
-# POV-Ray, Mitsuba and their own subprocesses. 11.3 min on 2 cores at c34acec (docs/test-suite.md).
+# POV-Ray, Mitsuba and their own subprocesses. 10.5 min on 2 cores at 036bbe1 (docs/test-suite.md).
 test: setup
 	$(PY) -m pytest -q -n 3 --dist worksteal -p no:cacheprovider
 
 # Everything but the tests marked slow: in their files, or listed in tests/slow_tests.txt (those that
-# took 0.5 s or more in a full run; `make slow-list` measures them again). 44 s on 2 cores (941 tests).
+# took 0.5 s or more in a full run; `make slow-list` measures them again). 48 s on 2 cores (978 tests).
 test-fast: setup
 	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" -p no:cacheprovider
 
