@@ -10,6 +10,7 @@ fields the static variants) that also carries, as methods and class variables:
 ``solid``                     whether it has an inside (usable in CSG; ``inside`` is meaningful)
 ``hits(o, d)``                every crossing of the line ``o + t d`` in object space: ``t`` (K,) of
                               any sign, ``+inf`` in empty slots, and unit outward normals (K, 3)
+                              (an isosurface's: the first K ahead of ``o``, semantics §4.1)
 ``inside(p)``                 strictly inside the solid (POV-Ray semantics); False for non-solids
 ``bounds()``                  object-space ``(lo, hi)`` corners of a box holding the surface, or
                               None for unbounded shapes (planes, most quadrics); tight where
@@ -24,6 +25,8 @@ fields the static variants) that also carries, as methods and class variables:
 ``to_mitsuba(m, camera)``     its exact Mitsuba 3 equivalent, or raises :class:`NoEquivalent`
 ``silhouette_margin(o, d)``   a smooth function of a line, positive where it crosses the shape
 ``item_margin(o, d, sub)``    the same for one native item (a mesh's triangle ``sub``)
+``cull_to``, ``entry(o, d)``  a kernel too costly for every member of a group: the members a ray
+                              crosses are the ``cull_to`` whose bounds it enters first (``entry``)
 ``faces``, ``face(p)``,       the smooth pieces of its surface and which one a point lies on; the
 ``face_distance(…)``          line's crossing with one piece's whole surface (creases, edges=True)
 ============================  ========================================================================
