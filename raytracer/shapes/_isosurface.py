@@ -238,12 +238,12 @@ def isosurface_hits(shape: Isosurface, o, d):
     def crossing(t_star):
         t = differentiable_root(lambda t_: shape.value(o + t_ * d), t_star)
         p = o + t * d
-        n = safe_normalize(jax.grad(shape.value)(p), fallback=-d)
+        n = safe_normalize(jax.grad(shape.value)(p))  # (+z where ∇F vanishes: a ball's centre)
         return t, n
 
     t_in_root, n_in_root = jax.vmap(crossing)(jnp.where(found, roots, 0.0))
     t_root = jnp.where(found, t_in_root, jnp.inf)
-    n_root = jnp.where(found[:, None], n_in_root, 0.0)
+    n_root = n_in_root  # unit in every slot, as every kernel's
     if shape.open:
         return t_root, n_root
     # the container's wall where it cuts the solid: entered (ahead of o) or left inside it

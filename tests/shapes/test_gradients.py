@@ -191,6 +191,28 @@ DEGENERATE = [
 ]
 
 
+def isosurface_ball_hits(radius, half, o, d):
+    """A ball of ``radius`` (its distance function as an isosurface) in the box of ``half`` size."""
+    from raytracer.shapes._isosurface import Isosurface
+
+    ball = ("-", ("call", "sqrt", ("+", ("+", ("pow", ("arg", 0), 2), ("pow", ("arg", 1), 2)),
+                                   ("pow", ("arg", 2), 2))), ("const", 0))
+    return Isosurface(constants=radius[None], threshold=0.0, container=jnp.stack([-half, half]),
+                      expression=ball).hits(o, d)
+
+
+DEGENERATE += [
+    ("isosurface zero direction", isosurface_ball_hits, (0.8, 0.6 * jnp.ones(3), O_MINUS_Z, ZERO)),
+    ("isosurface tangent to the ball", isosurface_ball_hits,
+     (0.5, jnp.ones(3), jnp.array([0.5, 0.0, -5.0]), Z)),
+    ("isosurface along a wall of its box", isosurface_ball_hits,
+     (0.8, 0.6 * jnp.ones(3), jnp.array([0.6, 0.0, -5.0]), Z)),
+    ("isosurface from the ball's centre", isosurface_ball_hits, (0.8, jnp.ones(3), ZERO, Z)),
+    ("isosurface zero radius", isosurface_ball_hits, (0.0, jnp.ones(3), O_MINUS_Z, Z)),
+    ("isosurface zero box", isosurface_ball_hits, (0.8, jnp.zeros(3), O_MINUS_Z, Z)),
+]
+
+
 def _degenerate_groups():
     """The degenerate cases grouped by kernel, so each kernel compiles once per dtype (vmapped)."""
     groups: dict = {}
