@@ -16,7 +16,7 @@ import numpy as np
 from ._notice import DROPPED_RAYS, notice, on
 from ._packed import Packed, _placed, _plan_of
 from ._plan import Plan
-from .scene import Scene, environment_of
+from .scene import SEES_EVERYWHERE, Scene, environment_of
 from .shading._model import pack_environment, segment_factors, unlit_colour
 from .shading.camera import camera_rays, camera_sees, sample_coords
 from .shading.whitted import initial_media, make_context, slots_per_camera_ray, trace
@@ -276,7 +276,7 @@ def _background_only(scene: Scene, width: int, height: int, k: int = 1):
     """The image of a scene without a rendered object: every ray sees the background, or what the
     environment effects make of it (a sky, through fogs)."""
     environment = environment_of(scene)
-    if environment or scene.camera.projection == "fisheye":  # a colour per ray (a fisheye: or none)
+    if environment or scene.camera.projection not in SEES_EVERYWHERE:  # a colour (or none) per ray
         return _unlit_image(scene.camera, environment, scene.background, scene.settings, width, height, k)
     return _background_image(scene.background.astype(scene.camera.location.dtype), scene.settings,
                              width, height)

@@ -40,7 +40,7 @@ from ._tiles import (
     _with_room,
 )
 from ._xla import warn_if_untuned
-from .scene import Scene
+from .scene import PINHOLE, Scene
 
 PROGRESS_PARTS = 16  # a render with a progress bar runs as this many calls of one compiled program
 
@@ -141,7 +141,7 @@ def render(scene: Scene, *, width: int, height: int, spp: int = 1,
     if edges:
         if adaptive is not None:
             raise ValueError("edges=True takes a lattice of spp samples; adaptive anti-aliasing has none")
-        if scene.camera.projection not in ("perspective", "orthographic"):
+        if scene.camera.projection not in PINHOLE:
             raise ValueError(f"edges=True needs a perspective or orthographic camera; the boundary term "
                              f"has no outline for a {scene.camera.projection} camera's rays")
         return _render_with_edges(scene, width, height, k, capacity)

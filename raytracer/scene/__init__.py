@@ -22,6 +22,8 @@ from ..shapes import Sphere as Sphere
 from ..shapes import Torus as Torus
 from ..shapes import Triangle as Triangle
 from ..shapes import polygon_from_points as polygon_from_points
+from ._camera import PINHOLE as PINHOLE
+from ._camera import SEES_EVERYWHERE as SEES_EVERYWHERE
 from ._camera import Camera as Camera
 from ._lights import AreaLight as AreaLight
 from ._lights import Light as Light

@@ -37,8 +37,9 @@ def _numpy(*xs) -> bool:
     return all(x is None or isinstance(x, np.ndarray) for x in xs)
 
 
-PROJECTIONS = ("perspective", "orthographic", "fisheye", "spherical", "cylinder 1", "cylinder 2",
-               "cylinder 3", "cylinder 4")
+PINHOLE = ("perspective", "orthographic")  # a ray through a point of the image plane
+PROJECTIONS = (*PINHOLE, "fisheye", "spherical", "cylinder 1", "cylinder 2", "cylinder 3", "cylinder 4")
+SEES_EVERYWHERE = tuple(p for p in PROJECTIONS if p != "fisheye")  # a ray for every image point
 
 
 class Camera(Record):
@@ -95,7 +96,7 @@ class Camera(Record):
         loc, d, u, r = self.location, self.direction, self.up, self.right
         xp = np if _numpy(loc, d, u, r, self.sky, self.look_at, self.angle_degrees,
                           None if self.transform is None else self.transform.matrix) else jnp
-        if self.angle_degrees is not None and self.projection in ("perspective", "orthographic"):
+        if self.angle_degrees is not None and self.projection in PINHOLE:
             # |D| = |R| / (2 tan(α/2)): α is the horizontal angle across the full width (the other
             # projections read their angle themselves: shading/camera.py)
             half = xp.deg2rad(self.angle_degrees) / 2

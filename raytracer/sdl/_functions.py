@@ -18,15 +18,12 @@ from __future__ import annotations
 
 from ..patterns._expression import ARITY, INTERNAL, Expression
 from ._builtins import constant
+from ._expr import _LEVELS_PAREN, dot
 from ._lexer import ID, NUM, OP
 from ._values import FunctionValue, Vec
 
 MAX_INLINE_DEPTH = 64
 MAX_WHOLE_POWER = 16  # x^n for a written whole n up to this: repeated products (x^2 of x < 0)
-_LEVELS = {"&": 1, "|": 1, "<": 2, "<=": 2, "=": 2, "!=": 2, ">=": 2, ">": 2, "+": 3, "-": 3,
-           "*": 4, "/": 4}
-_COMPONENTS = {"x": 0, "u": 0, "red": 0, "y": 1, "v": 1, "green": 1, "z": 2, "blue": 2,
-               "filter": 3, "t": 4, "transmit": 4}
 
 
 class Unsupported(Exception):
@@ -156,7 +153,7 @@ class _Body:
             t = self.peek()
             if t is None or t.kind != OP:
                 return a
-            level = _LEVELS.get(t.value)
+            level = _LEVELS_PAREN.get(t.value)  # the interpreter's, as inside parentheses
             if level is None or level < min_level:
                 return a
             self.next()
@@ -238,10 +235,7 @@ class _Body:
         if isinstance(value, Vec) and self.is_op("."):
             self.next()
             member = self.next()
-            k = _COMPONENTS.get(member.value)
-            if k is None or k >= len(value):
-                raise Unsupported(f"the member '.{member.value}' of '{name}'", member.loc)
-            return self.c.const(value.c[k])
+            return self.c.const(dot(self.c.p, value, member.value, member.loc))  # as the interpreter reads it
         if isinstance(value, FunctionValue):
             args = tuple(self.args()) if self.is_op("(") else ()
             return self.c.inline(value, args, t.loc)

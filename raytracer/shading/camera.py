@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ..kernels import safe_normalize
-from ..scene import Camera
+from ..kernels import safe_normalize, safe_sqrt
+from ..scene import PINHOLE, SEES_EVERYWHERE, Camera
 
 
 def sample_coords(ray, width: int, height: int, k: int = 1, dtype=jnp.float32):
@@ -35,7 +35,7 @@ def camera_rays(camera: Camera, x0, y0):
     loc, d, r, u = camera.frame()
     x0 = x0[..., None]
     y0 = y0[..., None]
-    if camera.projection not in ("perspective", "orthographic"):
+    if camera.projection not in PINHOLE:
         return _curved(camera, loc, d, r, u, x0, y0)
     offset = x0 * r.reshape((1,) * (x0.ndim - 1) + (3,)) + y0 * u.reshape((1,) * (y0.ndim - 1) + (3,))
     if camera.projection == "orthographic":
@@ -51,14 +51,14 @@ def camera_sees(camera: Camera, x0, y0):
     """Whether the image point ``x0, y0`` has a ray (a fisheye's image is the disc of radius ½ in
     units of ``right`` and ``up``: outside it POV-Ray's pixels are black), or None where every
     point has one."""
-    if camera.projection != "fisheye":
+    if camera.projection in SEES_EVERYWHERE:
         return None
     _, _, r, u = camera.frame()
     return jnp.hypot(x0 * _length(r), y0 * _length(u)) <= 0.5
 
 
 def _length(v):
-    return jnp.sqrt(jnp.sum(v * v))
+    return safe_sqrt(jnp.sum(v * v))  # (a zero ``right``: a finite gradient)
 
 
 def _curved(camera: Camera, loc, d, r, u, x0, y0):

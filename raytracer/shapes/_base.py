@@ -267,7 +267,7 @@ class AbstractShape(Record):
     def entry(self, o: Float[Array, "3"], d: Float[Array, "3"]) -> Float[Array, ""]:
         """Where the line enters the shape's bounds ahead of ``o`` (0 from inside), +inf where it
         misses them: what ``cull_to`` orders a group's members by."""
-        raise NotImplementedError(f"{self.kind} is not culled")
+        raise NotImplementedError(f"{self.kind} sets no cull_to: nothing orders its members")
 
     # The acceleration structure (``shading/_accel.py``) can choose among shapes that name one of
     # its native kernels. It only chooses: the hit is then computed again by ``sub_hits``.

@@ -90,9 +90,8 @@ class Isosurface(AbstractShape):
     cull_to: ClassVar[int | None] = CULL_TO
 
     def entry(self, o, d):
-        t, _ = self._container_span(o, d)
-        ahead = jnp.isfinite(t[0]) & jnp.isfinite(t[1]) & (t[1] > 0)
-        return jnp.where(ahead, jnp.maximum(t[0], 0.0), jnp.inf)
+        _, _, crosses, start = self._span_ahead(o, d)
+        return jnp.where(crosses, start, jnp.inf)
 
     def n_crossings(self) -> int:
         return self.slots
@@ -105,12 +104,15 @@ class Isosurface(AbstractShape):
         """``F(p) − T``: negative inside."""
         return evaluate(self.expression, self.constants, (p[0], p[1], p[2])) - self.threshold
 
-    def _container_span(self, o, d):
+    def _span_ahead(self, o, d):
+        """The container's crossings ``t`` (2,) and normals, whether the line's span in it reaches
+        ahead of ``o``, and where that span starts (``o`` itself from inside)."""
         if self.sphere:
             t, n = sphere_hits(self.container[0], self.container[1, 0], o, d)
         else:
             t, n = box_hits(self.container[0], self.container[1], o, d)
-        return t, n
+        crosses = jnp.isfinite(t[0]) & jnp.isfinite(t[1]) & (t[1] > 0)
+        return t, n, crosses, jnp.where(crosses, jnp.maximum(t[0], 0.0), 0.0)
 
     def hits(self, o, d):
         return isosurface_hits(self, o, d)
@@ -197,10 +199,8 @@ def isosurface_hits(shape: Isosurface, o, d):
     k = shape.slots
     dtype = jnp.result_type(o, d, shape.constants, shape.container)
     o, d = jnp.asarray(o, dtype), jnp.asarray(d, dtype)
-    t_box, n_box = shape._container_span(o, d)
+    t_box, n_box, crosses, start = shape._span_ahead(o, d)
     t_in, t_out = t_box[0], t_box[1]
-    crosses = jnp.isfinite(t_in) & jnp.isfinite(t_out) & (t_out > 0)
-    start = jnp.where(crosses, jnp.maximum(t_in, 0.0), 0.0)
     stop = jnp.where(crosses, t_out, 0.0)
     length = lax.stop_gradient(jnp.sqrt(jnp.sum(d * d)))  # the march chooses; it is not differentiated
     held = jax.lax.stop_gradient(shape)

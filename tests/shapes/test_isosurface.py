@@ -72,7 +72,7 @@ def _compiled(body, declares=""):
     ("pow(x, 3) + x^-2 + pow(abs(y) + 1, 0.5) + exp(z) + ln(2 + y) + log(10 + x)",
      lambda x, y, z: x ** 3 + x ** -2.0 + np.sqrt(np.abs(y) + 1) + np.exp(z) + np.log(2 + y)
      + np.log10(10 + x)),
-    ("F(y, x) + K * G(z) + u * v", lambda x, y, z: (y - 2 * x) + 1.5 * z * z + x * y),
+    ("F(y, x) + K * G(z) + u * v + V.y * z", lambda x, y, z: (y - 2 * x) + 1.5 * z * z + x * y + 2 * z),
     ("atan2(y, x) + sin(x) * cos(y) + tan(z / 4) + sqrt(x * x + 1) + floor(y * 3) + ceil(z * 3)"
      " + int(-x * 3)",
      lambda x, y, z: np.arctan2(y, x) + np.sin(x) * np.cos(y) + np.tan(z / 4) + np.sqrt(x * x + 1)
@@ -80,9 +80,10 @@ def _compiled(body, declares=""):
 ])
 def test_functions_compile_to_their_closed_forms(body, expected):
     """POV-Ray's precedence (``^`` above unary minus and ``*``), comparisons, ``&``, ``|``, ``!``,
-    ``?:``, the built-ins, user functions with their own parameters inlined, declared floats,
-    ``u``/``v`` as ``x``/``y``; a written whole power of a negative number is defined."""
-    declares = ("#declare K = 1.5;\n#declare F = function(a, b) { a - 2 * b }\n"
+    ``?:``, the built-ins, user functions with their own parameters inlined, declared floats and a
+    declared vector's component, ``u``/``v`` as ``x``/``y``; a written whole power of a negative
+    number is defined."""
+    declares = ("#declare K = 1.5;\n#declare V = <1, 2, 3>;\n#declare F = function(a, b) { a - 2 * b }\n"
                 "#declare G = function(s) { s * s }\n")
     shape = _compiled(body, declares)
     rng = np.random.default_rng(1)
