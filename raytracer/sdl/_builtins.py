@@ -14,7 +14,7 @@ import numpy as np
 
 from ._convert import as_float, as_int, as_vector, check_string_length, fmt_number, type_name
 from ._lexer import EOF, OP
-from ._values import ArrayValue, ObjRec, RandStream, Vec
+from ._values import ArrayValue, ObjRec, RandStream, Vec, seed_state
 
 MAX_FORMAT_WIDTH = 1000  # str()/vstr() width and decimal places: beyond it only padding grows
 
@@ -350,7 +350,7 @@ def _datetime(p, tok):
 
 def _seed(p, tok):
     (a,) = _floats(p, tok, 1)
-    return RandStream(int(a) & 0xFFFFFFFF)
+    return RandStream(seed_state(a))
 
 
 def _rand(p, tok):

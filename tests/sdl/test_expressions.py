@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from raytracer.errors import SceneError
@@ -101,12 +102,19 @@ def test_image_size_and_version_constants():
     assert value("#version 3.6; #declare R = version;") == pytest.approx(3.6)
 
 
-def test_rand_is_deterministic_and_in_unit_interval():
-    a = value("#declare S = seed(7); #declare R = <rand(S), rand(S), rand(S)>;")
-    b = value("#declare S = seed(7); #declare R = <rand(S), rand(S), rand(S)>;")
-    assert a == b
-    assert all(0.0 <= v <= 1.0 for v in a)
-    assert len(set(a)) == 3
+@pytest.mark.parametrize("seed, expected", [
+    # POV-Ray 3.7's #debug of str(rand(S), 0, 12), three values a seed
+    ("0", (0.000002874294, 0.466563684509, 0.249070228834)),
+    ("3", (0.265972876983, 0.528236225603, 0.499548188993)),
+    ("-3", (0.734032871838, 0.404891143414)),
+    ("-2.5", (0.156022872579, 0.425448657113)),  # truncated towards 0
+    ("1e10", (0.500002874411, 0.966563684625)),  # beyond 32 bits: -2^31
+    ("123456789", (0.498219878063, 0.096967906481)),
+])
+def test_rand_is_povrays_sequence(seed, expected):
+    calls = ", ".join(["rand(S)"] * len(expected))
+    got = value(f"#declare S = seed({seed}); #declare R = array[{len(expected)}] {{ {calls} }};")
+    np.testing.assert_allclose(got.data, expected, atol=1e-12)
 
 
 def test_defined_and_arrays():
