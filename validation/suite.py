@@ -149,6 +149,7 @@ SCENES: tuple[SuiteScene, ...] = (
     _example("texture_map", povray=POV_BAR),
     _example("lathe", povray=POV_BAR),
     _example("isosurface", povray=POV_BAR),
+    _example("blob", povray=POV_BAR),
 )
 
 

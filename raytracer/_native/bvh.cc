@@ -1049,6 +1049,199 @@ inline double lathe_hit(const PrismD<T>& P, const RayD& r, double tmin, double t
   return best < tmax ? best : INFINITY;
 }
 
+// ------------------------------------------------------------------------------------ blob
+// Components' fields summed (shapes/_blob.py): params[12] = N, params[13] = the threshold, and
+// from params + 24 each component's BLOB_STRIDE numbers: strength, r², the map of the blob's
+// space into the component's (3×3 row-major, then its offset: q = M p + m, from the axis's first
+// end), the axis's unit direction and length (0: a sphere). Along the line each component's field
+// is a quartic of the line's parameter on its pieces' intervals (caps and body); between
+// consecutive ends of those intervals the field is one quartic, expanded about the segment's
+// middle from the pieces covering it and solved there (its turning points split it into
+// monotone pieces, each bisected): the JAX kernel's method, with every piece at once.
+constexpr int BLOB_STRIDE = 18;
+
+struct BlobPiece {
+  double lo, hi, s, r2;
+  double P[3], V[3];
+};
+
+// s where lo <= u0 + s u1 <= hi, intersected into [a, b]; false where empty.
+inline bool blob_slab(double u0, double u1, double lo, double hi, double& a, double& b) {
+  if (u1 == 0.0) return u0 >= lo && u0 <= hi;
+  double x = (lo - u0) / u1, y = (hi - u0) / u1;
+  if (x > y) std::swap(x, y);
+  a = std::max(a, x);
+  b = std::min(b, y);
+  return a < b;
+}
+
+template <typename T>
+inline double blob_field(const T* params, const double* x) {
+  const int n = static_cast<int>(params[12]);
+  double total = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const T* c = params + 24 + BLOB_STRIDE * k;
+    const double s = c[0], r2 = c[1];
+    if (s == 0.0 || !(r2 > 0.0)) continue;
+    double q[3];
+    for (int i = 0; i < 3; ++i)
+      q[i] = c[2 + 3 * i] * x[0] + c[3 + 3 * i] * x[1] + c[4 + 3 * i] * x[2] + c[11 + i];
+    const double len = c[17];
+    const double u = std::min(std::max(q[0] * c[14] + q[1] * c[15] + q[2] * c[16], 0.0), len);
+    for (int i = 0; i < 3; ++i) q[i] -= u * c[14 + i];
+    const double ratio = dot3(q, q) / r2;
+    if (ratio < 1.0) total += s * (1.0 - ratio) * (1.0 - ratio);
+  }
+  return total;
+}
+
+// The roots of the quartic c[0] s⁴ + … + c[4] in [a, b) in ascending order; returns how many.
+inline int quartic_roots_in(const double* c, double a, double b, double* out) {
+  auto f = [&](double s) { return (((c[0] * s + c[1]) * s + c[2]) * s + c[3]) * s + c[4]; };
+  auto f1 = [&](double s) { return ((4.0 * c[0] * s + 3.0 * c[1]) * s + 2.0 * c[2]) * s + c[3]; };
+  // p'' = 12 c0 s² + 6 c1 s + 2 c2: its roots split [a, b] into pieces where p' is monotone
+  double cuts[4];
+  int nc = 0;
+  const double qa = 12.0 * c[0], qb = 6.0 * c[1], qc = 2.0 * c[2];
+  if (qa != 0.0) {
+    const double disc = qb * qb - 4.0 * qa * qc;
+    if (disc > 0.0) {
+      const double qq = -0.5 * (qb + std::copysign(std::sqrt(disc), qb));
+      double r1 = qq / qa, r2 = qq != 0.0 ? qc / qq : r1;
+      if (r1 > r2) std::swap(r1, r2);
+      if (r1 > a && r1 < b) cuts[nc++] = r1;
+      if (r2 > a && r2 < b && r2 != r1) cuts[nc++] = r2;
+    }
+  } else if (qb != 0.0) {
+    const double r1 = -qc / qb;
+    if (r1 > a && r1 < b) cuts[nc++] = r1;
+  }
+  double turns[6];
+  int nt = 0;
+  turns[nt++] = a;
+  double lo = a;
+  for (int k = 0; k <= nc; ++k) {
+    const double hi = k < nc ? cuts[k] : b;
+    const double flo = f1(lo), fhi = f1(hi);
+    if (flo != 0.0 && (flo < 0.0) != (fhi < 0.0)) turns[nt++] = bisect_sign(f1, lo, hi, flo, 0.0, 64);
+    lo = hi;
+  }
+  turns[nt++] = b;
+  int n = 0;
+  for (int k = 0; k + 1 < nt; ++k) {
+    const double x0 = turns[k], x1 = turns[k + 1];
+    if (!(x1 > x0)) continue;
+    const double f0 = f(x0), fx = f(x1);
+    if (f0 == 0.0) {
+      out[n++] = x0;
+    } else if ((f0 < 0.0) != (fx < 0.0) && fx != 0.0) {
+      out[n++] = bisect_sign(f, x0, x1, f0, 0.0, 64);
+    }
+  }
+  return n;
+}
+
+template <typename T>
+inline double blob_hit(const T* params, const RayD& r, double tmin, double tmax) {
+  const int n = static_cast<int>(params[12]);
+  const double threshold = params[13];
+  const double len = std::sqrt(dot3(r.d, r.d));
+  if (!(len > 0.0) || n <= 0) return INFINITY;
+  const double u[3] = {r.d[0] / len, r.d[1] / len, r.d[2] / len};
+  const double s_min = tmin * len, s_max = std::isfinite(tmax) ? tmax * len : INFINITY;
+  thread_local std::vector<BlobPiece> pieces;
+  thread_local std::vector<std::pair<double, int>> events;
+  pieces.clear();
+  for (int k = 0; k < n; ++k) {
+    const T* c = params + 24 + BLOB_STRIDE * k;
+    const double s = c[0], r2 = c[1];
+    if (s == 0.0 || !(r2 > 0.0)) continue;
+    double P[3], V[3];
+    for (int i = 0; i < 3; ++i) {
+      P[i] = c[2 + 3 * i] * r.o[0] + c[3 + 3 * i] * r.o[1] + c[4 + 3 * i] * r.o[2] + c[11 + i];
+      V[i] = c[2 + 3 * i] * u[0] + c[3 + 3 * i] * u[1] + c[4 + 3 * i] * u[2];
+    }
+    const double ax[3] = {c[14], c[15], c[16]}, length = c[17];
+    const double u0 = dot3(P, ax), u1 = dot3(V, ax);
+    for (int part = 0; part < (length > 0.0 ? 3 : 1); ++part) {
+      BlobPiece pc;
+      pc.s = s;
+      pc.r2 = r2;
+      for (int i = 0; i < 3; ++i) {
+        pc.P[i] = part == 1 ? P[i] - u0 * ax[i] : part == 2 ? P[i] - length * ax[i] : P[i];
+        pc.V[i] = part == 1 ? V[i] - u1 * ax[i] : V[i];
+      }
+      double a = s_min, b = s_max;
+      if (length > 0.0) {
+        const double lo = part == 0 ? -INFINITY : part == 1 ? 0.0 : length;
+        const double hi = part == 0 ? 0.0 : part == 1 ? length : INFINITY;
+        if (!blob_slab(u0, u1, lo, hi, a, b)) continue;
+      }
+      // where |P + s V|² < r²
+      const double vv = dot3(pc.V, pc.V);
+      if (vv > 0.0) {
+        const double mid = -dot3(pc.P, pc.V) / vv;
+        double f[3];
+        for (int i = 0; i < 3; ++i) f[i] = pc.P[i] + mid * pc.V[i];
+        const double room = r2 - dot3(f, f);
+        if (!(room > 0.0)) continue;
+        const double half = std::sqrt(room / vv);
+        a = std::max(a, mid - half);
+        b = std::min(b, mid + half);
+      } else if (!(dot3(pc.P, pc.P) < r2)) {
+        continue;
+      }
+      if (!(a < b)) continue;
+      pc.lo = a;
+      pc.hi = b;
+      pieces.push_back(pc);
+    }
+  }
+  if (pieces.empty()) return INFINITY;
+  events.clear();
+  for (int k = 0; k < static_cast<int>(pieces.size()); ++k) {
+    events.emplace_back(pieces[k].lo, k + 1);
+    events.emplace_back(pieces[k].hi, -(k + 1));
+  }
+  std::sort(events.begin(), events.end());
+  thread_local std::vector<int> active;
+  active.clear();
+  for (size_t e = 0; e + 1 < events.size(); ++e) {
+    const int id = events[e].second;
+    if (id > 0) {
+      active.push_back(id - 1);
+    } else {
+      active.erase(std::find(active.begin(), active.end(), -id - 1));
+    }
+    const double a = events[e].first, b = events[e + 1].first;
+    if (!(b > a) || active.empty()) continue;
+    const double mid = 0.5 * (a + b), half = 0.5 * (b - a);
+    double c[5] = {0.0, 0.0, 0.0, 0.0, -threshold};
+    double top = 0.0;
+    for (int k : active) {
+      const BlobPiece& pc = pieces[k];
+      double P[3];
+      for (int i = 0; i < 3; ++i) P[i] = pc.P[i] + mid * pc.V[i];
+      const double qa = half * half * dot3(pc.V, pc.V) / pc.r2, qb = 2.0 * half * dot3(P, pc.V) / pc.r2;
+      const double qc = dot3(P, P) / pc.r2;
+      c[0] += pc.s * qa * qa;
+      c[1] += pc.s * 2.0 * qa * qb;
+      c[2] += pc.s * (qb * qb + 2.0 * qa * qc - 2.0 * qa);
+      c[3] += pc.s * (2.0 * qb * qc - 2.0 * qb);
+      c[4] += pc.s * (qc * qc - 2.0 * qc + 1.0);
+      top += std::max(pc.s, 0.0);
+    }
+    if (top < threshold) continue;  // the field here cannot reach the threshold
+    double roots[4];
+    const int nr = quartic_roots_in(c, -1.0, 1.0, roots);
+    for (int k = 0; k < nr; ++k) {
+      const double t = (mid + roots[k] * half) / len;
+      if (t > tmin && t < tmax) return t;
+    }
+  }
+  return INFINITY;
+}
+
 // The 35 coefficients of a polynomial item (its two rows: see above), in double.
 template <typename T>
 inline void poly_coefficients(const T* params, double* c) {
@@ -1076,6 +1269,7 @@ inline double item_hit(int32_t kind, const T* params, const double* o, const dou
     return prism_hit(P, r, tmin, tmax);
   }
   if (kind == KIND_LATHE) return lathe_hit(prism_of(params), r, tmin, tmax);
+  if (kind == KIND_BLOB) return blob_hit(params, r, tmin, tmax);
   const double* q = p + 12;
   double t0 = INFINITY, t1 = INFINITY;
   if (kind == KIND_SPHERE) {
@@ -1213,6 +1407,7 @@ inline bool item_inside(int32_t kind, const T* params, const double* pw) {
     const PrismD<T> P = prism_of(params);
     return prism_filled(P, std::sqrt(x[0] * x[0] + x[2] * x[2]), x[1]);
   }
+  if (kind == KIND_BLOB) return blob_field(params, x) > static_cast<double>(params[13]);
   if (kind == KIND_PRISM) {
     const PrismD<T> P = prism_of(params);
     if (P.open) return false;

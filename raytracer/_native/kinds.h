@@ -16,4 +16,5 @@ constexpr int KIND_QUADRIC = 9;  // A … J of Q(x) = 0 (shapes/_quadric.py): a 
 constexpr int KIND_POLY = 10;    // 35 coefficients, two rows (see polynomial): a member of a CSG unit only
 constexpr int KIND_PRISM = 11;   // a swept outline (prism, text) over several rows: see bvh.cc's prism
 constexpr int KIND_LATHE = 12;  // a turned curve: a prism's layout (header, controls (r, y), senses)
+constexpr int KIND_BLOB = 13;   // summed component fields: a header (N, threshold), then N components
 constexpr int KIND_NONE = -1;    // a row that continues the item before it: never hit, never inside

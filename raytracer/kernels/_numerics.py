@@ -284,11 +284,24 @@ def solve_quartic(
     lo = lax.stop_gradient(jnp.asarray(lo, coeffs.dtype))
     hi = lax.stop_gradient(jnp.asarray(hi, coeffs.dtype))
     iterations = jnp.finfo(coeffs.dtype).nmant + 4
+    f0 = (lambda s: _horner(coeffs, s)) if f is None else f
+    crit = quartic_turns(coeffs, lo, hi)
+    splits = jnp.concatenate([lo[None], crit, hi[None]])
+    roots, has_root = _bisect(f0, splits[:-1], splits[1:], iterations)
+    return jnp.where(has_root, roots, jnp.inf), has_root
+
+
+def quartic_turns(coeffs: Float[Array, "5"], lo: ArrayLike, hi: ArrayLike) -> Float[Array, "3"]:
+    """Three points of ``[lo, hi]`` ascending that split it into four pieces on which the quartic
+    (``coeffs`` highest first) is monotone: its turning points there, and where it has fewer, the
+    start of a piece on which it has none (:func:`solve_quartic`'s method). No gradient."""
+    coeffs = lax.stop_gradient(jnp.asarray(coeffs))
+    lo = lax.stop_gradient(jnp.asarray(lo, coeffs.dtype))
+    hi = lax.stop_gradient(jnp.asarray(hi, coeffs.dtype))
+    iterations = jnp.finfo(coeffs.dtype).nmant + 4
     degree = jnp.arange(4, 0, -1).astype(coeffs.dtype)
     d1 = coeffs[:4] * degree  # p'  (cubic)
     d2 = d1[:3] * degree[1:]  # p'' (quadratic)
-    f0 = (lambda s: _horner(coeffs, s)) if f is None else f
-
     x0, x1, _ = solve_quadratic(d2[0], d2[1], d2[2])
     # Unused splits collapse onto hi, leaving empty pieces that cannot hold a sign change of p'.
     x0, x1 = jnp.clip(x0, lo, hi), jnp.clip(x1, lo, hi)
@@ -296,10 +309,7 @@ def solve_quartic(
     cubic_hi = jnp.stack([x0, x1, hi])
     crit, has_crit = _bisect(lambda s: _horner(d1, s), cubic_lo, cubic_hi, iterations)
     # Where p' keeps its sign on a piece, p is monotone across it and the piece's start serves as a split.
-    crit = jnp.where(has_crit, crit, cubic_lo)
-    splits = jnp.concatenate([lo[None], crit, hi[None]])
-    roots, has_root = _bisect(f0, splits[:-1], splits[1:], iterations)
-    return jnp.where(has_root, roots, jnp.inf), has_root
+    return jnp.where(has_crit, crit, cubic_lo)
 
 
 def centred_line(o: Array, d: Array):

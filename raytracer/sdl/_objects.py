@@ -353,7 +353,7 @@ class _ShapeArgs:
     def texture(self, identifier: str | None = None) -> None:
         """A part's ``texture { … }`` or texture identifier; only an identifier where ``identifier``
         names the list it is read in (``texture_list``)."""
-        p, rec = self._p, self._rec
+        p = self._p
         loc = p.peek().loc
         tex = p.lookup(p.peek().value) if p.peek().kind == ID and not p.is_op("{") else None
         if isinstance(tex, TextureRec):
@@ -362,11 +362,46 @@ class _ShapeArgs:
             raise p.error(f"expected a texture identifier in {identifier}, found {p.peek().describe()}", loc)
         else:
             tex = parse_texture(p, p.default_layer)
+        self._part_texture(list(tex.layers), loc)
+
+    def _part_texture(self, layers, loc) -> None:
+        p, rec = self._p, self._rec
         if not rec.flags.get("_part_texture_seen"):
             rec.flags["_part_texture_seen"] = True
             p.warn(f"{rec.kind} texture", f"per-part {rec.kind} textures are not supported; the first one "
                    f"is used for the whole {rec.kind}", loc)
-            rec.layers = list(tex.layers)
+            rec.layers = layers
+
+    def part(self, what: str) -> np.ndarray:
+        p = self._p
+        matrix = np.eye(4)
+        while True:
+            t = p.peek()
+            if t.kind == OP and t.value == "}":
+                p.next()
+                return matrix
+            if t.kind == EOF:
+                raise p.error(f"expected '}}' to close the {what}, found end of file", t.loc)
+            if t.kind != ID:
+                raise p.error(f"expected a {what} modifier, found {t.describe()}", t.loc)
+            p.next()
+            if t.value in TRANSFORM_KEYWORDS:
+                matrix = parse_transform_item(p, t) @ matrix
+            elif t.value == "texture":
+                self._part_texture(list(parse_texture(p, p.default_layer).layers), t.loc)
+            elif t.value in ("pigment", "finish", "normal"):
+                d = p.default_layer
+                layer = LayerRec(d.pigment, dict(d.finish), d.normal)
+                if t.value == "pigment":
+                    layer = dataclasses.replace(layer, pigment=parse_pigment(p, layer.pigment))
+                elif t.value == "finish":
+                    layer = dataclasses.replace(layer, finish=parse_finish(p, layer.finish))
+                else:
+                    layer = dataclasses.replace(layer, normal=parse_normal(p, layer.normal))
+                self._part_texture([layer], t.loc)
+            else:
+                raise p.error(f"expected a {what} modifier (a transform, texture, pigment, finish or "
+                              f"normal), found '{t.value}'", t.loc)
 
     def skip_block(self) -> None:
         skip_braces(self._p)

@@ -14,6 +14,7 @@ from ._base import MitsubaShape as MitsubaShape
 from ._base import NoEquivalent as NoEquivalent
 from ._base import ShapeArgs as ShapeArgs
 from ._base import world_bounds as world_bounds
+from ._blob import Blob as Blob
 from ._box import Box as Box
 from ._box import box_hits as box_hits
 from ._box import box_inside as box_inside
@@ -60,7 +61,7 @@ from ._triangle import triangle_hits as triangle_hits
 
 _SHAPES: tuple[type[AbstractShape], ...] = (
     Sphere, Plane, Box, Cylinder, Cone, Quadric, Torus, Disc, Triangle, SmoothTriangle, Polygon, Mesh,
-    Superellipsoid, Poly, Prism, Text, Lathe, Isosurface,
+    Superellipsoid, Poly, Prism, Text, Lathe, Isosurface, Blob,
 )
 
 REGISTRY: dict[str, type[AbstractShape]] = {cls.kind: cls for cls in _SHAPES}

@@ -145,6 +145,12 @@ class ShapeArgs(Protocol):
     def leave_out(self, message: str) -> None:
         """The object is dropped from the scene (with a warning naming it)."""
 
+    def part(self, what: str) -> np.ndarray:
+        """A part's modifiers up to and including its closing ``}`` (a blob component's): its
+        transforms, returned as one (4, 4) matrix applied to the part's column points, and its
+        ``texture``, ``pigment``, ``finish`` and ``normal``, which follow the rule of
+        :meth:`texture` (the first part's texture for the whole object, warned)."""
+
     def function(self, n_args: int = 3) -> tuple[tuple, tuple[float, ...]]:
         """``function { … }`` compiled: ``(expression, constants)``
         (``raytracer.patterns._expression``), called with ``n_args`` arguments (x, y, z). A
@@ -367,6 +373,7 @@ NATIVE_QUADRIC = _KINDS["QUADRIC"]  # unbounded, as a plane: only a member of a 
 NATIVE_POLY = _KINDS["POLY"]  # unbounded, as a plane; two rows of parameters (``native_rows``)
 NATIVE_PRISM = _KINDS["PRISM"]  # a swept outline over several rows (``n_native_rows``)
 NATIVE_LATHE = _KINDS["LATHE"]  # a turned curve, laid out as a prism's item
+NATIVE_BLOB = _KINDS["BLOB"]  # summed component fields over several rows (``n_native_rows``)
 UNBOUNDED_KERNELS = frozenset({NATIVE_PLANE, NATIVE_QUADRIC, NATIVE_POLY})
 
 

@@ -812,14 +812,21 @@ difference { box { <-0.3, -0.3, -1.2>, <2.8, 0, -0.5> }
              pigment { rgb <0.4, 0.7, 0.9> } }
 lathe { cubic_spline 8, <0, -0.5>, <0, 0>, <0.5, 0.2>, <0.2, 0.5>, <0.45, 0.9>, <0.1, 1.1>, <0, 1.2>, <0, 1.5>
         translate <0.7, -0.3, 0.7> pigment { rgb <0.3, 0.9, 0.4> } }
+blob { threshold 0.5 sphere { 0, 0.5, 1.5 scale <1, 1.4, 1> }
+       cylinder { <-0.5, 0, 0>, <0.4, 0.3, 0>, 0.25, 1 } sphere { <0.1, 0.2, -0.2>, 0.3, -1 }
+       translate <2.7, 0.2, 0.6> pigment { rgb <0.9, 0.3, 0.8> } }
+difference { box { <-0.9, -0.3, -0.2>, <-0.2, 0.4, 0.5> }
+             blob { threshold 0.4 sphere { 0, 0.4, 1 } cylinder { <0, 0, 0>, <0, 0.6, 0>, 0.15, 1 }
+                    translate <-0.55, 0.35, 0.1> }
+             pigment { rgb <0.9, 0.9, 0.3> } }
 """
 
 
 @pytest.mark.skipif(ACCEL != "native", reason="the prism kernel is the native hierarchy's")
-def test_prisms_text_and_lathes_in_the_hierarchy_give_the_candidate_paths_image(tmp_path, monkeypatch):
-    """Text, a conic cubic prism, a cubic lathe, and text and a lathe cut from a box by CSG (the
-    native prism and lathe kernels: walls, caps, the inside test of a CSG member), chosen by the
-    hierarchy: the candidate path's pixels."""
+def test_prisms_text_lathes_and_blobs_in_the_hierarchy_give_the_candidate_paths_image(tmp_path, monkeypatch):
+    """Text, a conic cubic prism, a cubic lathe, a blob, and text, a lathe and a blob cut from boxes
+    by CSG (the native prism, lathe and blob kernels: walls, caps, the inside test of a CSG
+    member), chosen by the hierarchy: the candidate path's pixels."""
     path = tmp_path / "pt.pov"
     path.write_text(PRISMS_AND_TEXT)
     scene = load_scene(path, width=32, height=24)
@@ -830,5 +837,6 @@ def test_prisms_text_and_lathes_in_the_hierarchy_give_the_candidate_paths_image(
     geo = pack_geometry(make_plan(scene), jnp.float32)
     assert sum(g.kind in ("prism", "text") and g.accelerated for g in geo.groups) >= 2
     assert any(g.kind == "lathe" and g.accelerated for g in geo.groups)
+    assert any(g.kind == "blob" and g.accelerated for g in geo.groups)
     assert np.abs(out["none"]).max() > 0.1
     assert (np.abs(out["native"] - out["none"]).max(axis=-1) > 1e-4).sum() == 0

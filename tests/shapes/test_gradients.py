@@ -213,6 +213,29 @@ DEGENERATE += [
 ]
 
 
+def blob_hits(radius, strength, o, d):
+    """A blob of a sphere (``radius``, ``strength``) at the origin and a cylinder along y."""
+    from raytracer.shapes import Blob
+
+    ends = jnp.stack([jnp.zeros((2, 3)), jnp.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])])
+    return Blob(strength=jnp.stack([strength, jnp.ones_like(strength)]),
+                radius=jnp.stack([radius, 0.5 * jnp.ones_like(radius)]), ends=ends,
+                placement=jnp.broadcast_to(jnp.eye(4)[:3], (2, 3, 4)), threshold=0.5,
+                cylinders=True).hits(o, d)
+
+
+DEGENERATE += [
+    ("blob zero direction", blob_hits, (1.0, 2.0, O_MINUS_Z, ZERO)),
+    ("blob along the cylinder's axis", blob_hits, (1.0, 2.0, 5 * Y, -Y)),
+    ("blob across the cylinder's axis", blob_hits, (1.0, 2.0, jnp.array([0.0, 0.5, -5.0]), Z)),
+    ("blob tangent to the sphere", blob_hits,
+     (1.0, 0.5 / (1 - 0.64) ** 2, jnp.array([0.8, 0.0, -5.0]), Z)),
+    ("blob from the centre", blob_hits, (1.0, 2.0, ZERO, Z)),
+    ("blob zero radius", blob_hits, (0.0, 2.0, O_MINUS_Z, Z)),
+    ("blob zero strength", blob_hits, (1.0, 0.0, O_MINUS_Z, Z)),
+]
+
+
 def _degenerate_groups():
     """The degenerate cases grouped by kernel, so each kernel compiles once per dtype (vmapped)."""
     groups: dict = {}
