@@ -416,7 +416,7 @@ def _smallest(key, k):
 
     def pick(i, state):
         rest, values, indices = state
-        j = jnp.argmin(rest)
+        j = jnp.argmin(rest).astype(jnp.int32)
         return rest.at[j].set(jnp.inf), values.at[i].set(rest[j]), indices.at[i].set(j)
 
     init = (key, jnp.zeros(k, key.dtype), jnp.zeros(k, jnp.int32))

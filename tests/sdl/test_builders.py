@@ -258,8 +258,9 @@ def test_shapes():
 
 def test_unsupported_objects_are_parsed_and_left_out():
     s = load_scene("sor { 4, <0,0>, <1,1>, <1,2>, <0,3> } sphere { 0, 1 } "
-                   "union { blob { sphere { 0, 1, 1 } } box { 0, 1 } }")
-    assert [w.feature for w in s.warnings] == ["sor", "blob"]
+                   "union { bicubic_patch { type 1 flatness 0.1 u_steps 2 v_steps 2 "
+                   + ", ".join(["<0,0,0>"] * 16) + " } box { 0, 1 } }")
+    assert [w.feature for w in s.warnings] == ["sor", "bicubic_patch"]
     assert len(s.objects) == 2 and len(s.objects[1].children) == 1
 
 
