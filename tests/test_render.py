@@ -715,7 +715,7 @@ def test_a_packed_scene_is_placed_on_the_device_once_and_its_image_stays_movable
 
 
 def test_a_scene_with_nothing_to_render_is_its_background_through_the_output_transfer():
-    """Every object left out (a blob: not rendered yet): the background, raised to
+    """Every object left out (a bicubic patch: not rendered yet): the background, raised to
     assumed_gamma as POV-Ray writes it to a linear EXR (semantics §3.1), from render and from
     compile_render (whose program is compiled with it, not on the first call)."""
     from raytracer._plan import make_plan
@@ -724,7 +724,8 @@ def test_a_scene_with_nothing_to_render_is_its_background_through_the_output_tra
     scene = rt.load_scene("""#version 3.7; global_settings { assumed_gamma 2.2 }
 camera { location -5 * z look_at 0 }
 background { rgb <0.5, 0.25, 1> }
-blob { threshold 0.5 sphere { 0, 1, 1 } pigment { rgb 1 } }
+bicubic_patch { type 1 flatness 0.1 u_steps 2 v_steps 2 """ + ", ".join(["<0, 0, 0>"] * 16) + """
+  pigment { rgb 1 } }
 """)
     assert not any(p.rendered for p in make_plan(scene).prims)
     want = np.broadcast_to(np.array([0.5, 0.25, 1.0]) ** 2.2, (6, 8, 3))

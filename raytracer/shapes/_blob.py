@@ -327,6 +327,8 @@ def _pieces_field(shape: Blob, frames, pieces, p):
     a component taken with all its pieces adds its field once."""
     m_lin, m_off, unit, length = frames
     n = shape.strength.shape[0]
+    taken = pieces >= 0  # −1: no piece
+    pieces = jnp.maximum(pieces, 0)
     comp, part = pieces % n, pieces // n
     q = jnp.einsum("nij,j->ni", m_lin[comp], p) + m_off[comp]
     if shape.cylinders:
@@ -340,7 +342,7 @@ def _pieces_field(shape: Blob, frames, pieces, p):
         region = part == 0
     r_sq = jnp.asarray(shape.radius)[comp] ** 2
     ratio = jnp.sum(q * q, -1) / jnp.where(r_sq > 0, r_sq, 1.0)
-    near = region & (ratio < 1.0) & (r_sq > 0)
+    near = taken & region & (ratio < 1.0) & (r_sq > 0)
     falloff = jnp.where(near, 1.0 - ratio, 0.0)
     strength = jnp.asarray(shape.strength)[comp]
     return jnp.sum(jnp.where(near & (strength != 0), strength * falloff * falloff, 0.0))
@@ -448,7 +450,9 @@ def _window(line: _Line, s0):
     seg_mid = jnp.where(finite, seg_mid, 0.0)
     seg_half = jnp.where(finite, seg_half, 1.0)
     covers = (c_lo[None, :] <= seg_lo[:, None]) & (c_hi[None, :] >= seg_hi[:, None]) & finite[:, None]
-    window = (*line.terms(chosen), chosen)
+    # (pieces the line does not reach are numbered −1: the root's field leaves them out; an
+    # exhausted selection repeats an index)
+    window = (*line.terms(chosen), jnp.where(reach, chosen, -1))
     return window, seg_lo, seg_mid, seg_half, finite, covers, s_next
 
 
@@ -512,7 +516,7 @@ def blob_hits(shape: Blob, o, d):
         return (count + jnp.sum(ok).astype(count.dtype), found, near), s_next
 
     width = min(WINDOW, line.lo.shape[0])
-    init = (jnp.zeros((), jnp.int32), jnp.full((k,), jnp.inf, dtype), jnp.zeros((k, width), jnp.int32))
+    init = (jnp.zeros((), jnp.int32), jnp.full((k,), jnp.inf, dtype), jnp.full((k, width), -1, jnp.int32))
     count, found_s, near = _windows(line, step, init,
                               lambda state: state[0] < k)
     found = (jnp.arange(k) < count) & line.moving
